@@ -1,0 +1,1 @@
+"""The vipsm-robot application: CLI, config, control loop, field log, status server."""

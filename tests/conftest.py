@@ -1,0 +1,43 @@
+"""Shared fixtures: the real recorded data in ../shared/data and real-device discovery."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def shared_data_dir() -> Path:
+    """``../shared/data`` beside the repository, or ``$VIPSM_SHARED_DATA``."""
+    override = os.environ.get("VIPSM_SHARED_DATA")
+    return Path(override) if override else REPO_ROOT.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    path = shared_data_dir()
+    if not path.is_dir():
+        pytest.skip(f"real recorded data not found at {path} (set VIPSM_SHARED_DATA to its folder)")
+    return path
+
+
+# Real devices: the URL from the environment, else the udev name from app/deploy/99-vipsm-robot.rules.
+_HARDWARE = {
+    "scanner": ("VIPSM_SCANNER_URL", "/dev/hokuyo"),
+    "robot": ("VIPSM_ROBOT_URL", "/dev/pioneer"),
+    "camera": ("VIPSM_CAMERA_URL", "/dev/ptzcam"),
+}
+
+
+def hardware_url(device: str) -> str:
+    """URL of a real attached device, or skip the test (it must be marked ``hardware``)."""
+    env, udev_name = _HARDWARE[device]
+    url = os.environ.get(env)
+    if url:
+        return url
+    if os.path.exists(udev_name):
+        return udev_name
+    pytest.skip(f"no real {device} attached (set {env} or plug one in as {udev_name})")

@@ -1,0 +1,1 @@
+"""The VIPSM estimator: pure numpy/OpenCV, no I/O, no clock; deterministic for the same inputs."""
