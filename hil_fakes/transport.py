@@ -393,7 +393,8 @@ class DeviceModel(ABC):
         return None
 
     def on_client_change(self, connected: bool, now_s: float) -> None:
-        """A client opened (True) or let go of (False) the device."""
+        """A client opened (True) or let go of (False) the device; the default ignores it."""
+        return None
 
 
 class DeviceServer:
