@@ -1,0 +1,274 @@
+"""Modbus TCP status server (pymodbus): the daemon's state as input registers, and a stop coil.
+
+Unit id 1 (any unit id is answered). All values are 16-bit registers; 32-bit values take two
+registers, high word first. Signed values are two's complement. The map is documented in the
+README ("Status registers") and is part of the product's interface: keep it stable.
+
+Input registers (function code 4):
+
+=====  ====================  ======  ===============================================================
+addr   name                  type    meaning (unit)
+=====  ====================  ======  ===============================================================
+0      status_bits           uint16  bit0 scanner ok, bit1 base ok, bit2 camera ok, bit3 plain PSM
+                                     (no camera), bit4 safety stop active, bit5 stop coil active,
+                                     bit6 odometry fallback this cycle, bit7 loop healthy,
+                                     bit8 simulated run
+1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop
+2-3    cycle                 uint32  control cycles run
+4-5    pose_x_mm             int32   matched pose x (mm, odometry frame of the first scan)
+6-7    pose_y_mm             int32   matched pose y (mm)
+8      pose_theta_mrad       int16   matched heading (mrad, -3142..3142)
+9      pose_sigma_mm         uint16  sqrt of the larger positional covariance eigenvalue (mm)
+10     obstacle_count        uint16  obstacles tracked (all, even beyond the four listed)
+11     reserved              uint16  0
+12+8i  obstacle i (i=0..3):  id uint16, x_mm int32, y_mm int32, vx_mmps int16, vy_mmps int16,
+                             radius_mm uint16 (unused slots all 0, id 0)
+44     compute_10us          uint16  last cycle's compute time (10 us units)
+45     jitter_p99_10us       uint16  period jitter p99 over the last 600 cycles (10 us units)
+46     deadline_misses       uint16  cycles that overran their deadline (saturates at 65535)
+47     log_dropped           uint16  field-log messages dropped (saturates)
+48     scanner_state         uint16  0 absent, 1 connecting, 2 ok, 3 stalled, 4 failed
+49     base_state            uint16  same codes
+50     camera_state          uint16  same codes
+51     battery_dv            uint16  base battery (0.1 V)
+=====  ====================  ======  ===============================================================
+
+Coil 0 (function codes 1, 5, 15): stop the base while set. Writes are honoured only when the config
+enables it (``status.allow_stop_coil``); otherwise they are refused with Modbus exception 1
+(illegal function) and nothing changes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import threading
+from dataclasses import dataclass, field
+
+from pymodbus.constants import ExcCodes
+from pymodbus.server import ModbusTcpServer
+from pymodbus.simulator import DataType, SimData, SimDevice
+
+from .errors import AppError
+
+N_INPUT_REGISTERS = 52
+MAX_OBSTACLES = 4
+
+DEVICE_STATES = {"absent": 0, "connecting": 1, "ok": 2, "stalled": 3, "failed": 4}
+MISSION_STATES = {"hold": 0, "moving": 1, "safety_stop": 2, "device_stop": 3, "coil_stop": 4}
+STATUS_BITS = {
+    "scanner_ok": 0,
+    "base_ok": 1,
+    "camera_ok": 2,
+    "plain_psm": 3,
+    "safety_stop": 4,
+    "coil_stop": 5,
+    "odometry_fallback": 6,
+    "loop_healthy": 7,
+    "simulated": 8,
+}
+
+
+@dataclass(frozen=True)
+class ObstacleStatus:
+    track_id: int
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class StatusSnapshot:
+    cycle: int = 0
+    flags: frozenset[str] = frozenset()
+    mission_state: str = "hold"
+    x_m: float = 0.0
+    y_m: float = 0.0
+    theta_rad: float = 0.0
+    sigma_m: float = 0.0
+    obstacles: tuple[ObstacleStatus, ...] = ()
+    compute_s: float = 0.0
+    jitter_p99_s: float = 0.0
+    deadline_misses: int = 0
+    log_dropped: int = 0
+    scanner_state: str = "absent"
+    base_state: str = "absent"
+    camera_state: str = "absent"
+    battery_v: float = 0.0
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+def _u16(v: float) -> int:
+    return int(min(max(round(v), 0), 0xFFFF))
+
+
+def _i16(v: float) -> int:
+    return int(min(max(round(v), -0x8000), 0x7FFF)) & 0xFFFF
+
+
+def _i32(v: float) -> list[int]:
+    x = int(min(max(round(v), -0x80000000), 0x7FFFFFFF)) & 0xFFFFFFFF
+    return [x >> 16, x & 0xFFFF]
+
+
+def _u32(v: int) -> list[int]:
+    x = int(min(max(v, 0), 0xFFFFFFFF))
+    return [x >> 16, x & 0xFFFF]
+
+
+def encode_registers(s: StatusSnapshot) -> list[int]:
+    """The input-register image of a snapshot (see the module doc for the map)."""
+    regs = [0] * N_INPUT_REGISTERS
+    bits = 0
+    for name in s.flags:
+        if name not in STATUS_BITS:
+            raise AppError(f"unknown status flag {name!r}")
+        bits |= 1 << STATUS_BITS[name]
+    regs[0] = bits
+    regs[1] = MISSION_STATES[s.mission_state]
+    regs[2:4] = _u32(s.cycle)
+    regs[4:6] = _i32(s.x_m * 1000.0)
+    regs[6:8] = _i32(s.y_m * 1000.0)
+    theta = math.atan2(math.sin(s.theta_rad), math.cos(s.theta_rad))
+    regs[8] = _i16(theta * 1000.0)
+    regs[9] = _u16(s.sigma_m * 1000.0)
+    regs[10] = _u16(len(s.obstacles))
+    for i, ob in enumerate(s.obstacles[:MAX_OBSTACLES]):
+        base = 12 + 8 * i
+        regs[base] = _u16(ob.track_id)
+        regs[base + 1 : base + 3] = _i32(ob.x_m * 1000.0)
+        regs[base + 3 : base + 5] = _i32(ob.y_m * 1000.0)
+        regs[base + 5] = _i16(ob.vx_mps * 1000.0)
+        regs[base + 6] = _i16(ob.vy_mps * 1000.0)
+        regs[base + 7] = _u16(ob.radius_m * 1000.0)
+    regs[44] = _u16(s.compute_s * 1e5)
+    regs[45] = _u16(s.jitter_p99_s * 1e5)
+    regs[46] = _u16(s.deadline_misses)
+    regs[47] = _u16(s.log_dropped)
+    regs[48] = DEVICE_STATES[s.scanner_state]
+    regs[49] = DEVICE_STATES[s.base_state]
+    regs[50] = DEVICE_STATES[s.camera_state]
+    regs[51] = _u16(s.battery_v * 10.0)
+    return regs
+
+
+def decode_int32(hi: int, lo: int) -> int:
+    x = (hi << 16) | lo
+    return x - 0x100000000 if x & 0x80000000 else x
+
+
+class StatusServer:
+    """Serves the registers on its own thread (an asyncio loop); ``publish`` never blocks."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 5020, allow_stop_coil: bool = False) -> None:
+        self.host = host
+        self.port = port
+        self.allow_stop_coil = allow_stop_coil
+        self._regs = [0] * N_INPUT_REGISTERS
+        self._stop_coil = False
+        self._lock = threading.Lock()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._server: ModbusTcpServer | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self.error: BaseException | None = None
+        #: coil writes refused because the config does not allow them
+        self.refused_writes = 0
+        logging.getLogger("pymodbus").setLevel(logging.ERROR)
+
+    @property
+    def stop_requested(self) -> bool:
+        with self._lock:
+            return self._stop_coil
+
+    def publish(self, snapshot: StatusSnapshot) -> None:
+        regs = encode_registers(snapshot)
+        with self._lock:
+            self._regs = regs
+
+    async def _action(
+        self,
+        function_code: int,
+        start_address: int,
+        address: int,
+        count: int,
+        current_registers: list[int],
+        set_values: list[int] | list[bool] | None,
+    ) -> ExcCodes | None:
+        if function_code == 4:
+            with self._lock:
+                regs = self._regs
+            for i in range(len(current_registers)):
+                a = start_address + i
+                current_registers[i] = regs[a] if 0 <= a < len(regs) else 0
+        elif function_code in (5, 15) and set_values is not None:
+            if not self.allow_stop_coil:
+                self.refused_writes += 1
+                return ExcCodes.ILLEGAL_FUNCTION
+            if address <= 0 < address + len(set_values):
+                with self._lock:
+                    self._stop_coil = bool(set_values[0 - address])
+        elif function_code == 1:
+            with self._lock:
+                coil = self._stop_coil
+            if current_registers:
+                current_registers[0] = int(coil)
+        return None
+
+    def _device(self) -> SimDevice:
+        return SimDevice(
+            0,
+            simdata=(
+                [SimData(0, count=16, values=False, datatype=DataType.BITS)],
+                [SimData(0, count=16, values=False, datatype=DataType.BITS)],
+                [SimData(0, count=1, values=0, datatype=DataType.REGISTERS)],
+                [SimData(0, count=N_INPUT_REGISTERS, values=0, datatype=DataType.REGISTERS)],
+            ),
+            action=self._action,
+        )
+
+    def start(self, timeout_s: float = 5.0) -> StatusServer:
+        def run() -> None:
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            try:
+                loop.run_until_complete(self._serve())
+            except BaseException as exc:  # noqa: BLE001 - surfaced by start() and the daemon status
+                self.error = exc
+                self._ready.set()
+            finally:
+                loop.close()
+
+        self._thread = threading.Thread(target=run, name="status-server", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout_s):
+            raise AppError(f"status server on {self.host}:{self.port} did not start within {timeout_s} s")
+        if self.error is not None:
+            raise AppError(f"status server on {self.host}:{self.port} failed: {self.error}")
+        return self
+
+    async def _serve(self) -> None:
+        # the server must be built inside the running loop
+        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port))
+        task = asyncio.ensure_future(self._server.serve_forever())
+        for _ in range(200):
+            if self._server.transport is not None or task.done():
+                break
+            await asyncio.sleep(0.01)
+        if task.done() and task.exception() is not None:
+            raise task.exception()  # type: ignore[misc]
+        self._ready.set()
+        await task
+
+    def stop(self) -> None:
+        if self._loop is None or self._server is None or self._thread is None:
+            return
+        try:
+            asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop).result(5.0)
+        except (RuntimeError, TimeoutError, OSError):
+            pass
+        self._thread.join(5.0)
+        self._thread = None

@@ -1,0 +1,75 @@
+"""Modbus status server: a pymodbus client reads the registers; the stop coil only when enabled."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+from pymodbus.client import ModbusTcpClient
+
+from app.errors import AppError
+from app.status import ObstacleStatus, StatusServer, StatusSnapshot, decode_int32, encode_registers
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def signed16(v: int) -> int:
+    return v - 0x10000 if v & 0x8000 else v
+
+
+def test_register_image_scales_and_signs() -> None:
+    snap = StatusSnapshot(
+        cycle=70000, x_m=-1.234, y_m=2.0, theta_rad=-0.5, sigma_m=0.012,
+        obstacles=(ObstacleStatus(3, 1.5, -2.25, 0.1, -0.15, 0.4),),
+        flags=frozenset({"scanner_ok", "loop_healthy"}), scanner_state="ok", battery_v=12.6,
+        mission_state="safety_stop", deadline_misses=70000,
+    )
+    r = encode_registers(snap)
+    assert r[0] == (1 << 0) | (1 << 7)
+    assert r[1] == 2
+    assert decode_int32(r[2], r[3]) == 70000
+    assert decode_int32(r[4], r[5]) == -1234 and decode_int32(r[6], r[7]) == 2000
+    assert signed16(r[8]) == -500 and r[9] == 12
+    assert r[10] == 1 and r[12] == 3
+    assert decode_int32(r[13], r[14]) == 1500 and decode_int32(r[15], r[16]) == -2250
+    assert signed16(r[17]) == 100 and signed16(r[18]) == -150 and r[19] == 400
+    assert r[46] == 65535  # saturates
+    assert r[48] == 2 and r[51] == 126
+    with pytest.raises(AppError):
+        encode_registers(StatusSnapshot(flags=frozenset({"bogus"})))
+
+
+@pytest.mark.parametrize("allow", [False, True])
+def test_client_reads_registers_and_coil_obeys_config(allow: bool) -> None:
+    port = free_port()
+    server = StatusServer(port=port, allow_stop_coil=allow).start()
+    try:
+        server.publish(StatusSnapshot(cycle=5, x_m=1.0, obstacles=(ObstacleStatus(1, 2.0, 0.0, 0.0, 0.0, 0.4),)))
+        client = ModbusTcpClient("127.0.0.1", port=port, timeout=5)
+        assert client.connect()
+        regs = client.read_input_registers(0, count=52, device_id=1).registers
+        assert decode_int32(regs[2], regs[3]) == 5 and decode_int32(regs[4], regs[5]) == 1000 and regs[10] == 1
+        reply = client.write_coil(0, True, device_id=1)
+        assert reply.isError() is (not allow)
+        assert server.stop_requested is allow
+        assert server.refused_writes == (0 if allow else 1)
+        if allow:
+            assert client.read_coils(0, count=1, device_id=1).bits[0] is True
+            client.write_coil(0, False, device_id=1)
+            assert server.stop_requested is False
+        client.close()
+    finally:
+        server.stop()
+
+
+def test_port_in_use_is_a_clear_error() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        with pytest.raises(AppError, match=str(port)):
+            StatusServer(port=port).start(timeout_s=5)
