@@ -1,0 +1,159 @@
+"""Loop health, the safety zone, and odometry interpolation: the daemon's pure logic (no I/O)."""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from vipsm.types import Obstacle, Odometry
+
+
+class LoopHealth:
+    """Period jitter, compute time and deadline misses over a bounded window (no growth over a run)."""
+
+    def __init__(self, period_s: float, window: int = 36000) -> None:
+        self.period_s = period_s
+        self._jitter = deque[float](maxlen=window)
+        self._compute = deque[float](maxlen=window)
+        self.cycles = 0
+        self.deadline_misses = 0
+        self.skipped_periods = 0
+        self.last_compute_s = 0.0
+
+    def record(self, jitter_s: float, compute_s: float, missed: bool, skipped: int = 0) -> None:
+        self.cycles += 1
+        self._jitter.append(abs(jitter_s))
+        self._compute.append(compute_s)
+        self.last_compute_s = compute_s
+        if missed:
+            self.deadline_misses += 1
+        self.skipped_periods += skipped
+
+    @staticmethod
+    def _pct(values: deque[float], q: float) -> float:
+        return float(np.percentile(np.fromiter(values, float), q)) if values else 0.0
+
+    def jitter_p99_s(self) -> float:
+        return self._pct(self._jitter, 99)
+
+    def jitter_max_s(self) -> float:
+        return max(self._jitter, default=0.0)
+
+    def compute_median_s(self) -> float:
+        return self._pct(self._compute, 50)
+
+    def compute_p99_s(self) -> float:
+        return self._pct(self._compute, 99)
+
+    def summary(self) -> dict[str, float | int]:
+        return {
+            "cycles": self.cycles,
+            "deadline_misses": self.deadline_misses,
+            "skipped_periods": self.skipped_periods,
+            "loop_jitter_p99_ms": round(self.jitter_p99_s() * 1e3, 4),
+            "loop_jitter_max_ms": round(self.jitter_max_s() * 1e3, 4),
+            "compute_median_ms": round(self.compute_median_s() * 1e3, 4),
+            "compute_p99_ms": round(self.compute_p99_s() * 1e3, 4),
+        }
+
+
+@dataclass
+class SafetyMonitor:
+    """Stop when a tracked obstacle's predicted path enters the zone around the robot's predicted path.
+
+    Robot and obstacles are extrapolated at constant velocity over ``horizon_s``; the zone is
+    ``radius_m`` plus the obstacle's radius around the robot at the same instant. Motion resumes only
+    after the zone has stayed clear for ``resume_after_clear_s``.
+    """
+
+    radius_m: float
+    horizon_s: float
+    resume_after_clear_s: float
+    step_s: float = 0.1
+    stopped: bool = False
+    _clear_since_s: float | None = None
+
+    def intrusion(self, x_m: float, y_m: float, theta_rad: float, v_mps: float, obstacles: Sequence[Obstacle]) -> bool:
+        if not obstacles:
+            return False
+        t = np.arange(0.0, self.horizon_s + 1e-9, self.step_s)
+        rx = x_m + v_mps * math.cos(theta_rad) * t
+        ry = y_m + v_mps * math.sin(theta_rad) * t
+        for ob in obstacles:
+            ox = ob.x_m + ob.vx_mps * t
+            oy = ob.y_m + ob.vy_mps * t
+            if np.any(np.hypot(ox - rx, oy - ry) <= self.radius_m + ob.radius_m):
+                return True
+        return False
+
+    def update(
+        self, now_s: float, x_m: float, y_m: float, theta_rad: float, v_mps: float, obstacles: Sequence[Obstacle]
+    ) -> bool:
+        """True while the base must stay stopped."""
+        if self.intrusion(x_m, y_m, theta_rad, v_mps, obstacles):
+            self.stopped = True
+            self._clear_since_s = None
+        elif self.stopped:
+            if self._clear_since_s is None:
+                self._clear_since_s = now_s
+            if now_s - self._clear_since_s >= self.resume_after_clear_s:
+                self.stopped = False
+                self._clear_since_s = None
+        return self.stopped
+
+
+class OdometryHistory:
+    """Recent odometry samples; the pose at a scan's stamp by interpolation (bounded extrapolation)."""
+
+    def __init__(self, keep: int = 64, max_extrapolation_s: float = 0.2) -> None:
+        self._samples: deque[Odometry] = deque(maxlen=keep)
+        self.max_extrapolation_s = max_extrapolation_s
+
+    def add(self, odom: Odometry) -> None:
+        if self._samples and odom.stamp_s <= self._samples[-1].stamp_s:
+            return  # out of order or repeated: keep the history monotonic
+        self._samples.append(odom)
+
+    @property
+    def newest(self) -> Odometry | None:
+        return self._samples[-1] if self._samples else None
+
+    def at(self, t_s: float) -> Odometry | None:
+        if not self._samples:
+            return None
+        stamps = [o.stamp_s for o in self._samples]
+        i = bisect.bisect_left(stamps, t_s)
+        if i == 0:
+            a = self._samples[0]
+            return a if a.stamp_s - t_s <= self.max_extrapolation_s else None
+        if i == len(stamps):
+            a = self._samples[-1]
+            dt = t_s - a.stamp_s
+            if dt > self.max_extrapolation_s:
+                return None
+            return _advance(a, dt)
+        a, b = self._samples[i - 1], self._samples[i]
+        f = (t_s - a.stamp_s) / (b.stamp_s - a.stamp_s)
+        dth = math.atan2(math.sin(b.theta_rad - a.theta_rad), math.cos(b.theta_rad - a.theta_rad))
+        th = a.theta_rad + f * dth
+        return Odometry(
+            x_m=a.x_m + f * (b.x_m - a.x_m),
+            y_m=a.y_m + f * (b.y_m - a.y_m),
+            theta_rad=math.atan2(math.sin(th), math.cos(th)),
+            v_mps=a.v_mps + f * (b.v_mps - a.v_mps),
+            w_radps=a.w_radps + f * (b.w_radps - a.w_radps),
+            stamp_s=t_s,
+        )
+
+
+def _advance(o: Odometry, dt_s: float) -> Odometry:
+    th = o.theta_rad + o.w_radps * dt_s / 2.0
+    x = o.x_m + o.v_mps * dt_s * math.cos(th)
+    y = o.y_m + o.v_mps * dt_s * math.sin(th)
+    th2 = o.theta_rad + o.w_radps * dt_s
+    return Odometry(x, y, math.atan2(math.sin(th2), math.cos(th2)), o.v_mps, o.w_radps, o.stamp_s + dt_s)
