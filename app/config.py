@@ -1,0 +1,253 @@
+"""Daemon configuration: TOML into frozen dataclasses, with defaults shipped in code.
+
+* ``load_config(path, overrides)`` reads a TOML file (``tomllib``), applies ``--set key=value``
+  overrides, and builds :class:`Config`. Every bad value raises :class:`app.errors.ConfigError`
+  whose message names the dotted key, e.g. ``config key 'loop.period_s': must be >= 0.01``.
+* ``dump_toml(Config())`` prints the defaults as TOML (``vipsm-robot dump-config``); loading that
+  text gives back the defaults exactly.
+
+Field constraints live in the field metadata (``min``, ``max``, ``choices``) so the checks are
+generic. Device entries are URLs, so a fake device needs no special code path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from vipsm.estimator import EstimatorConfig
+
+from .errors import ConfigError
+
+
+def _f(default: Any, doc: str, **meta: Any) -> Any:
+    return field(default=default, metadata={"doc": doc, **meta})
+
+
+@dataclass(frozen=True)
+class DevicesConfig:
+    scanner_url: str = _f("/dev/hokuyo", "UTM-30LX: tty, pty or socket://host:10940 (Ethernet model); empty = none")
+    scanner_intensity: bool = _f(False, "stream ME (ranges + intensities) instead of MD")
+    robot_url: str = _f("/dev/pioneer", "Pioneer 3-DX: tty or socket://host:8101 (simulator); empty = none")
+    robot_baud: int = _f(9600, "ARCOS serial rate", choices=(9600, 19200, 38400, 57600, 115200))
+    camera_url: str = _f("/dev/ptzcam", "SNC-RZ50 VISCA: tty or socket://host:port; empty = no PTZ control")
+    camera_baud: int = _f(9600, "VISCA serial rate", choices=(9600, 38400))
+    camera_http_url: str = _f(
+        "", "SNC-RZ50 HTTP base URL for frames, e.g. http://user:pw@192.168.0.100; empty = no camera"
+    )
+    camera_fps: int = _f(10, "MJPEG rate asked of the camera", min=1, max=30)
+    camera_pan_deg: float = _f(0.0, "pan set at start-up (left positive)", min=-170.0, max=170.0)
+    camera_tilt_deg: float = _f(0.0, "tilt set at start-up (up positive)", min=-25.0, max=90.0)
+    camera_zoom: int = _f(0, "zoom position set at start-up (0 = wide)", min=0, max=0x4000)
+    reconnect_max_s: float = _f(2.0, "longest wait between reconnect attempts", min=0.05)
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    period_s: float = _f(0.1, "control period on monotonic deadlines", min=0.01, max=1.0)
+    max_scan_age_s: float = _f(0.25, "a newer scan than this is required; older = scanner stalled", min=0.01)
+    max_frame_age_s: float = _f(0.3, "frames older than this are not used (plain PSM for the cycle)", min=0.01)
+    max_odometry_age_s: float = _f(0.35, "odometry older than this = base lost", min=0.01)
+    stop_after_missed_s: float = _f(0.3, "no healthy cycle for this long: command the base to stop", min=0.05)
+
+
+@dataclass(frozen=True)
+class MissionConfig:
+    mode: str = _f("hold", "hold: observe without motion; cruise: straight ahead", choices=("hold", "cruise"))
+    cruise_speed_mps: float = _f(0.2, "forward speed in cruise", min=0.0, max=1.5)
+    safety_radius_m: float = _f(
+        0.9, "stop when a tracked obstacle is predicted within this distance of the robot", min=0.0
+    )
+    safety_horizon_s: float = _f(2.0, "how far ahead obstacle paths are predicted", min=0.0, max=30.0)
+    resume_after_clear_s: float = _f(1.0, "the zone must stay clear this long before motion resumes", min=0.0)
+
+
+@dataclass(frozen=True)
+class LogConfig:
+    path: str = _f("vipsm-%Y%m%d-%H%M%S.mcap", "field log file (strftime pattern); empty = no log")
+    compression: str = _f("zstd", "MCAP chunk compression", choices=("zstd", "lz4", "none"))
+    rotate_bytes: int = _f(512 * 1024 * 1024, "start a new file past this size", min=1024 * 1024)
+    rotate_s: float = _f(3600.0, "start a new file after this long", min=1.0)
+    flush_s: float = _f(0.5, "close a chunk at least this often (bounds the loss on power cut)", min=0.05, max=1.0)
+    queue_size: int = _f(512, "messages buffered for the writer thread; more are dropped and counted", min=8)
+    frames: bool = _f(True, "record camera frames (JPEG)")
+    raw_bytes: bool = _f(False, "record the raw device byte streams for byte-exact replay through the codecs")
+
+
+@dataclass(frozen=True)
+class StatusConfig:
+    enabled: bool = _f(True, "serve the Modbus TCP status registers")
+    host: str = _f("127.0.0.1", "Modbus TCP bind address")
+    port: int = _f(5020, "Modbus TCP port", min=1, max=65535)
+    allow_stop_coil: bool = _f(False, "honour writes to the stop coil (coil 0)")
+
+
+@dataclass(frozen=True)
+class Config:
+    devices: DevicesConfig = field(default_factory=DevicesConfig)
+    loop: LoopConfig = field(default_factory=LoopConfig)
+    mission: MissionConfig = field(default_factory=MissionConfig)
+    log: LogConfig = field(default_factory=LogConfig)
+    status: StatusConfig = field(default_factory=StatusConfig)
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+
+
+# ---------------------------------------------------------------------------------------------
+# building dataclasses from dicts, with checks that name the key
+
+
+def _check_scalar(key: str, value: Any, hint: Any, meta: typing.Mapping[str, Any]) -> Any:
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if value is None and len(args) < len(typing.get_args(hint)):
+            return None
+        hint = args[0] if len(args) == 1 else hint
+        origin = typing.get_origin(hint)
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(key, f"expected an array, got {value!r}")
+        args = typing.get_args(hint)
+        item_hint = args[0] if args else Any
+        value = tuple(_check_scalar(f"{key}[{i}]", v, item_hint, {}) for i, v in enumerate(value))
+        if len(args) > 1 and args[1] is not Ellipsis and len(value) != len(args):
+            raise ConfigError(key, f"expected {len(args)} values, got {len(value)}")
+        return value
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(key, f"expected true or false, got {value!r}")
+    elif hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(key, f"expected an integer, got {value!r}")
+    elif hint is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(key, f"expected a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(key, f"must be finite, got {value!r}")
+    elif hint is str:
+        if not isinstance(value, str):
+            raise ConfigError(key, f"expected a string, got {value!r}")
+    if "choices" in meta and value not in meta["choices"]:
+        raise ConfigError(key, f"must be one of {', '.join(map(str, meta['choices']))}; got {value!r}")
+    if "min" in meta and value < meta["min"]:
+        raise ConfigError(key, f"must be >= {meta['min']}, got {value!r}")
+    if "max" in meta and value > meta["max"]:
+        raise ConfigError(key, f"must be <= {meta['max']}, got {value!r}")
+    return value
+
+
+def from_dict(cls: type, data: typing.Mapping[str, Any], prefix: str = "") -> Any:
+    """Build dataclass ``cls`` from ``data``; unknown keys and bad values raise ConfigError."""
+    if not isinstance(data, dict):
+        raise ConfigError(prefix.rstrip(".") or "<root>", f"expected a table, got {data!r}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        dotted = f"{prefix}{key}"
+        if key not in fields:
+            raise ConfigError(dotted, f"unknown key (known: {', '.join(sorted(fields))})")
+        hint = hints[key]
+        if dataclasses.is_dataclass(hint):
+            kwargs[key] = from_dict(hint, value, f"{dotted}.")
+        else:
+            kwargs[key] = _check_scalar(dotted, value, hint, fields[key].metadata)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(prefix.rstrip(".") or "<root>", str(exc)) from exc
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """``a.b.c=value`` -> (["a", "b", "c"], value); the value is read as TOML, else as a bare string."""
+    if "=" not in text:
+        raise ConfigError(text, "an override must be key=value")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key:
+        raise ConfigError(text, "empty key in override")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.split("."), value
+
+
+def merge_override(data: dict[str, Any], path: list[str], value: Any) -> None:
+    node = data
+    for part in path[:-1]:
+        child = node.setdefault(part, {})
+        if not isinstance(child, dict):
+            raise ConfigError(".".join(path), f"'{part}' is a value, not a table")
+        node = child
+    node[path[-1]] = value
+
+
+def load_config(path: str | Path | None = None, overrides: typing.Sequence[str] = ()) -> Config:
+    data: dict[str, Any] = {}
+    if path is not None:
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError as exc:
+            raise ConfigError("--config", f"no such file: {p}") from exc
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError("--config", f"cannot read {p}: {exc}") from exc
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError("--config", f"{p} is not valid TOML: {exc}") from exc
+    for text in overrides:
+        key_path, value = parse_override(text)
+        merge_override(data, key_path, value)
+    return from_dict(Config, data)
+
+
+# ---------------------------------------------------------------------------------------------
+# TOML output
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if value is None:
+        raise ValueError("TOML has no null")
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")
+
+
+def dump_toml(obj: Any, prefix: str = "") -> str:
+    """The dataclass tree as TOML, with each field's doc as a comment."""
+    lines: list[str] = []
+    tables: list[str] = []
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if dataclasses.is_dataclass(value):
+            tables.append(dump_toml(value, f"{prefix}{f.name}."))
+            continue
+        if value is None:
+            continue
+        doc = f.metadata.get("doc")
+        if doc:
+            lines.append(f"# {doc}")
+        lines.append(f"{f.name} = {_toml_value(value)}")
+    out = ""
+    if lines:
+        header = f"[{prefix.rstrip('.')}]\n" if prefix else ""
+        out = header + "\n".join(lines) + "\n\n"
+    return out + "".join(tables)

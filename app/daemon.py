@@ -1,0 +1,594 @@
+"""The control loop: every 0.1 s on monotonic deadlines, newest scan + odometry + frame -> estimator
+-> field log, status, base command.
+
+Devices reach the loop through three small ports (``ScannerPort``, ``BasePort``, ``CameraPort``,
+implemented over the driver clients in ``app.devices``), so the loop is the same against real
+hardware, the byte-level fakes and tests. Degraded modes, each logged on ``/log`` and visible in the
+status registers:
+
+* no camera (absent, failed, stale frames): plain PSM for the cycle, flagged ``plain_psm``;
+* no scanner, or scans older than ``loop.max_scan_age_s``: base stopped (``device_stop``);
+* no odometry newer than ``loop.max_odometry_age_s``: base stopped;
+* the loop itself stalled: the base driver's own command timeout zeroes the velocity, and the
+  base firmware's watchdog stops it after that;
+* a device that comes back is used again at once (the clients reconnect on their own).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from vipsm.estimator import Estimator
+from vipsm.types import Estimate, EstimateFlag, Frame, Obstacle, Odometry, Scan
+
+from .config import Config
+from .fieldlog import LOG_LEVELS, FieldLog, b64, stamp, yaw_quaternion
+from .health import LoopHealth, OdometryHistory, SafetyMonitor
+from .sdnotify import SystemdNotifier
+from .status import ObstacleStatus, StatusServer, StatusSnapshot
+
+# ---------------------------------------------------------------------------------------------
+# what the loop consumes
+
+
+@dataclass(frozen=True)
+class ScanSample:
+    scan: Scan
+    device_stamp_ms: int | None = None
+
+
+@dataclass(frozen=True)
+class OdomSample:
+    odometry: Odometry
+    battery_v: float = 0.0
+    stalled: bool = False
+    motors_enabled: bool = True
+
+
+@dataclass(frozen=True)
+class FrameSample:
+    frame: Frame
+    jpeg: bytes
+    zoom_pos: int = 0
+
+
+class ScannerPort(Protocol):
+    def state(self) -> str: ...
+    def poll(self) -> list[ScanSample]: ...
+    def counters(self) -> dict[str, int]: ...
+    def close(self) -> None: ...
+
+
+class BasePort(Protocol):
+    def state(self) -> str: ...
+    def poll(self) -> list[OdomSample]: ...
+    def command(self, v_mps: float, w_radps: float) -> None: ...
+    def stop(self) -> None: ...
+    def counters(self) -> dict[str, int]: ...
+    def close(self) -> None: ...
+
+
+class CameraPort(Protocol):
+    def state(self) -> str: ...
+    def latest(self) -> FrameSample | None: ...
+    def counters(self) -> dict[str, int]: ...
+    def close(self) -> None: ...
+
+
+TruthFn = Callable[[float], dict[str, Any] | None]
+
+
+# ---------------------------------------------------------------------------------------------
+# log payloads (built on the writer thread)
+
+
+def scan_message(scan: Scan, wall_s: float) -> dict[str, Any]:
+    r = scan.ranges_m
+    ranges = [None if not math.isfinite(v) else float(v) for v in r.tolist()]
+    msg: dict[str, Any] = {
+        "timestamp": stamp(wall_s),
+        "frame_id": "laser",
+        "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": yaw_quaternion(0.0)},
+        "start_angle": float(scan.bearings_rad[0]) if len(r) else 0.0,
+        "end_angle": float(scan.bearings_rad[-1]) if len(r) else 0.0,
+        "ranges": ranges,
+        "intensities": [] if scan.intensities is None else [float(v) for v in scan.intensities.tolist()],
+        "seq": scan.seq,
+    }
+    return msg
+
+
+def pose_message(x: float, y: float, th: float, wall_s: float, frame_id: str) -> dict[str, Any]:
+    return {
+        "timestamp": stamp(wall_s),
+        "frame_id": frame_id,
+        "pose": {"position": {"x": x, "y": y, "z": 0.0}, "orientation": yaw_quaternion(th)},
+    }
+
+
+def obstacles_message(obstacles: tuple[Obstacle, ...], wall_s: float) -> dict[str, Any]:
+    ents = []
+    for ob in obstacles:
+        ents.append(
+            {
+                "timestamp": stamp(wall_s),
+                "frame_id": "odom",
+                "id": f"obstacle-{ob.track_id}",
+                "lifetime": {"sec": 0, "nsec": 300_000_000},
+                "frame_locked": False,
+                "metadata": [
+                    {"key": "vx_mps", "value": f"{ob.vx_mps:.3f}"},
+                    {"key": "vy_mps", "value": f"{ob.vy_mps:.3f}"},
+                ],
+                "cylinders": [
+                    {
+                        "pose": {"position": {"x": ob.x_m, "y": ob.y_m, "z": 0.5}, "orientation": yaw_quaternion(0.0)},
+                        "size": {"x": 2 * ob.radius_m, "y": 2 * ob.radius_m, "z": 1.0},
+                        "bottom_scale": 1.0,
+                        "top_scale": 1.0,
+                        "color": {"r": 1.0, "g": 0.3, "b": 0.1, "a": 0.7},
+                    }
+                ],
+                "arrows": [],
+                "texts": [],
+            }
+        )
+    return {"deletions": [], "entities": ents}
+
+
+def estimate_to_dict(est: Estimate) -> dict[str, Any]:
+    return {
+        "stamp_s": est.stamp_s,
+        "pose": [est.pose.x_m, est.pose.y_m, est.pose.theta_rad],
+        "covariance": np.asarray(est.covariance, float).ravel().tolist(),
+        "flags": int(est.flags.value),
+        "quality": {
+            "beams_used": est.quality.beams_used,
+            "iterations": est.quality.iterations,
+            "residual_m": est.quality.residual_m,
+            "converged": est.quality.converged,
+        },
+        "obstacles": [
+            {
+                "track_id": o.track_id,
+                "x_m": o.x_m,
+                "y_m": o.y_m,
+                "vx_mps": o.vx_mps,
+                "vy_mps": o.vy_mps,
+                "radius_m": o.radius_m,
+                "bearing_min_rad": o.bearing_min_rad,
+                "bearing_max_rad": o.bearing_max_rad,
+                "scan_index_start": o.scan_index_start,
+                "scan_index_stop": o.scan_index_stop,
+            }
+            for o in est.obstacles
+        ],
+        "restored": [list(p) for p in est.restored_indices],
+    }
+
+
+def cycle_message(
+    cycle: int, scan: Scan, odom: Odometry, frame: Frame | None, frame_seq: int | None, est: Estimate
+) -> dict[str, Any]:
+    """Everything the estimator took and gave in one cycle: ``replay`` runs from this alone
+    (plus the JPEG on ``/camera/image`` with the same ``seq``)."""
+    b = scan.bearings_rad
+    return {
+        "cycle": cycle,
+        "scan": {
+            "seq": scan.seq,
+            "stamp_s": scan.stamp_s,
+            "beam_dt_s": scan.beam_dt_s,
+            "first_bearing_rad": float(b[0]) if len(b) else 0.0,
+            "bearing_step_rad": float(b[1] - b[0]) if len(b) > 1 else 0.0,
+            "ranges_m": [None if not math.isfinite(v) else v for v in scan.ranges_m.tolist()],
+        },
+        "odometry": {
+            "x_m": odom.x_m,
+            "y_m": odom.y_m,
+            "theta_rad": odom.theta_rad,
+            "v_mps": odom.v_mps,
+            "w_radps": odom.w_radps,
+            "stamp_s": odom.stamp_s,
+        },
+        "frame": None
+        if frame is None
+        else {
+            "seq": frame_seq,
+            "stamp_s": frame.stamp_s,
+            "pan_rad": frame.pan_rad,
+            "tilt_rad": frame.tilt_rad,
+            "intrinsics": [
+                frame.intrinsics.fx_px,
+                frame.intrinsics.fy_px,
+                frame.intrinsics.cx_px,
+                frame.intrinsics.cy_px,
+                frame.intrinsics.width_px,
+                frame.intrinsics.height_px,
+            ],
+        },
+        "estimate": estimate_to_dict(est),
+    }
+
+
+def normalised_bearings(first_rad: float, step_rad: float, n: int) -> np.ndarray:
+    """The one formula for bearings used live and in replay, so both feed the estimator identical arrays."""
+    return first_rad + step_rad * np.arange(n, dtype=float)
+
+
+# ---------------------------------------------------------------------------------------------
+# the loop
+
+
+@dataclass
+class RunStats:
+    scans_in: int = 0
+    odometry_in: int = 0
+    frames_in: int = 0
+    frames_used: int = 0
+    estimates: int = 0
+    plain_psm_cycles: int = 0
+    fallback_cycles: int = 0
+    device_stop_cycles: int = 0
+    safety_stop_cycles: int = 0
+    state_changes: list[str] = field(default_factory=list)
+
+
+class ControlLoop:
+    def __init__(
+        self,
+        config: Config,
+        *,
+        scanner: ScannerPort | None,
+        base: BasePort | None,
+        camera: CameraPort | None,
+        estimator: Estimator,
+        field_log: FieldLog | None = None,
+        status: StatusServer | None = None,
+        notifier: SystemdNotifier | None = None,
+        truth: TruthFn | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.config = config
+        self.scanner = scanner
+        self.base = base
+        self.camera = camera
+        self.estimator = estimator
+        self.log = field_log
+        self.status = status
+        self.notifier = notifier or SystemdNotifier({})
+        self.truth = truth
+        self.clock = clock
+        self._wall_offset = wall_clock() - clock()
+        self.health = LoopHealth(config.loop.period_s)
+        m = config.mission
+        self.safety = SafetyMonitor(m.safety_radius_m, m.safety_horizon_s, m.resume_after_clear_s)
+        self.odom = OdometryHistory()
+        self.stats = RunStats()
+        self.last_scan: ScanSample | None = None
+        self.last_frame: FrameSample | None = None
+        self.last_estimate: Estimate | None = None
+        self.last_odom_sample: OdomSample | None = None
+        self.mission_state = "hold"
+        self._last_frame_seq_logged: int | None = None
+        self._last_scan_seq_used: int | None = None
+        self._states: dict[str, str] = {}
+        self._ready_sent = False
+        self._last_watchdog_s = -1e9
+        self.cycle = 0
+        #: per-cycle records for the run summary: (stamp_s, estimate, truth)
+        self.on_estimate: Callable[[Estimate, float], None] | None = None
+
+    # -- helpers --------------------------------------------------------------------------------
+
+    def wall(self, t_mono_s: float) -> float:
+        return t_mono_s + self._wall_offset
+
+    def say(self, level: str, message: str, now_s: float) -> None:
+        self.stats.state_changes.append(message)
+        if self.log is not None:
+            self.log.log(
+                "/log",
+                self.wall(now_s),
+                {
+                    "timestamp": stamp(self.wall(now_s)),
+                    "level": LOG_LEVELS[level],
+                    "message": message,
+                    "name": "vipsm-robot",
+                    "file": "",
+                    "line": 0,
+                },
+            )
+
+    def _track_state(self, device: str, state: str, now_s: float) -> None:
+        old = self._states.get(device)
+        if old != state:
+            self._states[device] = state
+            if old is not None:
+                level = "info" if state == "ok" else "warning"
+                self.say(level, f"{device}: {old} -> {state}", now_s)
+
+    # -- one cycle ------------------------------------------------------------------------------
+
+    def step(self, now_s: float) -> None:
+        cfg = self.config
+        self.cycle += 1
+        wall = self.wall(now_s)
+
+        # drain devices: log everything, keep the newest
+        if self.scanner is not None:
+            for s in self.scanner.poll():
+                self.stats.scans_in += 1
+                self.last_scan = s
+                if self.log is not None:
+                    sc, w = s.scan, self.wall(s.scan.stamp_s)
+                    self.log.log("/scan", w, lambda sc=sc, w=w: scan_message(sc, w))
+        if self.base is not None:
+            for o in self.base.poll():
+                self.stats.odometry_in += 1
+                self.odom.add(o.odometry)
+                self.last_odom_sample = o
+                if self.log is not None:
+                    od = o.odometry
+                    self.log.log(
+                        "/odom",
+                        self.wall(od.stamp_s),
+                        pose_message(od.x_m, od.y_m, od.theta_rad, self.wall(od.stamp_s), "odom"),
+                    )
+        frame_sample = self.camera.latest() if self.camera is not None else None
+        if frame_sample is not None:
+            self.stats.frames_in += 1
+            self.last_frame = frame_sample
+
+        scanner_state = self.scanner.state() if self.scanner is not None else "absent"
+        base_state = self.base.state() if self.base is not None else "absent"
+        camera_state = self.camera.state() if self.camera is not None else "absent"
+        scan_fresh = self.last_scan is not None and now_s - self.last_scan.scan.stamp_s <= cfg.loop.max_scan_age_s
+        newest_odom = self.odom.newest
+        odom_fresh = newest_odom is not None and now_s - newest_odom.stamp_s <= cfg.loop.max_odometry_age_s
+        if scanner_state == "ok" and not scan_fresh:
+            scanner_state = "stalled"
+        if base_state == "ok" and not odom_fresh:
+            base_state = "stalled"
+        frame = None
+        if self.last_frame is not None and now_s - self.last_frame.frame.stamp_s <= cfg.loop.max_frame_age_s:
+            frame = self.last_frame.frame
+        elif camera_state == "ok":
+            camera_state = "stalled"
+        for dev, st in (("scanner", scanner_state), ("base", base_state), ("camera", camera_state)):
+            self._track_state(dev, st, now_s)
+
+        # estimate on the newest scan, once per scan
+        est: Estimate | None = None
+        scan_sample = self.last_scan
+        if scan_fresh and scan_sample is not None and scan_sample.scan.seq != self._last_scan_seq_used:
+            odom_at_scan = self.odom.at(scan_sample.scan.stamp_s)
+            if odom_at_scan is not None:
+                self._last_scan_seq_used = scan_sample.scan.seq
+                est = self.estimator.step(scan_sample.scan, odom_at_scan, frame)
+                self.last_estimate = est
+                self.stats.estimates += 1
+                if frame is not None:
+                    self.stats.frames_used += 1
+                if est.flags & (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM):
+                    self.stats.plain_psm_cycles += 1
+                if est.flags & EstimateFlag.ODOMETRY_FALLBACK:
+                    self.stats.fallback_cycles += 1
+                if self.on_estimate is not None:
+                    self.on_estimate(est, scan_sample.scan.stamp_s)
+                if self.log is not None:
+                    self._log_estimate(est, scan_sample.scan, odom_at_scan, frame, wall)
+
+        # command the base
+        healthy = scanner_state == "ok" and base_state == "ok" and est is not None
+        coil = self.status is not None and self.status.stop_requested
+        obstacles = self.last_estimate.obstacles if self.last_estimate is not None else ()
+        pose = self.last_estimate.pose if self.last_estimate is not None else None
+        v_now = newest_odom.v_mps if newest_odom is not None else 0.0
+        safety_stop = pose is not None and self.safety.update(
+            now_s, pose.x_m, pose.y_m, pose.theta_rad, max(v_now, 0.0), obstacles
+        )
+        device_ok = scanner_state == "ok" and base_state == "ok"
+        if not device_ok:
+            state = "device_stop"
+        elif coil:
+            state = "coil_stop"
+        elif safety_stop:
+            state = "safety_stop"
+        elif cfg.mission.mode == "cruise":
+            state = "moving"
+        else:
+            state = "hold"
+        if state != self.mission_state:
+            self.say(
+                "warning" if state.endswith("stop") else "info", f"mission: {self.mission_state} -> {state}", now_s
+            )
+            self.mission_state = state
+        if state == "device_stop":
+            self.stats.device_stop_cycles += 1
+        if state == "safety_stop":
+            self.stats.safety_stop_cycles += 1
+        if self.base is not None:
+            if state == "moving":
+                self.base.command(cfg.mission.cruise_speed_mps, 0.0)
+            else:
+                self.base.command(0.0, 0.0)
+
+        self._publish(now_s, scanner_state, base_state, camera_state, healthy, est, coil, safety_stop)
+        if healthy:
+            if not self._ready_sent:
+                self.notifier.ready()
+                self._ready_sent = True
+            interval = self.notifier.watchdog_interval_s
+            if interval is not None and now_s - self._last_watchdog_s >= interval:
+                self.notifier.watchdog()
+                self._last_watchdog_s = now_s
+
+    def _log_estimate(self, est: Estimate, scan: Scan, odom: Odometry, frame: Frame | None, wall: float) -> None:
+        assert self.log is not None
+        frame_seq = None
+        if frame is not None and self.last_frame is not None:
+            frame_seq = frame.seq
+            if self.config.log.frames and frame_seq != self._last_frame_seq_logged:
+                fs = self.last_frame
+                fw = self.wall(fs.frame.stamp_s)
+                self.log.log(
+                    "/camera/image",
+                    fw,
+                    lambda fs=fs, fw=fw: {
+                        "timestamp": stamp(fw),
+                        "frame_id": "camera",
+                        "format": "jpeg",
+                        "data": b64(fs.jpeg),
+                        "seq": fs.frame.seq,
+                        "pan_rad": fs.frame.pan_rad,
+                        "tilt_rad": fs.frame.tilt_rad,
+                        "zoom_pos": fs.zoom_pos,
+                    },
+                )
+                self._last_frame_seq_logged = frame_seq
+        self.log.log("/pose", wall, pose_message(est.pose.x_m, est.pose.y_m, est.pose.theta_rad, wall, "odom"))
+        self.log.log("/obstacles", wall, lambda: obstacles_message(est.obstacles, wall))
+        cycle = self.cycle
+        self.log.log("/vipsm/cycle", wall, lambda: cycle_message(cycle, scan, odom, frame, frame_seq, est))
+        if self.truth is not None:
+            truth = self.truth(scan.stamp_s)
+            if truth is not None:
+                self.log.log("/truth", wall, {"stamp_s": scan.stamp_s, **truth})
+
+    def _publish(
+        self,
+        now_s: float,
+        scanner_state: str,
+        base_state: str,
+        camera_state: str,
+        healthy: bool,
+        est: Estimate | None,
+        coil: bool,
+        safety_stop: bool,
+    ) -> None:
+        flags = set()
+        if scanner_state == "ok":
+            flags.add("scanner_ok")
+        if base_state == "ok":
+            flags.add("base_ok")
+        if camera_state == "ok":
+            flags.add("camera_ok")
+        if est is not None and est.flags & (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM):
+            flags.add("plain_psm")
+        if est is not None and est.flags & EstimateFlag.ODOMETRY_FALLBACK:
+            flags.add("odometry_fallback")
+        if safety_stop:
+            flags.add("safety_stop")
+        if coil:
+            flags.add("coil_stop")
+        if healthy:
+            flags.add("loop_healthy")
+        if self.truth is not None:
+            flags.add("simulated")
+        last = self.last_estimate
+        diag = {
+            "cycle": self.cycle,
+            "stamp_s": now_s,
+            "compute_ms": self.health.last_compute_s * 1e3,
+            "deadline_misses": self.health.deadline_misses,
+            "scanner": scanner_state,
+            "base": base_state,
+            "camera": camera_state,
+            "mission": self.mission_state,
+            "log_dropped": self.log.stats.dropped if self.log is not None else 0,
+            "flags": sorted(flags),
+        }
+        if self.log is not None:
+            self.log.log("/diagnostics", self.wall(now_s), diag)
+        if self.status is not None:
+            sigma = 0.0
+            if last is not None:
+                cov = np.asarray(last.covariance, float)[:2, :2]
+                sigma = float(math.sqrt(max(np.linalg.eigvalsh(cov).max(), 0.0))) if np.all(np.isfinite(cov)) else 0.0
+            battery = self.last_odom_sample.battery_v if self.last_odom_sample is not None else 0.0
+            self.status.publish(
+                StatusSnapshot(
+                    cycle=self.cycle,
+                    flags=frozenset(flags),
+                    mission_state=self.mission_state,
+                    x_m=last.pose.x_m if last else 0.0,
+                    y_m=last.pose.y_m if last else 0.0,
+                    theta_rad=last.pose.theta_rad if last else 0.0,
+                    sigma_m=sigma,
+                    obstacles=tuple(
+                        ObstacleStatus(o.track_id, o.x_m, o.y_m, o.vx_mps, o.vy_mps, o.radius_m)
+                        for o in (last.obstacles if last else ())
+                    ),
+                    compute_s=self.health.last_compute_s,
+                    jitter_p99_s=self.health.jitter_p99_s() if self.cycle % 10 == 0 else 0.0,
+                    deadline_misses=self.health.deadline_misses,
+                    log_dropped=self.log.stats.dropped if self.log is not None else 0,
+                    scanner_state=scanner_state,
+                    base_state=base_state,
+                    camera_state=camera_state,
+                    battery_v=battery,
+                )
+            )
+
+    # -- the run --------------------------------------------------------------------------------
+
+    def run(
+        self,
+        stop: threading.Event,
+        duration_s: float | None = None,
+        progress: Callable[[ControlLoop, float], None] | None = None,
+    ) -> None:
+        """Cycles on monotonic deadlines until ``stop`` is set or ``duration_s`` has passed.
+
+        A cycle that overruns counts as a deadline miss; periods that passed entirely are skipped
+        (counted), never run back to back to catch up.
+        """
+        period = self.config.loop.period_s
+        t0 = self.clock()
+        k = 0
+        while not stop.is_set():
+            k += 1
+            deadline = t0 + k * period
+            delay = deadline - self.clock()
+            if delay > 0 and stop.wait(delay):
+                break
+            wake = self.clock()
+            skipped = 0
+            if wake - deadline >= period:
+                skipped = int((wake - deadline) // period)
+                k += skipped
+                deadline = t0 + k * period
+            self.step(wake)
+            done = self.clock()
+            compute = done - wake
+            self.health.record(wake - deadline, compute, missed=done > deadline + period, skipped=skipped)
+            if progress is not None:
+                progress(self, wake - t0)
+            if duration_s is not None and wake - t0 >= duration_s:
+                break
+
+    def shutdown(self) -> None:
+        """Stop the base, close devices, close the log (complete and indexed)."""
+        self.notifier.stopping()
+        if self.base is not None:
+            try:
+                self.base.stop()
+            finally:
+                self.base.close()
+        for dev in (self.scanner, self.camera):
+            if dev is not None:
+                dev.close()
+        if self.status is not None:
+            self.status.stop()
+        if self.log is not None:
+            self.log.close()
+        self.notifier.close()
