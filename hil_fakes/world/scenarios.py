@@ -1,0 +1,295 @@
+"""Scenario definitions: the paper's two experiments and custom ones from a dict of parameters.
+
+A scenario is fully described by a flat dict of parameters (``PARAMS`` lists them with units,
+defaults and limits). :func:`build_scenario` turns such a dict into the room, the obstacles' scripted
+paths, the robot's start pose and speed and the odometry noise; the evaluation (``vipsm-robot eval``)
+and the daemon's ``sim`` command both build their worlds through it, from CLI flags or from a TOML
+file (:func:`load_scenario_file`).
+
+The paper's experiments (Lee et al. 2013) fix the room (4.9 m x 8.0 m, walls on three sides), the
+robot's speed (0.20 m/s, straight ahead), the obstacle (a 0.80 m cylinder at 0.15 m/s that starts 5 s
+after the robot) and the angle of its path to the robot's (45 deg approaching / 90 deg crossing). It is
+silent on start positions and duration; this module fixes them as follows:
+
+* Room: x in [0, 8.0] m along the robot's path, y in [-2.45, 2.45] m; walls on the left (y = +2.45),
+  the right (y = -2.45) and at the far end (x = 8.0); the end behind the robot (x = 0) is open.
+* Robot: starts at (0.6, 0.0) heading +x, commanded ``robot_speed_mps`` from t = 0 (the base's
+  acceleration limit applies), for ``duration_s`` = 30 s (300 estimator cycles at 0.1 s).
+* Obstacle: its path is a straight line at ``crossing_deg`` to the robot's path, moving towards the
+  robot (velocity (-cos a, -sin a) * speed: at 90 deg it crosses from left to right, at 0 deg it comes
+  head-on on a parallel lane), placed so that the obstacle's centre passes ``closest_approach_m``
+  (1.0 m) from the robot's centre at ``closest_approach_time_s`` (17 s), after crossing in front of the
+  robot. With these values the obstacle is 3-4 m ahead when it starts at 5 s, crosses the robot's path
+  about 1.5 m ahead of the laser (scenario 2), comes within 0.6 m of the robot's body and, near the
+  closest approach, covers 40-55 deg of the scan (160-220 of 1081 beams), which is what pulls plain PSM
+  off. It stands still where its path leaves the room (0.05 m from a wall), and a path that would
+  start outside the room starts where it enters it (later than ``obstacle_start_s`` if need be).
+* ``obstacles`` > 1: obstacle k (k >= 1) is the mirror image (coming from the other side) of the first,
+  with its closest approach 3 s later per k (later still if it would touch an earlier obstacle).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hil_fakes.wheel_odometry import OdometryNoise
+
+from .geometry import ObstaclePath, Wall
+
+ROOM_LENGTH_M = 8.0
+ROOM_WIDTH_M = 4.9
+ROBOT_START = (0.6, 0.0, 0.0)
+#: Pioneer 3-DX half diagonal (width 425 mm, length 511 mm): the robot's bounding radius
+ROBOT_RADIUS_M = 0.33
+#: clearance kept between an obstacle and a wall at the ends of its path
+WALL_MARGIN_M = 0.05
+#: base odometry noise; ``odom_noise`` scales all of it (0 = perfect odometry)
+BASE_ODOMETRY_NOISE = {
+    "scale_error": 0.01,
+    "heading_drift_rad_per_m": 0.01,
+    "sigma_trans_frac": 0.01,
+    "sigma_rot_rad_per_rad": 0.02,
+    "sigma_rot_rad_per_m": 0.01,
+}
+
+
+class ScenarioError(ValueError):
+    """A bad scenario parameter; ``key`` names it."""
+
+    def __init__(self, key: str, message: str) -> None:
+        super().__init__(f"scenario key '{key}': {message}")
+        self.key = key
+
+
+@dataclass(frozen=True)
+class Param:
+    kind: type
+    default: Any
+    lo: float | None
+    hi: float | None
+    unit: str
+    help: str
+
+
+PARAMS: dict[str, Param] = {
+    "crossing_deg": Param(float, 90.0, 0.0, 180.0, "deg", "angle between the obstacle's path and the robot's"),
+    "obstacle_speed_mps": Param(float, 0.15, 0.01, 2.0, "m/s", "obstacle speed"),
+    "obstacle_diameter_m": Param(float, 0.80, 0.10, 2.0, "m", "obstacle (cylinder) diameter"),
+    "obstacle_height_m": Param(float, 1.70, 0.10, 3.0, "m", "obstacle height (camera rendering)"),
+    "obstacle_start_s": Param(float, 5.0, 0.0, None, "s", "time the obstacle starts moving"),
+    "robot_speed_mps": Param(float, 0.20, 0.0, 1.5, "m/s", "commanded forward speed of the robot"),
+    "duration_s": Param(float, 30.0, 0.5, 3600.0, "s", "length of the run"),
+    "obstacles": Param(int, 1, 1, 4, "", "number of moving obstacles"),
+    "odom_noise": Param(float, 1.0, 0.0, 20.0, "x", "odometry noise scale (0 = perfect, 1 = default model)"),
+    "seed": Param(int, 1, None, None, "", "seed of every random generator of the world"),
+    "closest_approach_m": Param(float, 1.0, 0.0, 3.0, "m", "closest distance robot centre - obstacle centre"),
+    "closest_approach_time_s": Param(float, 17.0, 0.0, None, "s", "time of the closest approach"),
+}
+
+PAPER_SCENARIOS: dict[str, dict[str, Any]] = {
+    "1": {"name": "scenario1_45deg", "crossing_deg": 45.0},
+    "2": {"name": "scenario2_90deg", "crossing_deg": 90.0},
+}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    params: dict[str, Any]
+    walls: tuple[Wall, ...]
+    obstacles: tuple[ObstaclePath, ...]
+    robot_start: tuple[float, float, float]
+    robot_speed_mps: float
+    duration_s: float
+    odometry_noise: OdometryNoise
+    seed: int
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def default_params() -> dict[str, Any]:
+    return {key: p.default for key, p in PARAMS.items()}
+
+
+def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
+    """Defaults overlaid with ``raw``, type-checked and range-checked; unknown keys are errors."""
+    out: dict[str, Any] = {"name": "custom", **default_params()}
+    for key, value in raw.items():
+        if key == "name":
+            if not isinstance(value, str) or not value:
+                raise ScenarioError(key, f"must be a non-empty string, got {value!r}")
+            out[key] = value
+            continue
+        spec = PARAMS.get(key)
+        if spec is None:
+            raise ScenarioError(key, f"unknown key (known: name, {', '.join(PARAMS)})")
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ScenarioError(key, f"must be a number, got {value!r}")
+        if spec.kind is int:
+            if isinstance(value, float) and not value.is_integer():
+                raise ScenarioError(key, f"must be an integer, got {value!r}")
+            value = int(value)
+        else:
+            value = float(value)
+            if not math.isfinite(value):
+                raise ScenarioError(key, f"must be finite, got {value!r}")
+        if spec.lo is not None and value < spec.lo:
+            raise ScenarioError(key, f"must be >= {spec.lo} {spec.unit}, got {value}")
+        if spec.hi is not None and value > spec.hi:
+            raise ScenarioError(key, f"must be <= {spec.hi} {spec.unit}, got {value}")
+        out[key] = value
+    min_ca = out["obstacle_diameter_m"] / 2 + ROBOT_RADIUS_M + 0.05
+    if out["closest_approach_m"] < min_ca:
+        raise ScenarioError(
+            "closest_approach_m",
+            f"{out['closest_approach_m']} m would hit the robot: needs >= {min_ca:.2f} m for this obstacle diameter",
+        )
+    return out
+
+
+def paper_params(which: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Parameters of the paper's scenario ``which`` ("1" or "2") with optional overrides."""
+    if which not in PAPER_SCENARIOS:
+        raise ScenarioError("scenario", f"unknown scenario {which!r} (known: {', '.join(PAPER_SCENARIOS)})")
+    return {**PAPER_SCENARIOS[which], **(overrides or {})}
+
+
+def load_scenario_file(path: str | Path) -> dict[str, Any]:
+    """Read a TOML scenario file: flat keys from ``PARAMS`` plus ``name`` (or the same under [scenario])."""
+    p = Path(path)
+    try:
+        with p.open("rb") as fh:
+            data = tomllib.load(fh)
+    except OSError as exc:
+        raise ScenarioError("scenario_file", f"cannot read {p}: {exc}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError("scenario_file", f"{p} is not valid TOML: {exc}") from exc
+    if set(data) == {"scenario"} and isinstance(data["scenario"], dict):
+        data = data["scenario"]
+    data.setdefault("name", p.stem)
+    validate_params(data)
+    return data
+
+
+def paper_room() -> tuple[Wall, ...]:
+    half = ROOM_WIDTH_M / 2
+    return (
+        Wall(0.0, half, ROOM_LENGTH_M, half, reflectivity=0.65),  # left
+        Wall(ROOM_LENGTH_M, half, ROOM_LENGTH_M, -half, reflectivity=0.55),  # far end
+        Wall(ROOM_LENGTH_M, -half, 0.0, -half, reflectivity=0.6),  # right
+    )
+
+
+def robot_x_at(t_s: float, x0_m: float, speed_mps: float, accel_mps2: float = 0.3) -> float:
+    """Robot centre x at t_s when commanded ``speed_mps`` from t = 0 under the acceleration limit."""
+    if speed_mps <= 0:
+        return x0_m
+    t_acc = speed_mps / accel_mps2
+    if t_s <= t_acc:
+        return x0_m + 0.5 * accel_mps2 * t_s * t_s
+    return x0_m + speed_mps * t_s - speed_mps * speed_mps / (2 * accel_mps2)
+
+
+def _box_interval(p: np.ndarray, v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+    """Times [t_in, t_out] (relative) where p + v*t lies inside the box [lo, hi]; empty -> (inf, -inf)."""
+    t_in, t_out = -math.inf, math.inf
+    for k in range(2):
+        if abs(v[k]) < 1e-12:
+            if not lo[k] <= p[k] <= hi[k]:
+                return math.inf, -math.inf
+            continue
+        a, b = (lo[k] - p[k]) / v[k], (hi[k] - p[k]) / v[k]
+        t_in, t_out = max(t_in, min(a, b)), min(t_out, max(a, b))
+    return t_in, t_out
+
+
+def _obstacle_path(prm: dict[str, Any], side: float, t_ca: float, key: str) -> ObstaclePath:
+    a = math.radians(prm["crossing_deg"])
+    vo = prm["obstacle_speed_mps"] * np.array([-math.cos(a), -side * math.sin(a)])
+    vr = np.array([prm["robot_speed_mps"], 0.0])
+    u = vo - vr
+    nu = float(np.hypot(*u))
+    if nu < 1e-6:
+        raise ScenarioError(key, "the obstacle would move exactly with the robot and never approach it")
+    # perpendicular to the relative velocity, on the side that makes the obstacle pass in front
+    n = side * np.array([-u[1], u[0]]) / nu
+    if abs(u[1]) < 1e-9:  # parallel lanes: pass on the right (left when mirrored)
+        n = np.array([0.0, -side])
+    x0, y0, _ = ROBOT_START
+    p_ca = np.array([robot_x_at(t_ca, x0, prm["robot_speed_mps"]), y0]) + prm["closest_approach_m"] * n
+    r = prm["obstacle_diameter_m"] / 2
+    lo = np.array([r + WALL_MARGIN_M, -ROOM_WIDTH_M / 2 + r + WALL_MARGIN_M])
+    hi = np.array([ROOM_LENGTH_M - r - WALL_MARGIN_M, ROOM_WIDTH_M / 2 - r - WALL_MARGIN_M])
+    t_in, t_out = _box_interval(p_ca, vo, lo, hi)
+    if not t_in <= 0.0 <= t_out:
+        raise ScenarioError(
+            key,
+            f"the closest approach at t = {t_ca:.1f} s would be at ({p_ca[0]:.2f}, {p_ca[1]:.2f}) m, outside the room",
+        )
+    t_move = max(prm["obstacle_start_s"], t_ca + t_in)
+    t_end = t_ca + t_out
+    if t_end <= t_move:
+        raise ScenarioError(key, "the obstacle's path inside the room ends before it starts moving")
+    p_start = p_ca + vo * (t_move - t_ca)
+    p_end = p_ca + vo * (t_end - t_ca)
+    return ObstaclePath(
+        radius_m=r,
+        waypoints=((float(p_start[0]), float(p_start[1])), (float(p_end[0]), float(p_end[1]))),
+        speed_mps=prm["obstacle_speed_mps"],
+        start_s=float(t_move),
+        height_m=prm["obstacle_height_m"],
+    )
+
+
+def _min_separation(a: ObstaclePath, b: ObstaclePath, t_end: float) -> float:
+    t = np.linspace(0.0, t_end, max(2, int(t_end * 20)))
+    d = a.positions(t) - b.positions(t)
+    return float(np.min(np.hypot(d[:, 0], d[:, 1])))
+
+
+def build_scenario(raw: dict[str, Any]) -> Scenario:
+    """Build a scenario from a dict of parameters (see ``PARAMS``; missing keys take defaults)."""
+    prm = validate_params(raw)
+    obstacles: list[ObstaclePath] = []
+    notes: list[str] = []
+    for k in range(prm["obstacles"]):
+        side = 1.0 if k % 2 == 0 else -1.0
+        t_ca = prm["closest_approach_time_s"] + 3.0 * k
+        for _ in range(40):
+            path = _obstacle_path(prm, side, t_ca, "closest_approach_time_s" if k == 0 else "obstacles")
+            horizon = max(prm["duration_s"], t_ca + 1.0)
+            clear = all(
+                _min_separation(path, other, horizon) > path.radius_m + other.radius_m + 0.1 for other in obstacles
+            )
+            if clear:
+                break
+            t_ca += 1.0
+        else:
+            raise ScenarioError("obstacles", f"no collision-free path found for obstacle {k + 1}")
+        if path.start_s > prm["obstacle_start_s"] + 1e-9:
+            notes.append(f"obstacle {k + 1} starts moving at {path.start_s:.2f} s (its path enters the room then)")
+        obstacles.append(path)
+    k_noise = prm["odom_noise"]
+    noise = OdometryNoise(**{key: val * k_noise for key, val in BASE_ODOMETRY_NOISE.items()}, seed=prm["seed"])
+    return Scenario(
+        name=str(prm["name"]),
+        params=prm,
+        walls=paper_room(),
+        obstacles=tuple(obstacles),
+        robot_start=ROBOT_START,
+        robot_speed_mps=prm["robot_speed_mps"],
+        duration_s=prm["duration_s"],
+        odometry_noise=noise,
+        seed=prm["seed"],
+        notes=tuple(notes),
+    )
+
+
+def paper_scenario(which: str, overrides: dict[str, Any] | None = None) -> Scenario:
+    """The paper's scenario "1" (45 deg approach) or "2" (90 deg crossing), optionally modified."""
+    return build_scenario(paper_params(which, overrides))
