@@ -7,6 +7,7 @@ I/O parts; clients use it to own their port and hand out samples.
 from __future__ import annotations
 
 import collections
+import select
 import threading
 import time
 from collections.abc import Callable
@@ -158,9 +159,20 @@ def read_some(port: serial.SerialBase, max_bytes: int = 65536) -> bytes:
     socket), so readers never spin on a dead link.
     """
     try:
+        sock = getattr(port, "_socket", None)
+        if sock is not None and port.is_open:
+            # pyserial's socket:// reports in_waiting as 0 or 1 (readable or not), which would make
+            # this read one byte per call; read what the socket holds instead.
+            ready, _, _ = select.select([sock], [], [], port.timeout)
+            if not ready:
+                return b""
+            data = sock.recv(max_bytes)
+            if not data:
+                raise DisconnectedError("read failed: socket closed by the peer")
+            return bytes(data)
         waiting = port.in_waiting
         data = port.read(max(1, min(max_bytes, waiting)))
-    except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+    except (serial.SerialException, OSError, TypeError, AttributeError, ValueError) as exc:
         raise DisconnectedError(f"read failed: {exc}") from exc
     return bytes(data)
 
