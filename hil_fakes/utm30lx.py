@@ -1,0 +1,763 @@
+"""A byte-level fake Hokuyo UTM-30LX (SCIP 2.0, firmware P.1.05), written from the fact sheet.
+
+This model does not import the driver: it is an independent reading of
+``shared/protocols/scip2_utm30lx.md`` and of the real recorded session, so a codec bug cannot hide
+behind the same bug in the fake.
+
+What it does, as the recorded firmware P.1.05 did:
+
+* VV/PP/II answer with the recorded text (II ``TIME`` is the fake's own 24-bit ms counter, in
+  upper-case hex), BM answers ``02`` when the laser is already on, ``CR`` answers ``04``, an
+  unknown command ``0E``; every reply is echo, status + sum, payload lines + sum, empty line.
+* The mirror spins on the fake's own clock: one scan every 60/SCAN s (25 ms), starting at the
+  moment the model first saw the clock; step 0 of scan k is latched at ``boot + k * period``.
+  A scan is sent when its sweep over the step window is complete. Each timestamp is computed once
+  from the scan's own start time and both its characters and its sum are built from that value.
+* MD/ME: acknowledgement (echo, ``00P``, empty line), then one frame per scan (respecting the
+  interval) whose echo carries the remaining count; ``count`` N stops after N frames (laser off),
+  ``00`` streams until QT. GD/GE answer with the next completed scan; status ``10`` when the laser
+  is off. TM0/TM1/TM2 with the SCIP statuses; in time-adjust mode every other command is refused
+  (``0E``, as urg_library expects of a sensor stuck there).
+* Ranges come from a pluggable :class:`RangeSource` (default :class:`FixedRoom`); NaN and values
+  beyond DMAX become error code 1, values below DMIN error code 2.
+
+Fault hooks beyond the transport's generic ones (:class:`hil_fakes.transport.FaultInjector`):
+:meth:`Utm30lxModel.inject_status` (a command answered with an error status),
+:meth:`Utm30lxModel.inject_frame_status` (stream frames replaced by an error status),
+:meth:`Utm30lxModel.inject_checksum_error` (a wrong status, timestamp or data sum),
+:meth:`Utm30lxModel.leave_streaming` (a previous client left MD running),
+:meth:`Utm30lxModel.enter_time_mode` (a previous client left it in time-adjust mode),
+:meth:`Utm30lxModel.power_cycle` (clock back to 0, laser off).
+
+Unverified device behaviour is a config value with a stated default (see :class:`Utm30lxConfig`).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from .transport import DeviceModel, DeviceServer, PtyEndpoint, TcpEndpoint
+
+_MASK24 = (1 << 24) - 1
+
+
+# --------------------------------------------------------------------------------------------
+# Range sources
+# --------------------------------------------------------------------------------------------
+
+
+class RangeSource(Protocol):
+    def sweep(self, t0_s: float, angles_rad: np.ndarray, beam_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """ranges_m (float64, NaN = no return) and intensities (float64 >= 0, unitless) for the beams at
+        angles_rad (sensor frame: 0 = front, counter-clockwise positive), beam i taken at t0_s + i*beam_dt_s."""
+        ...
+
+
+@dataclass(frozen=True)
+class FixedRoom:
+    """A rectangular room around a still sensor, with one round pillar; deterministic by default.
+
+    The sensor sits at the origin facing +x; walls at ``x_min_m``/``x_max_m``/``y_min_m``/``y_max_m``.
+    ``noise_sigma_m`` adds Gaussian range noise (seeded by the scan time, so reproducible).
+    """
+
+    x_min_m: float = -1.5
+    x_max_m: float = 6.5
+    y_min_m: float = -2.45
+    y_max_m: float = 2.45
+    pillar_x_m: float = 2.0
+    pillar_y_m: float = 1.0
+    pillar_radius_m: float = 0.2
+    noise_sigma_m: float = 0.0
+
+    def sweep(self, t0_s: float, angles_rad: np.ndarray, beam_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        c = np.cos(angles_rad)
+        s = np.sin(angles_rad)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tx = np.where(c > 0, self.x_max_m / c, np.where(c < 0, self.x_min_m / c, np.inf))
+            ty = np.where(s > 0, self.y_max_m / s, np.where(s < 0, self.y_min_m / s, np.inf))
+        r = np.minimum(tx, ty)
+        # ray / circle: |t*d - p|^2 = R^2
+        px, py, rad = self.pillar_x_m, self.pillar_y_m, self.pillar_radius_m
+        b = c * px + s * py
+        disc = b * b - (px * px + py * py - rad * rad)
+        hit = disc >= 0
+        t_hit = np.where(hit, b - np.sqrt(np.where(hit, disc, 0.0)), np.inf)
+        t_hit = np.where(t_hit > 0, t_hit, np.inf)
+        r = np.minimum(r, t_hit)
+        if self.noise_sigma_m > 0:
+            rng = np.random.default_rng(int(t0_s * 1000) & 0x7FFFFFFF)
+            r = r + rng.normal(0.0, self.noise_sigma_m, r.shape)
+        r = np.where(np.isfinite(r), r, np.nan)
+        intensity = np.clip(9000.0 / np.maximum(r, 0.3) ** 1.2, 100.0, 16000.0)
+        return r, np.where(np.isnan(r), 0.0, intensity)
+
+
+# --------------------------------------------------------------------------------------------
+# Wire helpers (independent of the driver's codec)
+# --------------------------------------------------------------------------------------------
+
+
+def scip_sum(content: bytes) -> bytes:
+    """The one-byte SCIP checksum of ``content``."""
+    return bytes([(sum(content) & 0x3F) + 0x30])
+
+
+def encode(values: np.ndarray, width: int) -> bytes:
+    """``width`` characters per value, 6 bits each, most significant first (values must fit)."""
+    v = np.asarray(values, dtype=np.int64).reshape(-1, 1)
+    shifts = 6 * np.arange(width - 1, -1, -1, dtype=np.int64).reshape(1, -1)
+    return (((v >> shifts) & 0x3F) + 0x30).astype(np.uint8).tobytes()
+
+
+def data_block(chars: bytes) -> bytes:
+    """64-character lines, each with its sum and LF; the closing empty line is not included."""
+    n = len(chars)
+    if n == 0:
+        return b""
+    rows = -(-n // 64)
+    padded = np.zeros(rows * 64, dtype=np.uint8)
+    padded[:n] = np.frombuffer(chars, dtype=np.uint8)
+    grid = padded.reshape(rows, 64)
+    sums = ((grid.sum(axis=1, dtype=np.int64) & 0x3F) + 0x30).astype(np.uint8)
+    out = np.empty((rows, 66), dtype=np.uint8)
+    out[:, :64] = grid
+    out[:, 64] = sums
+    out[:, 65] = 0x0A
+    flat = out.reshape(-1).tobytes()
+    tail = n - (rows - 1) * 64
+    if tail == 64:
+        return flat
+    # the last line is shorter: rebuild it with its own sum
+    last = chars[(rows - 1) * 64 :]
+    return flat[: (rows - 1) * 66] + last + scip_sum(last) + b"\n"
+
+
+def status_line(code: str) -> bytes:
+    raw = code.encode("ascii")
+    return raw + scip_sum(raw) + b"\n"
+
+
+def info_line(key: str, value: str) -> bytes:
+    content = f"{key}:{value}".encode("ascii")
+    return content + b";" + scip_sum(content) + b"\n"
+
+
+def time_line(ms: int) -> bytes:
+    chars = encode(np.array([ms & _MASK24]), 4)
+    return chars + scip_sum(chars) + b"\n"
+
+
+# --------------------------------------------------------------------------------------------
+# The device
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Utm30lxConfig:
+    """Identity, parameters and unverified behaviour of the fake ([?] = not verified on hardware)."""
+
+    vendor: str = "Hokuyo Automatic Co.,Ltd."
+    product: str = "SOKUIKI Sensor TOP-URG UTM-30LX"
+    firmware: str = "P.1.05(17/Apr./2009)"
+    protocol: str = "SCIP 2.0"
+    serial: str = "00903971"
+    model: str = "UTM-30LX(Hokuyo Automatic Co.,Ltd.)"
+    dmin_mm: int = 23
+    dmax_mm: int = 60000
+    ares: int = 1440
+    amin: int = 0
+    amax: int = 1080
+    afrt: int = 540
+    scan_rpm: int = 2400
+    motor_speed_text: str = "Initial(2400[rpm])<-Default setting by user"
+    measurement_mode: str = "CLASSIC"
+    bit_rate_text: str = "USB Full Speed"
+    status_text: str = "Sensor works well."
+    #: the 24-bit ms counter at the moment the model first sees its clock (the recording's first II: 4821456)
+    initial_time_ms: int = 4821456
+    #: the recorded sensor had its laser on when the session began (BM answered 02) [? after power-up]
+    laser_on_at_start: bool = True
+    #: delay before a command's reply goes out (the real one answered after 3-25 ms) [?]
+    reply_latency_s: float = 0.0
+    #: status for any command other than TM while in time-adjust mode [?: urg_library expects 0E]
+    time_mode_refusal: str = "0E"
+    #: HS answer; "not supported on all UTM-30LX versions" [?]
+    hs_status: str = "03"
+    #: status for a known command with the wrong number of parameter characters [?: 0C or 0F]
+    missing_parameter_status: str = "0C"
+
+    @property
+    def scan_period_s(self) -> float:
+        return 60.0 / self.scan_rpm
+
+    @property
+    def step_dt_s(self) -> float:
+        return self.scan_period_s / self.ares
+
+
+@dataclass
+class _Stream:
+    command: str  # MD / MS / ME
+    params_prefix: str  # start+end+cluster+interval (11 chars)
+    start: int
+    end: int
+    cluster: int
+    interval: int
+    count: int  # 0 = until QT
+    remaining: int
+    tag: str
+    first_scan: int
+    sent: int = 0
+
+
+@dataclass
+class _PendingSingle:
+    echo: bytes
+    command: str
+    start: int
+    end: int
+    cluster: int
+    not_before_scan: int
+
+
+_SS_RATES = frozenset({"019200", "038400", "057600", "115200", "250000", "500000", "750000"})
+_TAG_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789 ._+@")
+_MAX_CATCH_UP_SCANS = 8
+
+
+class Utm30lxModel(DeviceModel):
+    """The UTM-30LX state machine; serve it with :func:`serve_pty` / :func:`serve_tcp` or a DeviceServer."""
+
+    def __init__(self, config: Utm30lxConfig | None = None, source: RangeSource | None = None) -> None:
+        super().__init__()
+        self.config = config or Utm30lxConfig()
+        self.source: RangeSource = source or FixedRoom()
+        cfg = self.config
+        self._lock = threading.RLock()
+        self._inbuf = bytearray()
+        self._boot_s: float | None = None
+        self._clock_base_ms = cfg.initial_time_ms
+        self._laser_on = cfg.laser_on_at_start
+        self._time_mode = False
+        self._stream: _Stream | None = None
+        self._singles: list[_PendingSingle] = []
+        self._next_scan = 0  # index of the next scan whose sweep has not been processed
+        self._scan_cache: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._out: deque[tuple[float, bytes]] = deque()
+        self._rb_armed_at: float | None = None
+        self._status_faults: dict[str, deque[str]] = {}
+        self._frame_status_faults: deque[str] = deque()
+        self._checksum_faults: deque[str] = deque()
+        self._silent_ack = False
+        n = cfg.amax + 1
+        self._all_angles = (np.arange(n, dtype=np.float64) - cfg.afrt) * (2.0 * math.pi / cfg.ares)
+        #: what the fake did, for tests
+        self.frames_sent = 0
+        self.commands_seen: list[str] = []
+
+    # ---------------------------------------------------------------- clock
+
+    def _ensure_boot(self, now_s: float) -> None:
+        if self._boot_s is None:
+            self._boot_s = now_s
+            self._next_scan = 0
+
+    def device_ms(self, now_s: float) -> int:
+        """The 24-bit counter at host time ``now_s``."""
+        self._ensure_boot(now_s)
+        assert self._boot_s is not None
+        return (self._clock_base_ms + int(math.floor((now_s - self._boot_s) * 1000.0 + 1e-6))) & _MASK24
+
+    def _scan_start_s(self, k: int) -> float:
+        assert self._boot_s is not None
+        return self._boot_s + k * self.config.scan_period_s
+
+    def _scan_done_s(self, k: int) -> float:
+        return self._scan_start_s(k) + (self.config.amax + 1) * self.config.step_dt_s
+
+    def _scan_index_after(self, now_s: float) -> int:
+        """The first scan whose step 0 is not before ``now_s``."""
+        assert self._boot_s is not None
+        return max(self._next_scan, math.ceil((now_s - self._boot_s) / self.config.scan_period_s - 1e-9))
+
+    # ---------------------------------------------------------------- DeviceModel
+
+    def on_bytes(self, data: bytes, now_s: float) -> None:
+        with self._lock:
+            self._ensure_boot(now_s)
+            self._inbuf += data
+            while True:
+                cut = -1
+                for i, b in enumerate(self._inbuf):
+                    if b in (0x0A, 0x0D):
+                        cut = i
+                        break
+                if cut < 0:
+                    break
+                line = bytes(self._inbuf[:cut])
+                del self._inbuf[: cut + 1]
+                if line:  # an empty line (bare LF, or the LF of a CR+LF) is ignored [?]
+                    self._handle(line, now_s)
+            if len(self._inbuf) > 4096:  # no terminator in sight: a real command buffer would overflow
+                self._inbuf.clear()
+            self._flush(now_s)
+
+    def poll(self, now_s: float) -> float | None:
+        with self._lock:
+            self._ensure_boot(now_s)
+            self._advance(now_s)
+            self._flush(now_s)
+            nxt = self._scan_done_s(self._next_scan)
+            if self._out:
+                nxt = min(nxt, self._out[0][0])
+            return nxt
+
+    # ---------------------------------------------------------------- fault hooks
+
+    def inject_status(self, command: str, code: str, times: int = 1) -> None:
+        """The next ``times`` requests of ``command`` (``"BM"``, ``"MD"``, ``"TM"``...) get ``code``, no effect."""
+        with self._lock:
+            self._status_faults.setdefault(command, deque()).extend([code] * times)
+
+    def inject_frame_status(self, code: str, frames: int = 1) -> None:
+        """The next ``frames`` stream frames go out as echo + ``code`` + empty line (no data)."""
+        with self._lock:
+            self._frame_status_faults.extend([code] * frames)
+
+    def inject_checksum_error(self, where: str = "data", frames: int = 1) -> None:
+        """The next ``frames`` scan replies carry a wrong sum on the ``status``, ``timestamp`` or ``data`` line."""
+        if where not in ("status", "timestamp", "data"):
+            raise ValueError(f"where must be status, timestamp or data, not {where!r}")
+        with self._lock:
+            self._checksum_faults.extend([where] * frames)
+
+    def leave_streaming(self, request: str = "MD0000108001000", now_s: float | None = None) -> None:
+        """Start a stream as a previous client would have (its acknowledgement went to that client)."""
+        with self._lock:
+            if now_s is not None:
+                self._ensure_boot(now_s)
+            self._silent_ack = True
+            try:
+                self._handle(request.encode("ascii"), now_s if now_s is not None else (self._boot_s or 0.0))
+            finally:
+                self._silent_ack = False
+
+    def enter_time_mode(self) -> None:
+        """Leave the fake in time-adjust mode, as a client that died after TM0 would."""
+        with self._lock:
+            self._time_mode = True
+            self._laser_on = False
+            self._stream = None
+
+    def power_cycle(self, now_s: float) -> None:
+        """Clock back to 0, laser off, streams and TM mode gone (a reboot)."""
+        with self._lock:
+            self._ensure_boot(now_s)
+            self._reset_clock(now_s)
+            self._laser_on = False
+            self._stream = None
+            self._singles.clear()
+            self._time_mode = False
+
+    @property
+    def streaming(self) -> bool:
+        with self._lock:
+            return self._stream is not None
+
+    @property
+    def laser_on(self) -> bool:
+        with self._lock:
+            return self._laser_on
+
+    @property
+    def time_mode(self) -> bool:
+        with self._lock:
+            return self._time_mode
+
+    # ---------------------------------------------------------------- output
+
+    def _send(self, data: bytes, now_s: float, latency_s: float | None = None) -> None:
+        delay = self.config.reply_latency_s if latency_s is None else latency_s
+        self._out.append((now_s + delay, data))
+
+    def _flush(self, now_s: float) -> None:
+        while self._out and self._out[0][0] <= now_s:
+            _, data = self._out.popleft()
+            self.emit(data)
+
+    def _reply(self, echo: bytes, code: str, now_s: float, payload: bytes = b"") -> None:
+        self._send(echo + b"\n" + status_line(code) + payload + b"\n", now_s)
+
+    # ---------------------------------------------------------------- commands
+
+    def _handle(self, line: bytes, now_s: float) -> None:
+        echo = line
+        try:
+            text = line.decode("ascii")
+        except UnicodeDecodeError:
+            self._reply(echo, "0E", now_s)
+            return
+        self.commands_seen.append(text)
+        body, sep, tag = text.partition(";")
+        cmd = body[:3] if body.startswith("%") else body[:2]
+        params = body[len(cmd) :]
+        if sep:
+            if len(tag) > 16:
+                self._reply(echo, "0G", now_s)
+                return
+            if any(ch not in _TAG_CHARS for ch in tag):
+                self._reply(echo, "0H", now_s)
+                return
+        faults = self._status_faults.get(cmd)
+        if faults:
+            self._reply(echo, faults.popleft(), now_s)
+            return
+        if self._time_mode and cmd != "TM":
+            self._reply(echo, self.config.time_mode_refusal, now_s)
+            return
+        handler = {
+            "VV": self._cmd_vv,
+            "PP": self._cmd_pp,
+            "II": self._cmd_ii,
+            "BM": self._cmd_bm,
+            "QT": self._cmd_qt,
+            "RS": self._cmd_rs,
+            "RT": self._cmd_rs,
+            "RB": self._cmd_rb,
+            "TM": self._cmd_tm,
+            "SS": self._cmd_ss,
+            "CR": self._cmd_cr,
+            "HS": self._cmd_hs,
+            "MD": self._cmd_stream,
+            "MS": self._cmd_stream,
+            "ME": self._cmd_stream,
+            "GD": self._cmd_single,
+            "GS": self._cmd_single,
+            "GE": self._cmd_single,
+        }.get(cmd)
+        if handler is None:
+            self._reply(echo, "0E", now_s)
+            return
+        handler(echo, cmd, params, tag, now_s)
+
+    def _no_params(self, echo: bytes, params: str, now_s: float) -> bool:
+        if params:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+            return False
+        return True
+
+    def _cmd_vv(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if self._no_params(echo, params, now_s):
+            c = self.config
+            payload = b"".join(
+                info_line(k, v)
+                for k, v in (
+                    ("VEND", c.vendor),
+                    ("PROD", c.product),
+                    ("FIRM", c.firmware),
+                    ("PROT", c.protocol),
+                    ("SERI", c.serial),
+                )
+            )
+            self._reply(echo, "00", now_s, payload)
+
+    def _cmd_pp(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if self._no_params(echo, params, now_s):
+            c = self.config
+            rows = (
+                ("MODL", c.model),
+                ("DMIN", str(c.dmin_mm)),
+                ("DMAX", str(c.dmax_mm)),
+                ("ARES", str(c.ares)),
+                ("AMIN", str(c.amin)),
+                ("AMAX", str(c.amax)),
+                ("AFRT", str(c.afrt)),
+                ("SCAN", str(c.scan_rpm)),
+            )
+            self._reply(echo, "00", now_s, b"".join(info_line(k, v) for k, v in rows))
+
+    def _cmd_ii(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if self._no_params(echo, params, now_s):
+            c = self.config
+            rows = (
+                ("MODL", c.model),
+                ("LASR", "ON" if self._laser_on else "OFF"),
+                ("SCSP", c.motor_speed_text),
+                ("MESM", c.measurement_mode),
+                ("SBPS", c.bit_rate_text),
+                ("TIME", f"{self.device_ms(now_s):06X}"),
+                ("STAT", c.status_text),
+            )
+            self._reply(echo, "00", now_s, b"".join(info_line(k, v) for k, v in rows))
+
+    def _cmd_bm(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if self._no_params(echo, params, now_s):
+            code = "02" if self._laser_on else "00"
+            self._laser_on = True
+            self._reply(echo, code, now_s)
+
+    def _stop_measuring(self) -> None:
+        self._stream = None
+        self._singles.clear()
+        self._laser_on = False
+
+    def _cmd_qt(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if self._no_params(echo, params, now_s):
+            self._stop_measuring()
+            self._reply(echo, "00", now_s)
+
+    def _reset_clock(self, now_s: float) -> None:
+        """The counter restarts at 0 now; the mirror keeps its phase."""
+        assert self._boot_s is not None
+        elapsed_ms = int(math.floor((now_s - self._boot_s) * 1000.0))
+        self._clock_base_ms = -elapsed_ms
+
+    def _cmd_rs(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if self._no_params(echo, params, now_s):
+            self._stop_measuring()
+            self._reset_clock(now_s)
+            self._reply(echo, "00", now_s)
+
+    def _cmd_rb(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        # First RB arms (01); a second within 1 s reboots (00). The link does not drop here [?].
+        if not self._no_params(echo, params, now_s):
+            return
+        if self._rb_armed_at is not None and now_s - self._rb_armed_at <= 1.0:
+            self._rb_armed_at = None
+            self._reply(echo, "00", now_s)
+            self._stop_measuring()
+            self._time_mode = False
+            self._reset_clock(now_s)
+        else:
+            self._rb_armed_at = now_s
+            self._reply(echo, "01", now_s)
+
+    def _cmd_tm(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if len(params) != 1:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+        elif params == "0":
+            if self._time_mode:
+                self._reply(echo, "02", now_s)
+            else:
+                self._stop_measuring()
+                self._time_mode = True
+                self._reply(echo, "00", now_s)
+        elif params == "1":
+            if self._time_mode:
+                self._reply(echo, "00", now_s, time_line(self.device_ms(now_s)))
+            else:
+                self._reply(echo, "04", now_s)
+        elif params == "2":
+            if self._time_mode:
+                self._time_mode = False
+                self._reply(echo, "00", now_s)
+            else:
+                self._reply(echo, "03", now_s)
+        else:
+            self._reply(echo, "01", now_s)
+
+    def _cmd_ss(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if len(params) != 6:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+        elif not params.isdigit():
+            self._reply(echo, "01", now_s)
+        elif params not in _SS_RATES:
+            self._reply(echo, "02", now_s)
+        else:
+            self._reply(echo, "00", now_s)  # accepted, no effect over USB [SPEC]
+
+    def _cmd_cr(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if len(params) != 2:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+        else:
+            self._reply(echo, "04", now_s)  # the real UTM-30LX answered CR00 with 04 [DEV]
+
+    def _cmd_hs(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if len(params) != 1:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+        elif params not in ("0", "1"):
+            self._reply(echo, "01", now_s)
+        else:
+            self._reply(echo, self.config.hs_status, now_s)
+
+    def _check_scan_params(self, fields: list[tuple[str, str]]) -> str | None:
+        """SCIP error status for the first bad field, or the range checks; None when valid."""
+        for code, value in fields:
+            if not value.isdigit():
+                return code
+        start, end = int(fields[0][1]), int(fields[1][1])
+        if end > self.config.amax or start > self.config.amax or start < self.config.amin:
+            return "04"
+        if end < start:
+            return "05"
+        return None
+
+    def _cmd_stream(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if len(params) != 13:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+            return
+        fields = [
+            ("01", params[0:4]),
+            ("02", params[4:8]),
+            ("03", params[8:10]),
+            ("06", params[10:11]),
+            ("07", params[11:13]),
+        ]
+        error = self._check_scan_params(fields)
+        if error is not None:
+            self._reply(echo, error, now_s)
+            return
+        count = int(params[11:13])
+        # A second MD while streaming replaces the first [?: urg_library leaves this case as a TODO].
+        self._stream = _Stream(
+            command=cmd,
+            params_prefix=params[:11],
+            start=int(params[0:4]),
+            end=int(params[4:8]),
+            cluster=int(params[8:10]),
+            interval=int(params[10:11]),
+            count=count,
+            remaining=count,
+            tag=tag,
+            first_scan=self._scan_index_after(now_s),
+        )
+        self._laser_on = True
+        if not self._silent_ack:
+            self._reply(echo, "00", now_s)
+
+    def _cmd_single(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
+        if len(params) != 10:
+            self._reply(echo, self.config.missing_parameter_status, now_s)
+            return
+        error = self._check_scan_params([("01", params[0:4]), ("02", params[4:8]), ("03", params[8:10])])
+        if error is not None:
+            self._reply(echo, error, now_s)
+            return
+        if not self._laser_on:
+            self._reply(echo, "10", now_s)
+            return
+        # The reply carries the next scan completed after the request (about one revolution later).
+        self._singles.append(
+            _PendingSingle(echo, cmd, int(params[0:4]), int(params[4:8]), int(params[8:10]), self._next_scan)
+        )
+
+    # ---------------------------------------------------------------- scanning
+
+    def _advance(self, now_s: float) -> None:
+        """Complete every scan whose sweep ended by ``now_s`` (skipping far-behind ones)."""
+        assert self._boot_s is not None
+        period = self.config.scan_period_s
+        behind = int((now_s - self._scan_done_s(self._next_scan)) // period) + 1
+        if behind > _MAX_CATCH_UP_SCANS:
+            self._next_scan += behind - _MAX_CATCH_UP_SCANS
+        while self._scan_done_s(self._next_scan) <= now_s:
+            k = self._next_scan
+            self._next_scan += 1
+            self._complete_scan(k, now_s)
+
+    def _sweep(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Device values (mm codes) and intensities of every step 0..AMAX of scan ``k`` (cached)."""
+        if self._scan_cache is not None and self._scan_cache[0] == k:
+            return self._scan_cache[1], self._scan_cache[2]
+        cfg = self.config
+        ranges_m, intensity = self.source.sweep(self._scan_start_s(k), self._all_angles, cfg.step_dt_s)
+        ranges_m = np.asarray(ranges_m, dtype=np.float64)
+        mm = np.round(np.nan_to_num(ranges_m, nan=-1.0) * 1000.0)
+        codes = np.where(np.isnan(ranges_m) | (mm > cfg.dmax_mm), 1, np.where(mm < cfg.dmin_mm, 2, mm))
+        codes = codes.astype(np.int64)
+        codes[: cfg.amin] = 1
+        inten = np.clip(np.round(np.nan_to_num(np.asarray(intensity, dtype=np.float64))), 0, (1 << 18) - 1)
+        self._scan_cache = (k, codes, inten.astype(np.int64))
+        return codes, self._scan_cache[2]
+
+    def _window(self, k: int, start: int, end: int, cluster: int, with_intensity: bool) -> bytes:
+        codes, inten = self._sweep(k)
+        c = max(cluster, 1)
+        d = codes[start : end + 1]
+        i = inten[start : end + 1]
+        if c > 1:
+            n = -(-d.size // c)
+            pad = n * c - d.size
+            big = np.iinfo(np.int64).max
+            valid = np.where(d >= self.config.dmin_mm, d, big)
+            grouped = np.concatenate([valid, np.full(pad, big)]).reshape(n, c).min(axis=1)
+            first_codes = np.concatenate([d, np.full(pad, 1)]).reshape(n, c)[:, 0]
+            d = np.where(grouped == big, first_codes, grouped)  # nearest valid echo, else the error code
+            i = np.concatenate([i, np.zeros(pad, dtype=np.int64)]).reshape(n, c).max(axis=1)
+        if with_intensity:
+            pairs = np.stack([d, i], axis=1).reshape(-1)
+            return encode(pairs, 3)
+        return encode(d, 3)
+
+    def _scan_payload(self, k: int, start: int, end: int, cluster: int, command: str, echo: bytes, code: str) -> bytes:
+        if command in ("MS", "GS"):
+            codes, _ = self._sweep(k)
+            c = max(cluster, 1)
+            d = codes[start : end + 1][::c]
+            chars = encode(np.minimum(d, 4095), 2)  # what the sensor sends above 4095 mm is unknown [?]
+        else:
+            chars = self._window(k, start, end, cluster, command in ("ME", "GE"))
+        fault = self._checksum_faults.popleft() if self._checksum_faults else None
+        ts = self.device_ms(self._scan_start_s(k))  # computed once; characters and sum both from it
+        status = status_line(code)
+        tline = time_line(ts)
+        block = data_block(chars)
+        if fault == "status":
+            status = status[:2] + bytes([((status[2] - 0x30 + 1) & 0x3F) + 0x30]) + b"\n"
+        elif fault == "timestamp":
+            tline = tline[:4] + bytes([((tline[4] - 0x30 + 1) & 0x3F) + 0x30]) + b"\n"
+        elif fault == "data":
+            pos = block.index(b"\n") - 1
+            block = block[:pos] + bytes([((block[pos] - 0x30 + 1) & 0x3F) + 0x30]) + block[pos + 1 :]
+        return echo + b"\n" + status + tline + block + b"\n"
+
+    def _complete_scan(self, k: int, now_s: float) -> None:
+        if not self._laser_on:
+            return
+        if self._singles:
+            ready = [s for s in self._singles if k >= s.not_before_scan]
+            self._singles = [s for s in self._singles if k < s.not_before_scan]
+            for s in ready:
+                self._send(self._scan_payload(k, s.start, s.end, s.cluster, s.command, s.echo, "00"), now_s, 0.0)
+                self.frames_sent += 1
+        st = self._stream
+        if st is None or k < st.first_scan or (k - st.first_scan) % (st.interval + 1):
+            return
+        if st.count:
+            st.remaining -= 1
+            remaining = st.remaining
+        else:
+            remaining = 0
+        echo_text = f"{st.command}{st.params_prefix}{remaining:02d}" + (f";{st.tag}" if st.tag else "")
+        echo = echo_text.encode("ascii")
+        if self._frame_status_faults:
+            self._send(echo + b"\n" + status_line(self._frame_status_faults.popleft()) + b"\n", now_s, 0.0)
+        else:
+            self._send(self._scan_payload(k, st.start, st.end, st.cluster, st.command, echo, "99"), now_s, 0.0)
+            self.frames_sent += 1
+        st.sent += 1
+        if st.count and st.remaining <= 0:
+            self._stream = None
+            self._laser_on = False  # the laser goes off after the last scan of a finite run [SPEC]
+
+
+# --------------------------------------------------------------------------------------------
+# Serving
+# --------------------------------------------------------------------------------------------
+
+
+def serve_pty(model: Utm30lxModel | None = None, link_path: str | None = None) -> DeviceServer:
+    """Start the fake on a pseudo-terminal (``server.address`` is the device path)."""
+    return DeviceServer(model or Utm30lxModel(), PtyEndpoint(link_path)).start()
+
+
+def serve_tcp(model: Utm30lxModel | None = None, host: str = "127.0.0.1", port: int = 0) -> DeviceServer:
+    """Start the fake on a loopback TCP port (``server.address`` is ``socket://host:port``)."""
+    return DeviceServer(model or Utm30lxModel(), TcpEndpoint(host, port)).start()
