@@ -1,0 +1,332 @@
+"""The VIPSM estimator: one object with explicit state, ``step(scan, odometry, frame) -> Estimate``.
+
+Per cycle (the paper's Fig. 5 flow, with the product's additions):
+
+1. Visual obstacle directions: optical flow between this frame and the previous one, ego-motion
+   removed (:mod:`vipsm.flow`), blobs turned into bearing intervals in the laser frame at the scan's
+   stamp. Tracks confirmed by the camera recently also contribute their predicted interval (so a body
+   leaving the camera's view, or a missed frame, keeps being masked for ``track_mask_s``).
+2. Restoration (:mod:`vipsm.restore`): segments in those directions are cut and bridged, with
+   weight 0 for both matching steps. ``plain_psm=True`` (the baseline) matches the raw scan instead;
+   the camera-selected segments are still used to locate obstacles.
+3. PSM (:mod:`vipsm.psm`) of the current scan against the reference keyframe, seeded by odometry.
+   Refused matches fall back to odometry (flag ``ODOMETRY_FALLBACK``).
+4. Obstacles: the cut points placed with the matched pose, the body centre corrected for seeing
+   only its front (:mod:`vipsm.tracker`), a constant-velocity Kalman tracker for velocity and ids.
+
+Reference-scan policy (keyframes): the current scan is matched against a keyframe, not against the
+previous scan, so small per-match errors do not accumulate every cycle. The keyframe is replaced by
+the current (restored) scan when the robot has moved more than ``keyframe_dist_m`` or turned more
+than ``keyframe_angle_rad`` from it, when the match used fewer than ``keyframe_min_overlap`` of the
+beams the keyframe offers, or after a refused match once the keyframe is ``keyframe_stale_dist_m``
+behind. A keyframe is never taken from a scan whose restoration was refused (obstacle too large).
+
+Frames: ``Estimate.pose`` is the robot pose in the odometry frame (the first estimate equals the
+first odometry pose); obstacle positions/velocities are in that frame too.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
+from .geometry import between, compose, inverse, wrap_angle
+from .psm import PreparedScan, PsmConfig, PsmResult, match_prepared, prepare_scan
+from .restore import BearingInterval, Restoration, RestoreConfig, restore
+from .tracker import Detection, Tracker, TrackerConfig, locate_body
+from .types import Estimate, EstimateFlag, Frame, MatchQuality, Obstacle, Odometry, Pose2D, Scan
+
+
+def _estimator_psm() -> PsmConfig:
+    # Odometry-seeded scan-to-keyframe matching at 10 Hz: a +-10 deg first orientation search is
+    # ample and halves the cost of the widest step; two small steps in a row end the iterations.
+    return PsmConfig(search_window_first_beams=40, search_window_beams=20, stop_count=2)
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    # Mount poses on the robot (robot frame: x forward, y left, z up).
+    laser_x_m: float = 0.0
+    laser_y_m: float = 0.0
+    laser_theta_rad: float = 0.0
+    camera_x_m: float = 0.0
+    camera_y_m: float = 0.0
+    camera_z_m: float = 1.0
+    psm: PsmConfig = field(default_factory=_estimator_psm)
+    restore: RestoreConfig = field(default_factory=RestoreConfig)
+    flow: FlowConfig = field(default_factory=FlowConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    keyframe_dist_m: float = 0.30
+    keyframe_angle_rad: float = math.radians(10.0)
+    keyframe_min_overlap: float = 0.60
+    keyframe_stale_dist_m: float = 0.60
+    max_frame_age_s: float = 0.25  # a frame further than this from the scan's stamp is not used
+    track_mask_s: float = 1.0  # tracks confirmed by the camera within this long are masked too
+    track_mask_margin_m: float = 0.15  # added to a track's radius for its predicted interval
+    max_correction_m: float = 0.5  # a match further than this from the odometry prediction is refused
+    max_correction_rad: float = math.radians(20.0)
+    odom_sigma_per_m: float = 0.05  # covariance growth on odometry fallback
+    odom_sigma_rad_per_rad: float = 0.05
+
+    @property
+    def laser_mount(self) -> Pose2D:
+        return Pose2D(self.laser_x_m, self.laser_y_m, self.laser_theta_rad)
+
+    @property
+    def camera_mount(self) -> CameraMount:
+        return CameraMount(self.camera_x_m, self.camera_y_m, self.camera_z_m)
+
+
+@dataclass
+class _Keyframe:
+    prep: PreparedScan
+    pose: Pose2D  # robot pose (world)
+    cov: np.ndarray
+    n_good_weighted: int
+
+
+@dataclass(frozen=True)
+class StepDebug:
+    """What the last step saw (for plots and diagnostics; not part of the Estimate contract)."""
+
+    intervals: tuple[BearingInterval, ...]
+    restoration: Restoration | None
+    match: PsmResult | None
+    keyframe_replaced: bool
+    obstacle_points_world: tuple[np.ndarray, ...]
+
+
+class Estimator:
+    """VIPSM (``plain_psm=False``) or the plain-PSM baseline (``plain_psm=True``) on the same code."""
+
+    def __init__(self, config: EstimatorConfig | None = None, plain_psm: bool = False) -> None:
+        self.config = config or EstimatorConfig()
+        self.plain_psm = plain_psm
+        self._flow = FlowDetector(self.config.flow, self.config.camera_mount)
+        self._tracker = Tracker(self.config.tracker)
+        self._kf: _Keyframe | None = None
+        self._last_pose: Pose2D | None = None
+        self._last_odo: Pose2D | None = None
+        self._last_cov = np.zeros((3, 3))
+        self._prev_points_robot: np.ndarray | None = None
+        self.last_debug: StepDebug | None = None
+
+    # ------------------------------------------------------------------ helpers
+    def _laser_to_robot_points(self, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
+        ok = np.isfinite(ranges) & (ranges >= self.config.psm.min_range_m)
+        r, b = ranges[ok], bearings[ok]
+        m = self.config.laser_mount
+        xl, yl = r * np.cos(b), r * np.sin(b)
+        c, s = math.cos(m.theta_rad), math.sin(m.theta_rad)
+        return np.stack([m.x_m + c * xl - s * yl, m.y_m + s * xl + c * yl], axis=1)
+
+    def _track_intervals(
+        self, stamp_s: float, predicted: Pose2D, camera: list[BearingInterval]
+    ) -> list[BearingInterval]:
+        out = []
+        laser_world = compose(predicted, self.config.laser_mount)
+        for t in self._tracker.tracks:
+            if stamp_s - t.camera_stamp_s > self.config.track_mask_s:
+                continue
+            wx, wy = self._tracker.predict_position(t, stamp_s)
+            rel = between(laser_world, Pose2D(wx, wy, 0.0))
+            d = math.hypot(rel.x_m, rel.y_m)
+            half_w = t.radius_m + self.config.track_mask_margin_m
+            if d <= half_w:
+                continue
+            b = math.atan2(rel.y_m, rel.x_m)
+            half = math.asin(min(half_w / d, 1.0))
+            if any(iv.bearing_min_rad <= b + half and b - half <= iv.bearing_max_rad for iv in camera):
+                continue
+            out.append(BearingInterval(b - half, b + half, 0.0, 0.0, "track", t.track_id))
+        return out
+
+    # ------------------------------------------------------------------ step
+    def step(self, scan: Scan, odometry: Odometry, frame: Frame | None = None) -> Estimate:
+        cfg = self.config
+        flags = EstimateFlag.NONE
+        if self.plain_psm:
+            flags |= EstimateFlag.PLAIN_PSM
+        odo = odometry.pose
+        first = self._last_pose is None
+        if self._last_pose is None or self._last_odo is None:
+            predicted = odo
+        else:
+            predicted = compose(self._last_pose, between(self._last_odo, odo))
+
+        # 1. visual directions ------------------------------------------------------------
+        camera_ivs: list[BearingInterval] = []
+        if frame is None:
+            flags |= EstimateFlag.NO_FRAME
+        elif abs(frame.stamp_s - scan.stamp_s) > cfg.max_frame_age_s:
+            flags |= EstimateFlag.STALE_FRAME
+            self._flow.reset()
+        else:
+            pose_f = pose_at(odometry, frame.stamp_s)
+            depth_pts = self._prev_points_robot
+            if depth_pts is None:
+                depth_pts = self._laser_to_robot_points(scan.ranges_m, scan.bearings_rad)
+            fres = self._flow.detect(frame, pose_f, depth_pts, odometry.v_mps, odometry.w_radps)
+            if fres is not None:
+                rel_fs = between(pose_f, pose_at(odometry, scan.stamp_s))
+                camera_ivs = [interval_to_laser(iv, rel_fs, cfg.laser_mount) for iv in fres.intervals]
+        intervals = camera_ivs + self._track_intervals(scan.stamp_s, predicted, camera_ivs)
+
+        # 2. restoration ------------------------------------------------------------------
+        rest = restore(scan.ranges_m, scan.bearings_rad, intervals, cfg.restore, cfg.psm.min_range_m)
+        if rest.too_large:
+            flags |= EstimateFlag.OBSTACLE_TOO_LARGE
+        if rest.bridge_invalid and not self.plain_psm:
+            flags |= EstimateFlag.BRIDGE_INVALID
+        if self.plain_psm:
+            cur = prepare_scan(scan.ranges_m, scan.bearings_rad, cfg.psm)
+        else:
+            cur = prepare_scan(rest.ranges_m, scan.bearings_rad, cfg.psm, rest.weights)
+        n_good_w = int(np.count_nonzero(cur.good & (cur.weights > 0)))
+
+        # 3. matching ---------------------------------------------------------------------
+        res: PsmResult | None = None
+        kf_replaced = False
+        if first or self._kf is None:
+            flags |= EstimateFlag.FIRST_SCAN
+            pose = odo
+            cov = np.zeros((3, 3))
+            quality = MatchQuality(0, 0, float("nan"), False)
+            if not rest.too_large or self.plain_psm:
+                self._kf = _Keyframe(cur, pose, cov, n_good_w)
+                kf_replaced = True
+        else:
+            kf = self._kf
+            refused = False
+            if rest.too_large and not self.plain_psm:
+                refused = True
+            else:
+                mount = cfg.laser_mount
+                guess_robot = between(kf.pose, predicted)
+                guess = compose(compose(inverse(mount), guess_robot), mount)
+                res = match_prepared(kf.prep, cur, guess, cfg.psm)
+                refused = res.refused
+                if not refused:
+                    rel_robot = compose(compose(mount, res.pose), inverse(mount))
+                    cand = compose(kf.pose, rel_robot)
+                    corr = between(predicted, cand)
+                    if (
+                        math.hypot(corr.x_m, corr.y_m) > cfg.max_correction_m
+                        or abs(corr.theta_rad) > cfg.max_correction_rad
+                    ):
+                        refused = True
+            if refused:
+                flags |= EstimateFlag.ODOMETRY_FALLBACK
+                pose = predicted
+                step_rel = between(self._last_pose, predicted) if self._last_pose else Pose2D(0, 0, 0)
+                dist = math.hypot(step_rel.x_m, step_rel.y_m)
+                g = np.diag(
+                    [
+                        (cfg.odom_sigma_per_m * dist) ** 2,
+                        (cfg.odom_sigma_per_m * dist) ** 2,
+                        (cfg.odom_sigma_rad_per_rad * abs(step_rel.theta_rad)) ** 2,
+                    ]
+                )
+                cov = self._last_cov + g
+                quality = MatchQuality(
+                    res.beams_used if res else 0, res.iterations if res else 0, float("nan"), False
+                )
+                since_kf = between(kf.pose, pose)
+                if math.hypot(since_kf.x_m, since_kf.y_m) > cfg.keyframe_stale_dist_m and not rest.too_large:
+                    self._kf = _Keyframe(cur, pose, cov, n_good_w)
+                    kf_replaced = True
+            else:
+                assert res is not None
+                pose = cand
+                th = kf.pose.theta_rad + cfg.laser_theta_rad
+                c, s = math.cos(th), math.sin(th)
+                rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+                cov = kf.cov + rot @ res.covariance @ rot.T
+                quality = MatchQuality(res.beams_used, res.iterations, res.residual_m, res.converged)
+                since_kf = between(kf.pose, pose)
+                if (
+                    math.hypot(since_kf.x_m, since_kf.y_m) > cfg.keyframe_dist_m
+                    or abs(since_kf.theta_rad) > cfg.keyframe_angle_rad
+                    or res.beams_used < cfg.keyframe_min_overlap * max(kf.n_good_weighted, 1)
+                ):
+                    self._kf = _Keyframe(cur, pose, cov, n_good_w)
+                    kf_replaced = True
+
+        # 4. obstacles --------------------------------------------------------------------
+        laser_world = compose(pose, cfg.laser_mount)
+        c, s = math.cos(laser_world.theta_rad), math.sin(laser_world.theta_rad)
+        detections: list[Detection] = []
+        det_sources: list[BearingInterval] = []
+        pts_out: list[np.ndarray] = []
+        for ob in rest.obstacles:
+            rr = scan.ranges_m[ob.start : ob.stop]
+            bb = scan.bearings_rad[ob.start : ob.stop]
+            ok = np.isfinite(rr) & (rr >= cfg.psm.min_range_m)
+            if np.count_nonzero(ok) < cfg.restore.min_obstacle_beams:
+                continue
+            xl, yl = rr[ok] * np.cos(bb[ok]), rr[ok] * np.sin(bb[ok])
+            pts = np.stack([laser_world.x_m + c * xl - s * yl, laser_world.y_m + s * xl + c * yl], axis=1)
+            hint = None
+            for t in self._tracker.tracks:
+                if t.radius_known:
+                    px, py = self._tracker.predict_position(t, scan.stamp_s)
+                    if math.hypot(px - pts[:, 0].mean(), py - pts[:, 1].mean()) < cfg.tracker.gate_m + t.radius_m:
+                        hint = t.radius_m
+                        break
+            cx, cy, rad, fitted = locate_body(pts, (laser_world.x_m, laser_world.y_m), hint, cfg.tracker)
+            detections.append(
+                Detection(cx, cy, rad, fitted, ob.start, ob.stop, float(bb[0]), float(bb[-1]))
+            )
+            det_sources.append(ob.interval)
+            pts_out.append(pts)
+        tracked = self._tracker.step(scan.stamp_s, detections)
+        obstacles: list[Obstacle] = []
+        for t, det in tracked:
+            if det is not None:
+                k = detections.index(det)
+                if det_sources[k].source == "camera":
+                    t.camera_stamp_s = scan.stamp_s
+            if det is None and (t.missed > cfg.tracker.report_missed or t.hits < 2):
+                continue
+            if det is not None:
+                bmin, bmax, i0, i1 = det.bearing_min_rad, det.bearing_max_rad, det.scan_index_start, det.scan_index_stop
+            else:
+                rel = between(laser_world, Pose2D(float(t.state[0]), float(t.state[1]), 0.0))
+                d = max(math.hypot(rel.x_m, rel.y_m), 1e-6)
+                b = math.atan2(rel.y_m, rel.x_m)
+                half = math.asin(min(t.radius_m / d, 1.0))
+                bmin, bmax, i0, i1 = b - half, b + half, -1, -1
+            obstacles.append(
+                Obstacle(
+                    track_id=t.track_id,
+                    x_m=float(t.state[0]),
+                    y_m=float(t.state[1]),
+                    vx_mps=float(t.state[2]),
+                    vy_mps=float(t.state[3]),
+                    radius_m=float(t.radius_m),
+                    bearing_min_rad=float(bmin),
+                    bearing_max_rad=float(bmax),
+                    scan_index_start=int(i0),
+                    scan_index_stop=int(i1),
+                    age_cycles=int(t.age_cycles),
+                )
+            )
+
+        # bookkeeping -----------------------------------------------------------------------
+        self._last_pose = Pose2D(pose.x_m, pose.y_m, wrap_angle(pose.theta_rad))
+        self._last_odo = odo
+        self._last_cov = cov
+        self._prev_points_robot = self._laser_to_robot_points(scan.ranges_m, scan.bearings_rad)
+        self.last_debug = StepDebug(tuple(intervals), rest, res, kf_replaced, tuple(pts_out))
+        return Estimate(
+            stamp_s=scan.stamp_s,
+            pose=self._last_pose,
+            covariance=cov,
+            obstacles=tuple(obstacles),
+            quality=quality,
+            flags=flags,
+            restored_indices=() if self.plain_psm else rest.cut,
+        )

@@ -1,0 +1,260 @@
+"""Visual bearing of moving obstacles (the paper's step 1): dense optical flow between consecutive
+frames, the robot's own image motion predicted from odometry and the previous laser scan and
+removed, pixels whose remaining flow exceeds a speed-dependent threshold (the paper's alpha, eq. 1)
+grouped into blobs, each blob's columns turned into a bearing interval.
+
+Ego-motion prediction: every image column's viewing direction is known from the intrinsics and
+the pan angle; the previous laser scan, seen from the camera's position, gives the horizontal
+distance to the first surface along that direction (walls and bodies are vertical), and the floor
+plane gives the distance of pixels below the horizon that hit the floor first. Those 3-D points are
+moved by the odometry between the two frames and re-projected with the new pan/tilt: the
+difference is the flow a static scene would show.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .geometry import between, inverse, transform_point
+from .restore import BearingInterval
+from .types import Frame, Odometry, Pose2D
+
+
+@dataclass(frozen=True)
+class FlowConfig:
+    max_width_px: int = 320  # larger frames are scaled down to this width first
+    dis_preset: int = 1  # cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST=0, FAST=1, MEDIUM=2
+    grid_step_px: int = 2  # the residual flow is evaluated on this pixel grid
+    alpha_base_px: float = 0.8  # threshold with the robot at rest (per frame interval)
+    alpha_v_px_per_m: float = 40.0  # grows with the distance driven between the frames
+    alpha_w_px_per_rad: float = 60.0  # ... and with the angle turned
+    alpha_max_px: float = 6.0
+    alpha_rel: float = 0.3  # plus this share of the predicted ego-motion flow (depth errors scale with it)
+    border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
+    min_texture: float = 20.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
+    min_blob_cells: int = 30  # grid cells (grid_step_px^2 pixels each)
+    open_cells: int = 3  # morphological opening of the moving mask (grid cells, odd)
+    close_cells: int = 5  # closing to merge fragments of one body
+    max_frame_gap_s: float = 0.5  # older previous frames are not used for flow
+    max_depth_m: float = 30.0  # columns without a laser surface get this depth (far background)
+    min_flow_valid_depth_m: float = 0.2
+
+
+@dataclass(frozen=True)
+class CameraMount:
+    """Camera position on the robot (robot frame, m)."""
+
+    x_m: float = 0.0
+    y_m: float = 0.0
+    z_m: float = 1.0
+
+
+@dataclass(frozen=True)
+class FlowResult:
+    intervals: tuple[BearingInterval, ...]  # in the robot frame at the frame's stamp, origin = camera
+    alpha_px: float
+    moving_cells: int
+    blobs: tuple[tuple[int, int, int, int], ...]  # (u0, u1, v0, v1) pixels, inclusive-exclusive
+
+
+def pose_at(odo: Odometry, t_s: float) -> Pose2D:
+    """The odometry pose extrapolated to ``t_s`` with its own velocities (short spans only)."""
+    dt = t_s - odo.stamp_s
+    th = odo.theta_rad + odo.w_radps * dt * 0.5
+    ds = odo.v_mps * dt
+    return Pose2D(odo.x_m + ds * math.cos(th), odo.y_m + ds * math.sin(th), odo.theta_rad + odo.w_radps * dt)
+
+
+def _grey(frame: Frame, max_width: int) -> tuple[np.ndarray, float]:
+    img = frame.image
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    scale = 1.0
+    if img.shape[1] > max_width:
+        scale = max_width / img.shape[1]
+        img = cv2.resize(img, (max_width, int(round(img.shape[0] * scale))), interpolation=cv2.INTER_AREA)
+    return np.ascontiguousarray(img), scale
+
+
+def _rays(us: np.ndarray, vs: np.ndarray, fx: float, fy: float, cx: float, cy: float, pan: float, tilt: float):
+    """Unit-free ray directions (robot frame, z up) through pixels (u, v)."""
+    a = -(us - cx) / fx  # left component
+    b = -(vs - cy) / fy  # up component
+    ct, st = math.cos(tilt), math.sin(tilt)
+    fwd_x = ct - st * b
+    up_z = st + ct * b
+    cp, sp = math.cos(pan), math.sin(pan)
+    rx = cp * fwd_x - sp * a
+    ry = sp * fwd_x + cp * a
+    return rx, ry, up_z
+
+
+def _project(px, py, pz, fx, fy, cx, cy, pan, tilt):
+    """Pixels of camera-relative points (robot frame axes) for a camera with pan/tilt."""
+    cp, sp = math.cos(pan), math.sin(pan)
+    xf = cp * px + sp * py  # forward (horizontal) after undoing pan
+    yl = -sp * px + cp * py
+    ct, st = math.cos(tilt), math.sin(tilt)
+    f = ct * xf + st * pz
+    up = -st * xf + ct * pz
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = cx - fx * yl / f
+        v = cy - fy * up / f
+    return u, v, f
+
+
+class FlowDetector:
+    """Keeps the previous frame; :meth:`detect` returns the moving-body bearing intervals."""
+
+    def __init__(self, config: FlowConfig | None = None, mount: CameraMount | None = None) -> None:
+        self.config = config or FlowConfig()
+        self.mount = mount or CameraMount()
+        self._dis = cv2.DISOpticalFlow_create(self.config.dis_preset)
+        self._prev: tuple[np.ndarray, float, Frame, Pose2D] | None = None
+
+    def reset(self) -> None:
+        self._prev = None
+
+    def detect(
+        self,
+        frame: Frame,
+        odom_pose_at_frame: Pose2D,
+        depth_points_robot: np.ndarray | None,
+        speed_mps: float,
+        turn_radps: float,
+    ) -> FlowResult | None:
+        """``depth_points_robot``: (k, 2) laser points (robot frame) from the scan closest to the
+        previous frame, giving depth per viewing direction. Returns None when there is no usable
+        previous frame yet."""
+        cfg = self.config
+        grey, scale = _grey(frame, cfg.max_width_px)
+        prev = self._prev
+        self._prev = (grey, scale, frame, odom_pose_at_frame)
+        if prev is None:
+            return None
+        pgrey, pscale, pframe, ppose = prev
+        dt = frame.stamp_s - pframe.stamp_s
+        if not (0.0 < dt <= cfg.max_frame_gap_s) or pgrey.shape != grey.shape:
+            return None
+        k = frame.intrinsics
+        fx, fy, cx, cy = k.fx_px * scale, k.fy_px * scale, k.cx_px * scale, k.cy_px * scale
+        kp = pframe.intrinsics
+        pfx, pfy, pcx, pcy = kp.fx_px * pscale, kp.fy_px * pscale, kp.cx_px * pscale, kp.cy_px * pscale
+        flow = self._dis.calc(pgrey, grey, None)
+        h, w = grey.shape
+        st = max(1, cfg.grid_step_px)
+        vs, us = np.mgrid[0:h:st, 0:w:st]
+        us = us.astype(np.float64) + 0.5 * (st - 1)
+        vs = vs.astype(np.float64) + 0.5 * (st - 1)
+        fl = flow[0:h:st, 0:w:st].astype(np.float64)
+        # ---- predicted static-scene flow
+        m = self.mount
+        rx, ry, rz = _rays(us, vs, pfx, pfy, pcx, pcy, pframe.pan_rad, pframe.tilt_rad)
+        hn = np.hypot(rx, ry)
+        az = np.arctan2(ry, rx)
+        depth = np.full(az.shape, cfg.max_depth_m)
+        if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
+            dx = depth_points_robot[:, 0] - m.x_m
+            dy = depth_points_robot[:, 1] - m.y_m
+            pb = np.arctan2(dy, dx)
+            pd = np.hypot(dx, dy)
+            order = np.argsort(pb)
+            pb, pd = pb[order], pd[order]
+            col_az = az[0]  # azimuth varies along columns mainly; interpolate on the full grid
+            del col_az
+            depth = np.interp(az, pb, pd, left=cfg.max_depth_m, right=cfg.max_depth_m)
+            # beyond the scan's angular coverage near gaps, interp bridges; acceptable for walls
+        slope = rz / np.maximum(hn, 1e-9)
+        with np.errstate(divide="ignore"):
+            floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
+        dist_h = np.minimum(depth, floor_d)
+        valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
+        t = dist_h / np.maximum(hn, 1e-9)
+        # points relative to the previous camera, then in the previous robot frame
+        px = m.x_m + rx * t
+        py = m.y_m + ry * t
+        pz = rz * t  # relative to camera height
+        rel = between(ppose, odom_pose_at_frame)  # current robot pose in the previous robot frame
+        inv = inverse(rel)
+        c, s = math.cos(inv.theta_rad), math.sin(inv.theta_rad)
+        qx = inv.x_m + c * px - s * py - m.x_m
+        qy = inv.y_m + s * px + c * py - m.y_m
+        u2, v2, f2 = _project(qx, qy, pz, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad)
+        valid &= f2 > 1e-3
+        bd = cfg.border_px
+        with np.errstate(invalid="ignore"):
+            valid &= (u2 >= bd) & (u2 < w - bd) & (v2 >= bd) & (v2 < h - bd)
+        valid &= (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
+        pred_u = np.where(valid, u2 - us, 0.0)
+        pred_v = np.where(valid, v2 - vs, 0.0)
+        res = np.hypot(fl[..., 0] - pred_u, fl[..., 1] - pred_v)
+        # ---- threshold (eq. 1: grows with the robot's speed)
+        alpha = cfg.alpha_base_px + cfg.alpha_v_px_per_m * abs(speed_mps) * dt + cfg.alpha_w_px_per_rad * abs(
+            turn_radps
+        ) * dt
+        alpha = min(alpha, cfg.alpha_max_px)
+        gx = cv2.Sobel(pgrey, cv2.CV_32F, 1, 0, ksize=3)
+        gy = cv2.Sobel(pgrey, cv2.CV_32F, 0, 1, ksize=3)
+        tex = np.hypot(gx, gy)[0:h:st, 0:w:st] / 4.0
+        tex = cv2.dilate(tex, np.ones((3, 3), np.uint8))
+        thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
+        moving = valid & (res > thr) & (tex > cfg.min_texture)
+        mask = moving.astype(np.uint8)
+        if cfg.open_cells > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((cfg.open_cells, cfg.open_cells), np.uint8))
+        if cfg.close_cells > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((cfg.close_cells, cfg.close_cells), np.uint8))
+        n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        spans: list[list[float]] = []
+        for i in range(1, n):
+            x0, y0, ww, hh, area = (int(v) for v in stats[i])
+            if area < cfg.min_blob_cells:
+                continue
+            spans.append([x0 * st, (x0 + ww) * st, y0 * st, (y0 + hh) * st])
+        spans.sort()
+        merged: list[list[float]] = []
+        for sp in spans:
+            if merged and sp[0] <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], sp[1])
+                merged[-1][2] = min(merged[-1][2], sp[2])
+                merged[-1][3] = max(merged[-1][3], sp[3])
+            else:
+                merged.append(list(sp))
+        intervals = []
+        for u0, u1, v0, v1 in merged:
+            vc = 0.5 * (v0 + v1)
+            rxa, rya, _ = _rays(
+                np.array([u0 - 0.5, u1 - 0.5]), np.array([vc, vc]), fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad
+            )
+            b = np.arctan2(rya, rxa)
+            intervals.append(BearingInterval(float(b.min()), float(b.max()), m.x_m, m.y_m, "camera"))
+        return FlowResult(
+            tuple(intervals),
+            float(alpha),
+            int(np.count_nonzero(mask)),
+            tuple((int(a), int(b_), int(c_), int(d)) for a, b_, c_, d in merged),
+        )
+
+
+def interval_to_laser(
+    iv: BearingInterval, robot_rel_frame_to_scan: Pose2D, laser_mount: Pose2D
+) -> BearingInterval:
+    """Re-express a robot-frame interval seen at the frame's stamp (origin = camera) in the laser
+    frame at the scan's stamp. ``robot_rel_frame_to_scan`` is the robot pose at the scan's stamp in
+    the robot frame at the frame's stamp (from odometry)."""
+    inv = inverse(robot_rel_frame_to_scan)
+    ox, oy = transform_point(inv, iv.origin_x_m, iv.origin_y_m)  # camera (at frame time) in the scan-time robot frame
+    lo = iv.bearing_min_rad - robot_rel_frame_to_scan.theta_rad
+    hi = iv.bearing_max_rad - robot_rel_frame_to_scan.theta_rad
+    lm_inv = inverse(laser_mount)
+    lx, ly = transform_point(lm_inv, ox, oy)
+    return BearingInterval(
+        lo - laser_mount.theta_rad, hi - laser_mount.theta_rad, lx, ly, iv.source, iv.track_id
+    )
+
+
+__all__ = ["FlowConfig", "CameraMount", "FlowDetector", "FlowResult", "pose_at", "interval_to_laser"]

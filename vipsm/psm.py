@@ -1,0 +1,618 @@
+"""Polar Scan Matching (Diosi & Kleeman), vectorised NumPy, SI units, x forward / y left.
+
+The algorithm follows the published method and the authors' reference code (polar_matching v0.3)
+with the fixes listed in ``shared/protocols/psm.md`` §5/§9:
+
+* bearings come from the scan (no FOV/(N+1) spacing quirk); the frame has x forward, so the atan2
+  branch cut lies in the UTM-30LX's blind rear sector (no +2 pi hack, no lost pairs);
+* invalid returns are tagged *before* the window-5 median filter (and do not leak "far" values);
+* segmentation uses a range-scaled jump threshold max(seg_jump_m, k * r * dphi) together with the
+  extrapolation test, and drops segments shorter than ``min_segment_beams``;
+* the orientation search gates residuals with ``max_error_m`` and needs a minimum overlap per shift;
+* the translation step solves the 2x2 weighted normal equations exactly (no dropped off-diagonal);
+* the stopping test checks translation (m) and rotation (rad) separately;
+* per-beam weights in [0, 1] multiply the robust weights in *both* steps, so beams bridged by the
+  VIPSM restoration (weight 0) never pull the estimate;
+* a covariance from the weighted normal equations and the orientation-cost curvature, raised to the
+  original's heuristic floor (with its corridor ellipse);
+* failures never raise: :func:`match` returns a :class:`PsmResult` with ``refused=True`` and a
+  :class:`PsmRefusal` reason, carrying the initial guess so the caller can fall back to odometry.
+
+Result convention: ``(dx_m, dy_m, dtheta_rad)`` is the pose of the *current* scan's laser frame in
+the *reference* scan's laser frame (x forward, y left), like the original's ``rx, ry, th``.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .types import Pose2D, Scan
+
+# Preprocessing tag bits (the original's PM_* flags; PM_MOVING is the slot VIPSM fills).
+TAG_INVALID = 1  # no return / error code / below min range (the original's sensor errors)
+TAG_RANGE = 2  # beyond max_range_m (PM_RANGE)
+TAG_MOVING = 4  # cut out by the visual restoration (PM_MOVING)
+TAG_SEGMENT = 8  # isolated point / segment shorter than min_segment_beams
+
+
+@dataclass(frozen=True)
+class PsmConfig:
+    """PSM parameters, SI units; defaults for a Hokuyo UTM-30LX matched scan-to-scan at 10-40 Hz
+    (``shared/protocols/psm.md`` §10). :meth:`diosi_v03_utm` gives the original v0.3 UTM values."""
+
+    min_range_m: float = 0.10  # below: invalid (the UTM's minimum; also removes its error codes)
+    max_range_m: float = 10.0  # beyond: tagged far/bad (range gating)
+    median_window: int = 5  # odd; 1 disables the median filter
+    seg_jump_m: float = 0.20  # segmentation: minimum range jump that starts a new segment
+    seg_jump_range_factor: float = 3.0  # ... raised to k * r * dphi at long range
+    min_segment_beams: int = 3  # shorter segments are dropped
+    max_error_m: float = 0.30  # residual gate in both steps (PM_MAX_ERROR)
+    weight_c_m2: float = 0.30**2  # C of w = C / (C + e^2) (PM_WEIGHTING_FACTOR)
+    change_weight_iter: int = 10  # at this iteration C becomes C / weight_c_divisor
+    weight_c_divisor: float = 50.0
+    search_window_first_beams: int = 80  # half-window of the first orientation search
+    search_window_beams: int = 20  # half-window of later orientation searches
+    min_overlap_frac: float = 0.30  # share of the usable beams a shift must compare
+    orientation_gain: float = 1.0  # b in phi = phi_p + b * d_phi (paper eq. 4); 1 = plain PSM
+    max_iterations: int = 30
+    stop_translation_m: float = 0.001
+    stop_rotation_rad: float = math.radians(0.01)
+    stop_count: int = 3  # consecutive small iterations to stop
+    min_valid_beams: int = 300  # refuse below this many beams in a translation step
+    max_pair_gap_rad: float = 0.25  # do not interpolate a projected pair across a wider bearing gap
+    degenerate_eig: float = 1e-3  # refuse if min eig of H'WH / sum(w) is below this
+    damping: float = 1e-6  # Tikhonov term (relative to sum w) toward the current guess
+    cov_floor_sigma_xy_m: float = 0.20  # heuristic floor (PM_MIN_STD_XY)
+    cov_floor_sigma_theta_rad: float = math.radians(4.0)  # (PM_MIN_STD_ORIENTATION)
+    cov_error_offset_m: float = 0.05  # (PM_MATCH_ERROR_OFFSET)
+    cov_floor_scale_m: float = 0.01  # the error index is counted in these units (the original: cm)
+    corridor_threshold_rad: float = math.radians(25.0)
+    corridor_sigma_along_m: float = 4.0
+    corridor_sigma_across_m: float = 0.30
+    use_cov_floor: bool = True
+
+    def __post_init__(self) -> None:
+        if self.median_window < 1 or self.median_window % 2 == 0:
+            raise ValueError(f"median_window must be odd and >= 1, got {self.median_window}")
+        if not 0.0 < self.min_range_m < self.max_range_m:
+            raise ValueError("need 0 < min_range_m < max_range_m")
+        if self.max_error_m <= 0 or self.weight_c_m2 <= 0 or self.weight_c_divisor <= 0:
+            raise ValueError("max_error_m, weight_c_m2 and weight_c_divisor must be positive")
+        if self.search_window_first_beams < 1 or self.search_window_beams < 1:
+            raise ValueError("search windows must be >= 1 beam")
+        if self.max_iterations < 1 or self.stop_count < 1 or self.min_segment_beams < 1:
+            raise ValueError("max_iterations, stop_count and min_segment_beams must be >= 1")
+
+    @classmethod
+    def diosi_v03_utm(cls) -> PsmConfig:
+        """The original v0.3 parameters for the UTM-30LX (PM_MAX_RANGE 7 m, MAX_ERROR 1 m, C = 0.7^2,
+        window +-200 beams), with this port's fixes kept (exact bearings, stopping units)."""
+        return cls(
+            max_range_m=7.0,
+            max_error_m=1.0,
+            weight_c_m2=0.70**2,
+            search_window_first_beams=200,
+            search_window_beams=200,
+            min_segment_beams=2,
+            # v0.3 reduces C only when iteration 10 is a translation step, and iteration 10 is an
+            # orientation step: C is never reduced. Reproduced here to agree with its results.
+            change_weight_iter=10**9,
+        )
+
+    @classmethod
+    def sick_1deg(cls) -> PsmConfig:
+        """A 180-beam, 1-degree scanner (the Intel Research Lab log): the original's SICK LMS200 block
+        (min 40 valid beams, +-20 beam window) with scan-to-scan settings."""
+        return cls(
+            max_range_m=10.0,
+            min_valid_beams=40,
+            search_window_first_beams=20,
+            search_window_beams=10,
+            max_error_m=0.5,
+            weight_c_m2=0.5**2,
+            seg_jump_range_factor=2.0,
+        )
+
+
+class PsmRefusal(enum.Enum):
+    NONE = "none"
+    EMPTY_SCAN = "empty_scan"  # a scan with no usable beam after preprocessing
+    TOO_FEW_BEAMS = "too_few_beams"  # fewer than min_valid_beams compared in a translation step
+    NO_VALID_SHIFT = "no_valid_shift"  # the orientation search found no shift with enough overlap
+    DEGENERATE = "degenerate"  # the translation normal equations are (nearly) singular
+    BAD_INPUT = "bad_input"  # shapes/bearings unusable (e.g. mismatched lengths, non-ascending)
+
+
+@dataclass(frozen=True)
+class PsmResult:
+    """Pose of the current laser frame in the reference laser frame, and how the match went.
+
+    When ``refused`` is true the pose is the initial guess unchanged and ``reason`` says why; the
+    caller falls back to odometry."""
+
+    dx_m: float
+    dy_m: float
+    dtheta_rad: float
+    covariance: np.ndarray  # 3x3 over (x_m, y_m, theta_rad)
+    iterations: int
+    beams_used: int
+    residual_m: float
+    converged: bool
+    refused: bool
+    reason: PsmRefusal = PsmRefusal.NONE
+    corridor: bool = False
+
+    @property
+    def pose(self) -> Pose2D:
+        return Pose2D(self.dx_m, self.dy_m, self.dtheta_rad)
+
+
+@dataclass(frozen=True)
+class PreparedScan:
+    """A preprocessed scan: filtered ranges, tags, segments and weights, ready for matching."""
+
+    ranges_m: np.ndarray  # median-filtered ranges; meaningless where ``good`` is false
+    bearings_rad: np.ndarray
+    tags: np.ndarray  # uint8 TAG_* bits, 0 = good
+    segments: np.ndarray  # int32 segment id per beam, 0 = none
+    weights: np.ndarray  # float64 per-beam weight in [0, 1] (0 = bridged / masked)
+    good: np.ndarray  # bool: usable for matching (tags == 0)
+    pair_a: np.ndarray  # indices of consecutive good beams in the same segment (pose independent)
+    pair_b: np.ndarray
+    x_m: np.ndarray  # Cartesian points of the filtered ranges (laser frame)
+    y_m: np.ndarray
+    dphi_rad: float  # mean bearing step
+
+    @property
+    def n_good(self) -> int:
+        return int(np.count_nonzero(self.good))
+
+
+def median_filter_valid(ranges_m: np.ndarray, valid: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Window-``window`` median with edges clamped; invalid beams count as +inf (far), so an invalid
+    beam never pulls a real one toward a made-up value, and a valid beam whose window is mostly
+    invalid becomes invalid. Returns (filtered, still_valid)."""
+    r = np.where(valid, ranges_m, np.inf)
+    if window <= 1 or r.size == 0:
+        return r, valid & np.isfinite(r)
+    h = window // 2
+    padded = np.concatenate((np.full(h, r[0]), r, np.full(h, r[-1])))
+    win = np.lib.stride_tricks.sliding_window_view(padded, window)
+    med = np.partition(win, h, axis=1)[:, h]
+    ok = valid & np.isfinite(med)
+    return med, ok
+
+
+def segment_scan(
+    ranges_m: np.ndarray, good: np.ndarray, dphi_rad: float, jump_m: float, range_factor: float
+) -> np.ndarray:
+    """Segment ids (1..) per beam, 0 for bad beams. A segment breaks at a bad beam, or where the
+    range jump exceeds max(jump_m, range_factor * r * dphi) and the straight-line extrapolation from
+    the two previous beams misses by as much (the extrapolation test of the original, which keeps
+    grazing walls in one piece). Vectorised: the extrapolation is trusted when the two previous beams
+    are good and not separated by a plain jump."""
+    n = ranges_m.size
+    seg = np.zeros(n, dtype=np.int32)
+    if n == 0:
+        return seg
+    r = np.where(good, ranges_m, 0.0)
+    thr = np.maximum(jump_m, range_factor * r * dphi_rad)
+    d1 = np.zeros(n)
+    d1[1:] = np.abs(r[1:] - r[:-1])
+    jump = np.zeros(n, dtype=bool)
+    jump[1:] = d1[1:] >= thr[1:]
+    pred_ok = np.zeros(n, dtype=bool)
+    pred_ok[2:] = good[1:-1] & good[:-2] & ~jump[1:-1]
+    miss = np.ones(n, dtype=bool)
+    miss[2:] = np.abs(r[2:] - (2.0 * r[1:-1] - r[:-2])) >= thr[2:]
+    prev_good = np.zeros(n, dtype=bool)
+    prev_good[1:] = good[:-1]
+    brk = ~prev_good | (jump & (miss | ~pred_ok))
+    brk &= good
+    ids = np.cumsum(brk).astype(np.int32)
+    seg[good] = ids[good]
+    return seg
+
+
+def prepare_scan(
+    ranges_m: np.ndarray,
+    bearings_rad: np.ndarray,
+    config: PsmConfig,
+    weights: np.ndarray | None = None,
+) -> PreparedScan:
+    """Preprocess one scan: invalid first, median filter, range gating, segmentation, short segments
+    dropped. ``weights`` (default 1) are per-beam; beams with weight 0 stay in the geometry (they keep
+    segments contiguous for projection) but never count in a matching step."""
+    r_raw = np.asarray(ranges_m, dtype=np.float64)
+    b = np.asarray(bearings_rad, dtype=np.float64)
+    n = r_raw.size
+    w = np.ones(n) if weights is None else np.clip(np.asarray(weights, dtype=np.float64), 0.0, 1.0)
+    if w.shape != r_raw.shape:
+        raise ValueError(f"weights shape {w.shape} != ranges shape {r_raw.shape}")
+    tags = np.zeros(n, dtype=np.uint8)
+    valid = np.isfinite(r_raw) & (r_raw >= config.min_range_m)
+    tags[~valid] |= TAG_INVALID
+    r, ok = median_filter_valid(r_raw, valid, config.median_window)
+    tags[~ok & valid] |= TAG_INVALID
+    far = ok & (r > config.max_range_m)
+    tags[far] |= TAG_RANGE
+    good = tags == 0
+    dphi = float((b[-1] - b[0]) / (n - 1)) if n > 1 else 1.0
+    seg = segment_scan(r, good, abs(dphi), config.seg_jump_m, config.seg_jump_range_factor)
+    if n:
+        counts = np.bincount(seg, minlength=1)
+        short = (counts[seg] < config.min_segment_beams) & (seg > 0)
+        tags[short] |= TAG_SEGMENT
+        seg[short] = 0
+    good = tags == 0
+    rf = np.where(good, r, 0.0)
+    x = rf * np.cos(b)
+    y = rf * np.sin(b)
+    if n > 1:
+        pa = np.flatnonzero(good[:-1] & good[1:] & (seg[:-1] == seg[1:]))
+    else:
+        pa = np.zeros(0, dtype=np.intp)
+    return PreparedScan(
+        ranges_m=rf,
+        bearings_rad=b,
+        tags=tags,
+        segments=seg,
+        weights=w,
+        good=good,
+        pair_a=pa,
+        pair_b=pa + 1,
+        x_m=x,
+        y_m=y,
+        dphi_rad=dphi,
+    )
+
+
+def prepare(scan: Scan, config: PsmConfig, weights: np.ndarray | None = None) -> PreparedScan:
+    return prepare_scan(scan.ranges_m, scan.bearings_rad, config, weights)
+
+
+@dataclass
+class _Projection:
+    ranges_m: np.ndarray
+    good: np.ndarray
+    weights: np.ndarray
+
+
+def project(cur: PreparedScan, ref_bearings_rad: np.ndarray, pose: Pose2D, config: PsmConfig) -> _Projection:
+    """Project the current scan, placed at ``pose`` in the reference frame, onto the reference
+    bearings: linear interpolation in bearing between consecutive beams of one segment, a z-buffer
+    keeping the nearest range, back-facing pairs flagged occluded (they hide what is behind but are
+    not used). Bearings that receive nothing are empty (not good)."""
+    n_ref = ref_bearings_rad.size
+    out = np.full(n_ref, np.inf)
+    wout = np.zeros(n_ref)
+    pa, pb = cur.pair_a, cur.pair_b
+    if pa.size == 0 or n_ref == 0:
+        return _Projection(out, np.zeros(n_ref, dtype=bool), wout)
+    c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
+    X = pose.x_m + c * cur.x_m - s * cur.y_m
+    Y = pose.y_m + s * cur.x_m + c * cur.y_m
+    r = np.hypot(X, Y)
+    f = np.arctan2(Y, X)
+    fa, fb = f[pa], f[pb]
+    ra, rb = r[pa], r[pb]
+    front = fb > fa
+    lo = np.minimum(fa, fb)
+    hi = np.maximum(fa, fb)
+    b0 = float(ref_bearings_rad[0])
+    db = float(ref_bearings_rad[-1] - b0) / max(n_ref - 1, 1)
+    if _uniform(ref_bearings_rad):
+        j0 = np.ceil((lo - b0) / db).astype(np.intp)
+        j1 = np.floor((hi - b0) / db).astype(np.intp) + 1
+        np.clip(j0, 0, n_ref, out=j0)
+        np.clip(j1, 0, n_ref, out=j1)
+    else:
+        j0 = np.searchsorted(ref_bearings_rad, lo, side="left")
+        j1 = np.searchsorted(ref_bearings_rad, hi, side="right")
+    cnt = j1 - j0
+    cnt[(hi - lo) >= config.max_pair_gap_rad] = 0
+    np.maximum(cnt, 0, out=cnt)
+    total = int(cnt.sum())
+    if total == 0:
+        return _Projection(out, np.zeros(n_ref, dtype=bool), wout)
+    rep = np.repeat(np.arange(pa.size), cnt)
+    j = np.arange(total) + np.repeat(j0 - (np.cumsum(cnt) - cnt), cnt)
+    fa_r = fa[rep]
+    den = fb[rep] - fa_r
+    den[den == 0.0] = 1.0
+    rr = ra[rep] + (ref_bearings_rad[j] - fa_r) / den * (rb - ra)[rep]
+    np.minimum.at(out, j, rr)
+    win = rr <= out[j]
+    jw = j[win]
+    repw = rep[win]
+    wpair = np.minimum(cur.weights[pa], cur.weights[pb])
+    wout[jw] = wpair[repw]
+    good = np.zeros(n_ref, dtype=bool)
+    good[jw] = front[repw]
+    good &= (out > config.min_range_m) & (out < config.max_range_m)
+    return _Projection(out, good, wout)
+
+
+_UNIFORM_CACHE: dict[tuple[int, float, float], bool] = {}
+
+
+def _uniform(b: np.ndarray) -> bool:
+    """Whether the bearings are evenly spaced (then projection indexes by arithmetic)."""
+    n = b.size
+    key = (n, float(b[0]), float(b[-1]))
+    hit = _UNIFORM_CACHE.get(key)
+    if hit is None:
+        if n < 2:
+            hit = False
+        else:
+            lin = np.linspace(b[0], b[-1], n)
+            hit = bool(np.max(np.abs(b - lin)) < 1e-6 * abs(b[-1] - b[0]) / n)
+        if len(_UNIFORM_CACHE) > 64:
+            _UNIFORM_CACHE.clear()
+        _UNIFORM_CACHE[key] = hit
+    return hit
+
+
+def _orientation_search(
+    ref: PreparedScan, proj: _Projection, window: int, config: PsmConfig
+) -> tuple[float, float, float] | None:
+    """Best bearing shift (in steps, sub-step refined) by the mean absolute range difference.
+    Returns (shift_steps, cost_m, curvature_m_per_step2) or None when no shift is valid."""
+    n = ref.ranges_m.size
+    w = min(window, n - 1)
+    ref_ok = ref.good & (ref.weights > 0.0)
+    new_ok = proj.good & (proj.weights > 0.0)
+    idx = np.flatnonzero(new_ok)
+    n_ref, n_new = int(np.count_nonzero(ref_ok)), int(idx.size)
+    if n_ref == 0 or n_new == 0:
+        return None
+    big = np.float32(1e6)
+    me = np.float32(config.max_error_m)
+    ref_pad = np.full(n + 2 * w, big, dtype=np.float32)
+    ref_pad[w : w + n] = np.where(ref_ok, ref.ranges_m, big)
+    # g[k, m] = ref_r[idx[m] + k - w]: shift d = k - w compares new_r[i] with ref_r[i + d]
+    g = ref_pad[idx[None, :] + np.arange(2 * w + 1)[:, None]]
+    np.subtract(g, proj.ranges_m[idx].astype(np.float32), out=g)
+    np.abs(g, out=g)
+    valid = g < me
+    cnt = np.count_nonzero(valid, axis=1)
+    np.minimum(g, me, out=g)
+    tot = g.sum(axis=1, dtype=np.float64) - float(me) * (n_new - cnt)
+    min_cnt = max(1, int(math.ceil(config.min_overlap_frac * min(n_ref, n_new))))
+    ok = cnt >= min_cnt
+    if not ok.any():
+        return None
+    cost = np.where(ok, tot / np.maximum(cnt, 1), np.inf)
+    k = int(np.argmin(cost))
+    e0 = float(cost[k])
+    shift = float(k - w)
+    curv = 0.0
+    if 0 < k < cost.size - 1:
+        em, ep = float(cost[k - 1]), float(cost[k + 1])
+        if math.isfinite(em) and math.isfinite(ep) and em > e0 and ep > e0:
+            den = em + ep - 2.0 * e0
+            curv = den
+            if abs(den) > 1e-4:  # the original's 0.01 cm threshold, here in metres
+                d = (em - ep) / (2.0 * den)
+                if abs(d) < 1.0:
+                    shift += d
+    return shift, e0, curv
+
+
+def _translation_terms(
+    ref: PreparedScan, proj: _Projection, c_m2: float, config: PsmConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Beams used, residuals, weights and Jacobian rows (cos, sin of the reference bearing)."""
+    e = ref.ranges_m - proj.ranges_m
+    with np.errstate(invalid="ignore"):
+        use = (
+            ref.good
+            & proj.good
+            & (ref.weights > 0.0)
+            & (proj.weights > 0.0)
+            & (np.abs(e) < config.max_error_m)
+        )
+    idx = np.flatnonzero(use)
+    ee = e[idx]
+    ww = c_m2 / (c_m2 + ee * ee) * ref.weights[idx] * proj.weights[idx]
+    b = ref.bearings_rad[idx]
+    return idx, ee, ww, np.cos(b), np.sin(b)
+
+
+def _is_corridor(scan: PreparedScan, threshold_rad: float) -> tuple[bool, float]:
+    """The original's corridor test: directions between neighbouring points of one segment, folded
+    into [0, pi), median-filtered over 3; a corridor when their spread (computed twice, once rotated
+    to dodge the wrap) is below the threshold. Returns (is_corridor, corridor_angle_rad)."""
+    pa, pb = scan.pair_a, scan.pair_b
+    if pa.size < 10:
+        return False, 0.0
+    ang = np.mod(np.arctan2(scan.y_m[pb] - scan.y_m[pa], scan.x_m[pb] - scan.x_m[pa]), math.pi)
+    if ang.size >= 3:
+        win = np.lib.stride_tricks.sliding_window_view(np.concatenate((ang[:1], ang, ang[-1:])), 3)
+        ang = np.median(win, axis=1)
+    sd1 = float(np.std(ang))
+    rot = np.mod(ang + math.radians(36.0), math.pi)
+    sd2 = float(np.std(rot))
+    if min(sd1, sd2) >= threshold_rad:
+        return False, 0.0
+    hist, edges = np.histogram(ang, bins=90, range=(0.0, math.pi))
+    k = int(np.argmax(hist))
+    return True, float(0.5 * (edges[k] + edges[k + 1]))
+
+
+def _refused(guess: Pose2D, reason: PsmRefusal, iterations: int, beams: int, config: PsmConfig) -> PsmResult:
+    cov = np.diag(
+        [config.cov_floor_sigma_xy_m**2, config.cov_floor_sigma_xy_m**2, config.cov_floor_sigma_theta_rad**2]
+    )
+    return PsmResult(
+        guess.x_m, guess.y_m, guess.theta_rad, cov, iterations, beams, float("nan"), False, True, reason
+    )
+
+
+def _loewner_max(floor: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """A covariance at least as large as both ``floor`` (positive definite) and ``cov``: whiten by the
+    floor, raise eigenvalues below 1 to 1, colour back."""
+    evals, evecs = np.linalg.eigh(floor)
+    sq = evecs * np.sqrt(evals)
+    isq = evecs / np.sqrt(evals)
+    m = isq.T @ cov @ isq
+    m = 0.5 * (m + m.T)
+    lam, vec = np.linalg.eigh(m)
+    m2 = (vec * np.maximum(lam, 1.0)) @ vec.T
+    out = sq @ m2 @ sq.T
+    return 0.5 * (out + out.T)
+
+
+def match_prepared(
+    ref: PreparedScan, cur: PreparedScan, initial_guess: Pose2D, config: PsmConfig
+) -> PsmResult:
+    """Match two prepared scans; never raises for bad data (refusals are typed results)."""
+    if ref.n_good < max(3, config.min_segment_beams) or cur.n_good < max(3, config.min_segment_beams):
+        return _refused(initial_guess, PsmRefusal.EMPTY_SCAN, 0, 0, config)
+    x, y, th = initial_guess.x_m, initial_guess.y_m, initial_guess.theta_rad
+    c_m2 = config.weight_c_m2
+    dphi = ref.dphi_rad
+    small = 0
+    last_dt = math.inf
+    last_dth = math.inf
+    it = 0
+    converged = False
+    curv_th = 0.0
+    cost_th = 0.0
+    first_orientation = True
+    while it < config.max_iterations:
+        if it == config.change_weight_iter:
+            c_m2 = c_m2 / config.weight_c_divisor
+        proj = project(cur, ref.bearings_rad, Pose2D(x, y, th), config)
+        if it % 2 == 0:
+            window = config.search_window_first_beams if first_orientation else config.search_window_beams
+            first_orientation = False
+            found = _orientation_search(ref, proj, window, config)
+            if found is None:
+                return _refused(initial_guess, PsmRefusal.NO_VALID_SHIFT, it + 1, 0, config)
+            shift, cost_th, curv_th = found
+            d = config.orientation_gain * shift * dphi
+            th = math.remainder(th + d, 2.0 * math.pi)
+            last_dth = abs(d)
+        else:
+            idx, e, w, hc, hs = _translation_terms(ref, proj, c_m2, config)
+            if idx.size < config.min_valid_beams:
+                return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it + 1, int(idx.size), config)
+            a11 = float(np.dot(w, hc * hc))
+            a12 = float(np.dot(w, hc * hs))
+            a22 = float(np.dot(w, hs * hs))
+            b1 = float(np.dot(w, hc * e))
+            b2 = float(np.dot(w, hs * e))
+            sw = float(w.sum())
+            tr = a11 + a22
+            det0 = a11 * a22 - a12 * a12
+            lam_min = 0.5 * tr - math.sqrt(max(0.25 * tr * tr - det0, 0.0))
+            if sw <= 0.0 or lam_min / sw < config.degenerate_eig:
+                return _refused(initial_guess, PsmRefusal.DEGENERATE, it + 1, int(idx.size), config)
+            lam = config.damping * sw
+            a11d, a22d = a11 + lam, a22 + lam
+            det = a11d * a22d - a12 * a12
+            ddx = (a22d * b1 - a12 * b2) / det
+            ddy = (a11d * b2 - a12 * b1) / det
+            x += ddx
+            y += ddy
+            last_dt = math.hypot(ddx, ddy)
+        it += 1
+        if last_dt < config.stop_translation_m and last_dth < config.stop_rotation_rad:
+            small += 1
+            if small >= config.stop_count:
+                converged = True
+                break
+        else:
+            small = 0
+
+    # Final bookkeeping at the matched pose: residuals, beams used, covariance.
+    pose = Pose2D(x, y, th)
+    proj = project(cur, ref.bearings_rad, pose, config)
+    idx, e, w, hc, hs = _translation_terms(ref, proj, c_m2, config)
+    n_used = int(idx.size)
+    if n_used < config.min_valid_beams:
+        return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it, n_used, config)
+    residual = float(np.mean(np.abs(e))) if n_used else float("nan")
+    a = np.array(
+        [[np.dot(w, hc * hc), np.dot(w, hc * hs)], [np.dot(w, hc * hs), np.dot(w, hs * hs)]], dtype=np.float64
+    )
+    sw = float(w.sum())
+    dof = max(sw - 2.0, 1.0)
+    sigma2 = float(np.dot(w, e * e)) / dof
+    cov = np.zeros((3, 3))
+    try:
+        cov[:2, :2] = sigma2 * np.linalg.inv(a + config.damping * sw * np.eye(2))
+    except np.linalg.LinAlgError:
+        cov[:2, :2] = np.eye(2) * config.cov_floor_sigma_xy_m**2
+    # Orientation: the mean-|dr| cost near its minimum is J0 + 0.5 k (dtheta)^2; its noise is about
+    # sigma / sqrt(n); a cost rise of that size bounds the angle's uncertainty.
+    if curv_th > 0.0:
+        k_rad = curv_th / (dphi * dphi)
+        var_th = 2.0 * math.sqrt(sigma2) / math.sqrt(max(n_used, 1)) / k_rad
+    else:
+        var_th = (4.0 * dphi) ** 2
+    cov[2, 2] = var_th
+    corridor, corr_angle = _is_corridor(cur, config.corridor_threshold_rad)
+    if config.use_cov_floor:
+        factor = max((residual - config.cov_error_offset_m) / config.cov_floor_scale_m, 1.0)
+        floor = np.zeros((3, 3))
+        if corridor:
+            ca, sa = math.cos(corr_angle + th), math.sin(corr_angle + th)
+            rot = np.array([[ca, -sa], [sa, ca]])
+            floor[:2, :2] = rot @ np.diag([config.corridor_sigma_along_m**2, config.corridor_sigma_across_m**2]) @ rot.T
+        else:
+            floor[:2, :2] = np.eye(2) * config.cov_floor_sigma_xy_m**2
+        floor[2, 2] = config.cov_floor_sigma_theta_rad**2
+        cov = _loewner_max(floor * factor, cov)
+    return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor)
+
+
+def match(
+    ref_scan: Scan,
+    cur_scan: Scan,
+    initial_guess: Pose2D,
+    config: PsmConfig | None = None,
+    ref_weights: np.ndarray | None = None,
+    cur_weights: np.ndarray | None = None,
+) -> PsmResult:
+    """Match ``cur_scan`` against ``ref_scan`` from ``initial_guess`` (the current laser pose in the
+    reference laser frame, e.g. from odometry). Never raises for bad data: a refused result carries
+    the guess and the reason."""
+    cfg = config or PsmConfig()
+    try:
+        _check_bearings(ref_scan.bearings_rad)
+        _check_bearings(cur_scan.bearings_rad)
+        ref = prepare(ref_scan, cfg, ref_weights)
+        cur = prepare(cur_scan, cfg, cur_weights)
+    except ValueError:
+        return _refused(initial_guess, PsmRefusal.BAD_INPUT, 0, 0, cfg)
+    return match_prepared(ref, cur, initial_guess, cfg)
+
+
+def _check_bearings(b: np.ndarray) -> None:
+    if b.size >= 2 and not (np.all(np.isfinite(b)) and np.all(np.diff(b) > 0)):
+        raise ValueError("bearings must be finite and strictly ascending")
+
+
+__all__ = [
+    "PsmConfig",
+    "PsmRefusal",
+    "PsmResult",
+    "PreparedScan",
+    "prepare",
+    "prepare_scan",
+    "project",
+    "match",
+    "match_prepared",
+    "median_filter_valid",
+    "segment_scan",
+    "TAG_INVALID",
+    "TAG_RANGE",
+    "TAG_MOVING",
+    "TAG_SEGMENT",
+]

@@ -1,0 +1,208 @@
+"""Scan restoration (the paper's step 2): cut the scan segments that lie in a visually estimated
+obstacle direction and bridge them, so the matcher sees the static scene only.
+
+Pitfalls handled (``shared/protocols/psm.md`` §9.8): the cut works on the *raw* ranges (the
+median filter runs afterwards), the bridged beams get weight 0 so they never pull either matching
+step, a bridge between two different background surfaces is not drawn (those beams are marked
+invalid instead), and a cut covering most of the field of view is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class BearingInterval:
+    """A direction interval in which something moves, seen from ``origin`` (a point in the laser
+    frame, e.g. the camera's position), bearings in the laser frame (x forward, CCW positive)."""
+
+    bearing_min_rad: float
+    bearing_max_rad: float
+    origin_x_m: float = 0.0
+    origin_y_m: float = 0.0
+    source: str = "camera"  # "camera" or "track" (predicted from a tracked obstacle)
+    track_id: int = -1
+
+    def __post_init__(self) -> None:
+        if not self.bearing_min_rad <= self.bearing_max_rad:
+            raise ValueError("bearing_min_rad must be <= bearing_max_rad")
+
+
+@dataclass(frozen=True)
+class RestoreConfig:
+    margin_min_rad: float = math.radians(2.0)  # margin each side of a camera interval
+    margin_width_m: float = 0.30  # ... at least the angular half-width of this at the obstacle range
+    seg_jump_m: float = 0.20  # segmentation of the raw scan for the obstacle pick
+    seg_jump_range_factor: float = 3.0
+    min_inside_frac: float = 0.60  # a segment is the obstacle when this share lies in the interval
+    min_obstacle_beams: int = 3
+    max_cut_fraction: float = 0.50  # refuse when the cut covers more of the valid beams than this
+    same_surface_tol_m: float = 0.15  # bridge endpoints must lie on one line within this
+    fit_beams: int = 5  # beams each side used to test the background surface
+
+
+@dataclass(frozen=True)
+class ObstacleSegment:
+    """Beams [start, stop) of one scan judged to belong to a moving body."""
+
+    start: int
+    stop: int
+    interval: BearingInterval
+
+
+@dataclass(frozen=True)
+class Restoration:
+    ranges_m: np.ndarray  # restored raw ranges (bridged, or NaN where a bridge was refused)
+    weights: np.ndarray  # 0 on every cut beam, 1 elsewhere
+    cut: tuple[tuple[int, int], ...]  # [start, stop) ranges cut
+    obstacles: tuple[ObstacleSegment, ...]
+    too_large: bool  # refused: the cut covers most of the view (nothing restored)
+    bridge_invalid: bool  # at least one cut was invalidated instead of bridged
+    cut_fraction: float
+
+
+def _segments_raw(r: np.ndarray, valid: np.ndarray, dphi: float, jump: float, k: float) -> np.ndarray:
+    n = r.size
+    seg = np.zeros(n, dtype=np.int32)
+    if n == 0:
+        return seg
+    rr = np.where(valid, r, 0.0)
+    thr = np.maximum(jump, k * rr * dphi)
+    brk = np.ones(n, dtype=bool)
+    brk[1:] = ~valid[:-1] | (np.abs(rr[1:] - rr[:-1]) >= thr[1:])
+    pred = np.zeros(n, dtype=bool)
+    pred[2:] = valid[:-2] & valid[1:-1] & (np.abs(rr[2:] - (2 * rr[1:-1] - rr[:-2])) < thr[2:])
+    brk &= ~(pred & valid)
+    brk[0] = True
+    brk &= valid
+    ids = np.cumsum(brk).astype(np.int32)
+    seg[valid] = ids[valid]
+    return seg
+
+
+def _beams_in(interval: BearingInterval, r: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray:
+    """Beams whose point, seen from the interval's origin, lies inside the interval +- margin.
+    Beams without a return use their own bearing (parallax unknown)."""
+    x = r * np.cos(b) - interval.origin_x_m
+    y = r * np.sin(b) - interval.origin_y_m
+    seen = np.where(np.isfinite(r), np.arctan2(y, x), b)
+    return (seen >= interval.bearing_min_rad - margin) & (seen <= interval.bearing_max_rad + margin)
+
+
+def _same_surface(r: np.ndarray, b: np.ndarray, valid: np.ndarray, lo: int, hi: int, cfg: RestoreConfig) -> bool:
+    """Whether beams just left of ``lo`` and just right of ``hi`` (exclusive) lie on one straight
+    surface: a line through the left neighbours predicts the right ones and vice versa."""
+    n = r.size
+    left = np.arange(max(0, lo - cfg.fit_beams), lo)
+    right = np.arange(hi, min(n, hi + cfg.fit_beams))
+    left = left[valid[left]]
+    right = right[valid[right]]
+    if left.size == 0 or right.size == 0:
+        return False
+    pts = np.stack([r * np.cos(b), r * np.sin(b)], axis=1)
+    pl, pr = pts[left], pts[right]
+    if left.size < 2 or right.size < 2:
+        return bool(abs(r[left[-1]] - r[right[0]]) < cfg.same_surface_tol_m)
+    allp = np.vstack([pl, pr])
+    c = allp.mean(axis=0)
+    _, _, vt = np.linalg.svd(allp - c, full_matrices=False)
+    normal = vt[-1]
+    resid = np.abs((allp - c) @ normal)
+    return bool(np.max(resid) < cfg.same_surface_tol_m)
+
+
+def restore(
+    ranges_m: np.ndarray,
+    bearings_rad: np.ndarray,
+    intervals: list[BearingInterval] | tuple[BearingInterval, ...],
+    config: RestoreConfig | None = None,
+    min_range_m: float = 0.10,
+) -> Restoration:
+    """Select, cut and bridge the segments in the given bearing intervals of a raw scan."""
+    cfg = config or RestoreConfig()
+    r = np.asarray(ranges_m, dtype=np.float64)
+    b = np.asarray(bearings_rad, dtype=np.float64)
+    n = r.size
+    weights = np.ones(n)
+    valid = np.isfinite(r) & (r >= min_range_m)
+    n_valid = int(np.count_nonzero(valid))
+    if n == 0 or not intervals:
+        return Restoration(r.copy(), weights, (), (), False, False, 0.0)
+    dphi = float(abs(b[-1] - b[0]) / max(n - 1, 1))
+    seg = _segments_raw(r, valid, dphi, cfg.seg_jump_m, cfg.seg_jump_range_factor)
+    nseg = int(seg.max()) + 1
+    seg_len = np.bincount(seg, minlength=nseg)
+    cut_mask = np.zeros(n, dtype=bool)
+    obstacles: list[ObstacleSegment] = []
+    for iv in intervals:
+        core = _beams_in(iv, r, b, 0.0)
+        # margin: max(min margin, half-width of margin_width_m at the nearest range in the core)
+        near = np.nanmin(np.where(core & valid, r, np.inf)) if np.any(core & valid) else np.inf
+        margin = cfg.margin_min_rad
+        if math.isfinite(near) and near > 0:
+            margin = max(margin, math.atan2(0.5 * cfg.margin_width_m, near))
+        wide = _beams_in(iv, r, b, margin)
+        inside = np.bincount(seg[wide & valid], minlength=nseg)
+        touched = np.flatnonzero(np.bincount(seg[core & valid], minlength=nseg))
+        touched = touched[touched > 0]
+        chosen = [s for s in touched if inside[s] >= cfg.min_inside_frac * seg_len[s]]
+        if not chosen and touched.size:
+            # The body merges with a background segment: take the nearest segment seen in the
+            # core interval and only its beams inside the core.
+            rng_of = [float(np.min(r[(seg == s) & core])) for s in touched]
+            s_near = int(touched[int(np.argmin(rng_of))])
+            beams = np.flatnonzero((seg == s_near) & core)
+            if beams.size >= cfg.min_obstacle_beams:
+                obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
+            cut_mask |= wide
+            continue
+        for s in chosen:
+            beams = np.flatnonzero(seg == s)
+            if beams.size >= cfg.min_obstacle_beams:
+                obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
+            cut_mask[beams[0] : beams[-1] + 1] = True
+        # the wall beams inside the interval (+margin) get no weight either: the obstacle's edge
+        # beams mix with the background, and the camera bearing is only an estimate
+        cut_mask |= wide
+    cut_fraction = float(np.count_nonzero(cut_mask & valid)) / max(n_valid, 1)
+    # one body seen through several intervals (camera and track) is one obstacle: merge overlaps,
+    # preferring a camera interval as the source
+    obstacles.sort(key=lambda o: (o.start, o.stop))
+    merged: list[ObstacleSegment] = []
+    for ob in obstacles:
+        if merged and ob.start < merged[-1].stop:
+            last = merged[-1]
+            src = last.interval if last.interval.source == "camera" else ob.interval
+            merged[-1] = ObstacleSegment(min(last.start, ob.start), max(last.stop, ob.stop), src)
+        else:
+            merged.append(ob)
+    obstacles = merged
+    if cut_fraction > cfg.max_cut_fraction:
+        return Restoration(r.copy(), weights, (), tuple(obstacles), True, False, cut_fraction)
+    out = r.copy()
+    weights[cut_mask] = 0.0
+    # contiguous runs of the cut mask
+    d = np.diff(np.concatenate(([0], cut_mask.astype(np.int8), [0])))
+    starts = np.flatnonzero(d == 1)
+    stops = np.flatnonzero(d == -1)
+    bridge_invalid = False
+    cuts: list[tuple[int, int]] = []
+    for lo, hi in zip(starts, stops):
+        lo_i, hi_i = int(lo), int(hi)
+        cuts.append((lo_i, hi_i))
+        left = lo_i - 1
+        right = hi_i
+        if left < 0 or right >= n or not valid[left] or not valid[right]:
+            out[lo_i:hi_i] = np.nan  # at the scan edge or next to no return: nothing to bridge from
+            continue
+        if not _same_surface(r, b, valid, lo_i, hi_i, cfg):
+            out[lo_i:hi_i] = np.nan
+            bridge_invalid = True
+            continue
+        t = (b[lo_i:hi_i] - b[left]) / (b[right] - b[left])
+        out[lo_i:hi_i] = r[left] + t * (r[right] - r[left])
+    return Restoration(out, weights, tuple(cuts), tuple(obstacles), False, bridge_invalid, cut_fraction)

@@ -1,0 +1,242 @@
+"""Obstacle position from its scan points, and a constant-velocity tracker for several obstacles.
+
+The laser sees only the front surface of a round body, so the centroid of the hit points sits
+about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
+fitting a circle to the points (algebraic fit, then a fixed-radius refinement with the track's
+smoothed radius); when the arc is too short for a fit, the centre is put one radius behind the
+nearest point along the viewing ray.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    accel_sigma_mps2: float = 0.5  # process noise of the constant-velocity model
+    meas_sigma_m: float = 0.03  # position measurement noise
+    init_speed_sigma_mps: float = 1.0
+    gate_m: float = 0.8  # association gate around the predicted position
+    max_missed: int = 10  # cycles without a detection before a track is dropped
+    report_missed: int = 2  # tracks coasting for at most this many cycles are still reported
+    default_radius_m: float = 0.30  # used before any fit gave a radius
+    min_radius_m: float = 0.05
+    max_radius_m: float = 1.50
+    min_fit_extent_rad: float = math.radians(25.0)  # arc (seen from the body) needed to trust a fit
+    radius_smoothing: float = 0.2  # exponential smoothing of a track's radius
+    merge_m: float = 0.25  # a younger track this close to an older one is dropped
+
+
+@dataclass(frozen=True)
+class Detection:
+    x_m: float
+    y_m: float
+    radius_m: float
+    radius_fitted: bool
+    scan_index_start: int
+    scan_index_stop: int
+    bearing_min_rad: float
+    bearing_max_rad: float
+
+
+def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
+    """Algebraic (Kasa) circle fit: (cx, cy, r) or None if degenerate."""
+    if points.shape[0] < 3:
+        return None
+    x, y = points[:, 0], points[:, 1]
+    mx, my = x.mean(), y.mean()
+    u, v = x - mx, y - my
+    a = np.stack([u, v, np.ones_like(u)], axis=1)
+    rhs = -(u * u + v * v)
+    sol, _, rank, _ = np.linalg.lstsq(a, rhs, rcond=None)
+    if rank < 3:
+        return None
+    cx, cy = -sol[0] / 2.0, -sol[1] / 2.0
+    r2 = cx * cx + cy * cy - sol[2]
+    if not r2 > 0:
+        return None
+    return float(cx + mx), float(cy + my), float(math.sqrt(r2))
+
+
+def refine_fixed_radius(
+    points: np.ndarray, cx: float, cy: float, radius: float, iterations: int = 6
+) -> tuple[float, float]:
+    """Gauss-Newton on sum (|p - c| - R)^2 with R fixed."""
+    c = np.array([cx, cy], dtype=float)
+    for _ in range(iterations):
+        d = points - c
+        rho = np.hypot(d[:, 0], d[:, 1])
+        rho = np.maximum(rho, 1e-9)
+        res = rho - radius
+        jac = -d / rho[:, None]
+        jtj = jac.T @ jac
+        if abs(np.linalg.det(jtj)) < 1e-12:
+            break
+        step = np.linalg.solve(jtj, -jac.T @ res)
+        c += step
+        if float(np.hypot(step[0], step[1])) < 1e-5:
+            break
+    return float(c[0]), float(c[1])
+
+
+def locate_body(
+    points: np.ndarray, sensor_xy: tuple[float, float], radius_hint_m: float | None, cfg: TrackerConfig
+) -> tuple[float, float, float, bool]:
+    """Centre (x, y), radius and whether the radius came from a fit, for a round body whose front
+    surface produced ``points`` (k x 2, world frame), seen from ``sensor_xy``."""
+    sx, sy = sensor_xy
+    centroid = points.mean(axis=0)
+    ray = centroid - np.array([sx, sy])
+    ray_n = ray / max(float(np.hypot(ray[0], ray[1])), 1e-9)
+    fit = fit_circle(points) if points.shape[0] >= 5 else None
+    fitted = False
+    radius = radius_hint_m if radius_hint_m is not None else cfg.default_radius_m
+    if fit is not None:
+        fx, fy, fr = fit
+        # the centre must lie behind the points as seen from the sensor
+        behind = (fx - centroid[0]) * ray_n[0] + (fy - centroid[1]) * ray_n[1] > 0.0
+        ang = np.arctan2(points[:, 1] - fy, points[:, 0] - fx)
+        extent = float(np.ptp(np.unwrap(ang))) if ang.size > 1 else 0.0
+        if behind and cfg.min_radius_m <= fr <= cfg.max_radius_m and extent >= cfg.min_fit_extent_rad:
+            fitted = True
+            if radius_hint_m is None:
+                radius = fr
+    # start from the nearest point pushed back by the radius along the ray, then refine
+    d = points - np.array([sx, sy])
+    near = points[int(np.argmin(np.hypot(d[:, 0], d[:, 1])))]
+    start = near + radius * ray_n
+    if points.shape[0] >= 3:
+        cx, cy = refine_fixed_radius(points, float(start[0]), float(start[1]), radius)
+        # keep the refinement only if it stayed behind the surface and near the start
+        if math.hypot(cx - start[0], cy - start[1]) > 2.0 * radius + 0.2:
+            cx, cy = float(start[0]), float(start[1])
+    else:
+        cx, cy = float(start[0]), float(start[1])
+    return cx, cy, radius, fitted
+
+
+@dataclass
+class Track:
+    track_id: int
+    state: np.ndarray  # x, y, vx, vy
+    cov: np.ndarray  # 4x4
+    radius_m: float
+    radius_known: bool
+    stamp_s: float
+    hits: int = 1
+    missed: int = 0
+    age_cycles: int = 1
+    last_detection: Detection | None = None
+    camera_stamp_s: float = -math.inf  # last cycle a camera interval confirmed this track
+    history: list[tuple[float, float, float]] = field(default_factory=list)
+
+
+class Tracker:
+    """Constant-velocity Kalman filters, greedy nearest-neighbour association with a gate."""
+
+    def __init__(self, config: TrackerConfig | None = None) -> None:
+        self.config = config or TrackerConfig()
+        self.tracks: list[Track] = []
+        self._next_id = 1
+
+    def predict_position(self, track: Track, stamp_s: float) -> tuple[float, float]:
+        dt = max(stamp_s - track.stamp_s, 0.0)
+        return float(track.state[0] + track.state[2] * dt), float(track.state[1] + track.state[3] * dt)
+
+    def _predict(self, track: Track, stamp_s: float) -> None:
+        dt = stamp_s - track.stamp_s
+        if dt <= 0.0:
+            return
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
+        q1 = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]) * self.config.accel_sigma_mps2**2
+        q = np.zeros((4, 4))
+        q[np.ix_([0, 2], [0, 2])] = q1
+        q[np.ix_([1, 3], [1, 3])] = q1
+        track.state = f @ track.state
+        track.cov = f @ track.cov @ f.T + q
+        track.stamp_s = stamp_s
+
+    def _update(self, track: Track, det: Detection) -> None:
+        h = np.zeros((2, 4))
+        h[0, 0] = h[1, 1] = 1.0
+        r = np.eye(2) * self.config.meas_sigma_m**2
+        z = np.array([det.x_m, det.y_m])
+        s = h @ track.cov @ h.T + r
+        k = track.cov @ h.T @ np.linalg.inv(s)
+        track.state = track.state + k @ (z - h @ track.state)
+        track.cov = (np.eye(4) - k @ h) @ track.cov
+        track.cov = 0.5 * (track.cov + track.cov.T)
+        if det.radius_fitted:
+            if track.radius_known:
+                a = self.config.radius_smoothing
+                track.radius_m = (1.0 - a) * track.radius_m + a * det.radius_m
+            else:
+                track.radius_m = det.radius_m
+                track.radius_known = True
+
+    def step(self, stamp_s: float, detections: list[Detection]) -> list[tuple[Track, Detection | None]]:
+        """Advance all tracks to ``stamp_s`` and fold in the detections. Returns the live tracks with
+        the detection each received (None when coasting)."""
+        for t in self.tracks:
+            self._predict(t, stamp_s)
+        pairs: list[tuple[float, int, int]] = []
+        for ti, t in enumerate(self.tracks):
+            for di, d in enumerate(detections):
+                dist = math.hypot(d.x_m - t.state[0], d.y_m - t.state[1])
+                gate = self.config.gate_m + 2.0 * math.sqrt(max(t.cov[0, 0] + t.cov[1, 1], 0.0))
+                if dist < gate:
+                    pairs.append((dist, ti, di))
+        pairs.sort()
+        used_t: set[int] = set()
+        used_d: set[int] = set()
+        got: dict[int, Detection] = {}
+        for _, ti, di in pairs:
+            if ti in used_t or di in used_d:
+                continue
+            used_t.add(ti)
+            used_d.add(di)
+            got[ti] = detections[di]
+        for ti, t in enumerate(self.tracks):
+            t.age_cycles += 1
+            if ti in got:
+                self._update(t, got[ti])
+                t.hits += 1
+                t.missed = 0
+                t.last_detection = got[ti]
+            else:
+                t.missed += 1
+        for di, d in enumerate(detections):
+            if di in used_d:
+                continue
+            p = np.diag([self.config.meas_sigma_m**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
+            self.tracks.append(
+                Track(
+                    self._next_id,
+                    np.array([d.x_m, d.y_m, 0.0, 0.0]),
+                    p,
+                    d.radius_m,
+                    d.radius_fitted,
+                    stamp_s,
+                    last_detection=d,
+                )
+            )
+            got[len(self.tracks) - 1] = d
+            self._next_id += 1
+        out: list[tuple[Track, Detection | None]] = []
+        keep: list[Track] = []
+        for ti, t in enumerate(self.tracks):
+            if t.missed > self.config.max_missed:
+                continue
+            if any(
+                math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < self.config.merge_m for k in keep
+            ):
+                continue  # a duplicate of an older track (tracks are kept oldest first)
+            keep.append(t)
+            out.append((t, got.get(ti)))
+        self.tracks = keep
+        return out
