@@ -21,7 +21,7 @@ import enum
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -141,6 +141,8 @@ class SensorInfo:
     state: SensorState
     #: II keys whose checksum matched only over the text before '<-' (old firmware quirk)
     checksum_fallback_keys: tuple[str, ...] = ()
+    #: the raw KEY:value pairs of each reply: {"VV": {...}, "PP": {...}, "II": {...}}
+    values: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -355,7 +357,13 @@ class Utm30lxClient:
         state = self._command(build_simple("II"), "II")
         assert isinstance(version, VersionReply) and isinstance(params, ParametersReply)
         assert isinstance(state, StateReply)
-        self._info = SensorInfo(version.info, params.info, state.info, state.checksum_fallback_keys)
+        self._info = SensorInfo(
+            version.info,
+            params.info,
+            state.info,
+            state.checksum_fallback_keys,
+            {"VV": dict(version.values), "PP": dict(params.values), "II": dict(state.values)},
+        )
         self._bearings_cache.clear()
         # A new connection may be a power-cycled sensor: its clock is a new epoch.
         self._unwrapper.reset()
@@ -478,7 +486,10 @@ class Utm30lxClient:
         """II again (laser state, sensor clock, status text)."""
         reply = self._idle_command(build_simple("II"), "II")
         assert isinstance(reply, StateReply)
-        self._info = replace(self.info, state=reply.info, checksum_fallback_keys=reply.checksum_fallback_keys)
+        values = {**self.info.values, "II": dict(reply.values)}
+        self._info = replace(
+            self.info, state=reply.info, checksum_fallback_keys=reply.checksum_fallback_keys, values=values
+        )
         return reply.info
 
     def laser_on(self) -> bool:
