@@ -15,6 +15,7 @@ forward).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -48,6 +49,7 @@ def _periodic_blur(img: np.ndarray, sigma: float) -> np.ndarray:
     return np.real(np.fft.ifft2(np.fft.fft2(img) * g)).astype(np.float32)
 
 
+@functools.lru_cache(maxsize=4)
 def make_texture_atlas(seed: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
     """A float32 atlas holding ``_LEVELS`` mip levels of a tileable band-limited noise texture.
 
@@ -76,6 +78,7 @@ def make_texture_atlas(seed: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
         atlas[: n + 2, x : x + n + 2] = padded
         offsets.append((x, n))
         x += n + 2
+    atlas.setflags(write=False)
     return atlas, offsets
 
 
