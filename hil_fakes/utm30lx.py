@@ -275,6 +275,14 @@ class Utm30lxModel(DeviceModel):
         assert self._boot_s is not None
         return (self._clock_base_ms + int(math.floor((now_s - self._boot_s) * 1000.0 + 1e-6))) & _MASK24
 
+    def host_time_of_device_ms(self, device_ms: int) -> float:
+        """The host-clock time at which the counter showed ``device_ms`` (ground truth for tests)."""
+        with self._lock:
+            if self._boot_s is None:
+                raise RuntimeError("the fake has not started its clock yet")
+            delta = (device_ms - self._clock_base_ms) & _MASK24
+            return self._boot_s + delta / 1000.0
+
     def _scan_start_s(self, k: int) -> float:
         assert self._boot_s is not None
         return self._boot_s + k * self.config.scan_period_s
