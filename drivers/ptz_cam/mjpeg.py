@@ -199,6 +199,8 @@ class MjpegParser:
                 events.append(TruncatedJpeg(0, "part too large"))
                 self._state = _State.SEEK
             return False
+        while i > 0 and self._buf[i - 1] == 0x2D:  # "----token": the extra dashes belong to the delimiter
+            i -= 1
         body = bytes(self._buf[:i]).rstrip(b"\r\n")
         del self._buf[:i]
         self._deliver(events, body)

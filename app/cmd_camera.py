@@ -1,0 +1,190 @@
+"""`vipsm-robot` commands for the Sony SNC-RZ50: probe, ptz, fake camera, bench.
+
+* ``vipsm-robot probe --camera URL [--camera-http URL] --json``: version, pan/tilt/zoom and one frame
+* ``vipsm-robot ptz --camera URL --pan-deg 30 --tilt-deg -5 --zoom 0 --json``: move, read back
+* ``vipsm-robot fake camera --visca-pty [--link PATH] | --visca-tcp 127.0.0.1:PORT  --http 127.0.0.1:PORT``
+* ``vipsm-robot bench --only camera``: receive + decode one 320x240 MJPEG frame from the fake
+
+Frames are decoded here with OpenCV (drivers do not import it): :func:`to_vipsm_frame` turns a
+driver :class:`CameraFrame` into the estimator's :class:`vipsm.types.Frame` with intrinsics.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import time
+from typing import Any
+
+import cv2
+import numpy as np
+
+from drivers.ptz_cam import CameraFrame, HttpConfig, MjpegFrameSource, PtzCalibration, ViscaClient, ViscaConfig
+from drivers.ptz_cam.errors import MjpegFormatError, ViscaError
+from drivers.ptz_cam.frames import fetch_oneshot, inquiry_system
+from vipsm.types import Frame, Intrinsics
+
+from .cli import emit
+from .errors import AppError
+
+
+def decode_jpeg(jpeg: bytes) -> np.ndarray:
+    img = cv2.imdecode(np.frombuffer(jpeg, dtype=np.uint8), cv2.IMREAD_COLOR)
+    if img is None:
+        raise MjpegFormatError(f"OpenCV could not decode a {len(jpeg)}-byte JPEG", raw=jpeg[:16])
+    return img
+
+
+def to_vipsm_frame(frame: CameraFrame, calibration: PtzCalibration | None = None) -> Frame:
+    """Decode a driver frame and attach intrinsics for its size and the zoom in force at capture."""
+    cal = calibration or PtzCalibration()
+    img = decode_jpeg(frame.jpeg)
+    h, w = img.shape[:2]
+    zoom = frame.ptz.zoom_position if frame.ptz is not None else 0
+    k = cal.intrinsics(zoom, w, h)
+    return Frame(
+        image=img,
+        stamp_s=frame.stamp_s,
+        intrinsics=Intrinsics(k.fx_px, k.fy_px, k.cx_px, k.cy_px, w, h),
+        pan_rad=frame.ptz.pan_rad if frame.ptz is not None else 0.0,
+        tilt_rad=frame.ptz.tilt_rad if frame.ptz is not None else 0.0,
+        seq=frame.seq,
+    )
+
+
+def _visca_config(args: argparse.Namespace) -> ViscaConfig:
+    t = float(getattr(args, "timeout_s", 5.0) or 5.0)
+    return ViscaConfig(baudrate=int(getattr(args, "baud", 9600) or 9600), ack_timeout_s=min(t, 2.0),
+                       inquiry_timeout_s=min(t, 2.0))
+
+
+def _state_dict(client: ViscaClient) -> dict[str, Any]:
+    s = client.position()
+    return {
+        "pan_deg": round(s.pan_deg, 3),
+        "tilt_deg": round(s.tilt_deg, 3),
+        "pan_counts": s.pan_counts,
+        "tilt_counts": s.tilt_counts,
+        "zoom_position": s.zoom_position,
+        "magnification": round(client.calibration.magnification(s.zoom_position), 3),
+        "hfov_deg": round(math.degrees(s.hfov_rad), 3),
+    }
+
+
+def probe(args: argparse.Namespace) -> dict[str, Any]:
+    out: dict[str, Any] = {"url": args.camera}
+    with ViscaClient(args.camera, _visca_config(args)) as client:
+        ver = client.version
+        out["camera_count"] = client.camera_count
+        out["version"] = None if ver is None else {
+            "vendor": f"0x{ver.vendor:04X}", "model": f"0x{ver.model:04X}", "rom": f"0x{ver.rom_version:04X}",
+            "sockets": ver.sockets,
+        }
+        out["max_speed"] = {"pan": client.pan_max_speed, "tilt": client.tilt_max_speed}
+        out["power"] = client.power().name.lower()
+        out["focus"] = client.focus_mode().name.lower()
+        out.update(_state_dict(client))
+        if client.stats.startup_warnings:
+            out["warnings"] = list(client.stats.startup_warnings)
+    http_url = getattr(args, "camera_http", None)
+    if http_url:
+        cfg = HttpConfig(base_url=http_url, timeout_s=float(args.timeout_s or 5.0))
+        try:
+            out["model"] = inquiry_system(cfg).get("ModelName")
+        except ViscaError as exc:
+            out["model"] = None
+            out.setdefault("warnings", []).append(f"inquiry.cgi: {exc}")
+        frame = fetch_oneshot(cfg)
+        img = decode_jpeg(frame.jpeg)
+        out["frame"] = {"width_px": int(img.shape[1]), "height_px": int(img.shape[0]),
+                        "stamp_s": round(frame.stamp_s, 6), "jpeg_bytes": len(frame.jpeg)}
+    return out
+
+
+def _cmd_ptz(args: argparse.Namespace) -> int:
+    cal = PtzCalibration()
+    with ViscaClient(args.camera, _visca_config(args)) as client:
+        now = client.position()
+        pan = math.radians(args.pan_deg) if args.pan_deg is not None else now.pan_rad
+        tilt = math.radians(args.tilt_deg) if args.tilt_deg is not None else now.tilt_rad
+        zoom = args.zoom
+        if args.zoom_x is not None:
+            zoom = cal.zoom_position_for(args.zoom_x)
+        t0 = time.monotonic()
+        handle = client.move_to(pan, tilt, args.speed, wait=False)  # socket 1
+        zhandle = client.zoom_to(zoom, wait=False) if zoom is not None else None  # socket 2, in parallel
+        handle.wait()
+        if zhandle is not None:
+            zhandle.wait()
+        result = _state_dict(client)
+        result["move_s"] = round(time.monotonic() - t0, 3)
+    emit({"camera": result}, args.json)
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("ptz", help="move the SNC-RZ50 (degrees, zoom position) and print the position read back")
+    p.add_argument("--camera", metavar="URL", required=True, help="VISCA port: a tty, a pty, socket://host:port, "
+                   "or http://[user:pw@]camera for the visca-ptzf.cgi pass-through")
+    p.add_argument("--pan-deg", type=float, help="pan, degrees, left positive (default: keep)")
+    p.add_argument("--tilt-deg", type=float, help="tilt, degrees, up positive (default: keep)")
+    p.add_argument("--zoom", type=int, help="zoom position 0 (wide) .. 16384 (optical tele)")
+    p.add_argument("--zoom-x", type=float, help="zoom as magnification 1..26 (instead of --zoom)")
+    p.add_argument("--speed", type=float, default=1.0, help="fraction of max pan/tilt speed, (0, 1]")
+    p.add_argument("--baud", type=int, default=9600, choices=(9600, 38400))
+    p.add_argument("--timeout-s", type=float, default=5.0, help="ACK/inquiry timeout cap")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=_cmd_ptz)
+
+
+def register_fake(fake_sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    from hil_fakes import snc_rz50
+
+    p = fake_sub.add_parser("camera", help="fake Sony SNC-RZ50: VISCA on a pty or TCP, HTTP MJPEG/CGIs")
+    snc_rz50.add_cli_arguments(p)
+    p.set_defaults(func=lambda a: snc_rz50.run_cli(a))
+
+
+def _percentile(values: list[float], q: float) -> float:
+    s = sorted(values)
+    return s[min(len(s) - 1, max(0, math.ceil(q * len(s)) - 1))]
+
+
+def bench(args: argparse.Namespace) -> dict[str, Any]:
+    """Receive + decode 320x240 MJPEG frames from the in-process fake; median / p99 in ms."""
+    from hil_fakes.snc_rz50 import CameraHttpServer, FakeCamera, FakeCameraSpec
+
+    n = 120
+    camera = FakeCamera(FakeCameraSpec(width_px=320, height_px=240))
+    server = CameraHttpServer(camera).start()
+    recv_ms: list[float] = []
+    decode_ms: list[float] = []
+    total_ms: list[float] = []
+    try:
+        with MjpegFrameSource(HttpConfig(base_url=server.url, frame_rate=30, buffer_frames=n + 8)) as source:
+            frames = [source.get(10.0) for _ in range(n)]
+        for f in frames[5:]:  # skip connection warm-up
+            sent = float(f.headers.get("x-send-monotonic", "nan"))
+            t0 = time.perf_counter()
+            img = decode_jpeg(f.jpeg)
+            dt = (time.perf_counter() - t0) * 1e3
+            if img.shape[:2] != (240, 320):
+                raise AppError(f"bench frame has size {img.shape}")
+            recv = (f.stamp_s - sent) * 1e3
+            recv_ms.append(recv)
+            decode_ms.append(dt)
+            total_ms.append(recv + dt)
+    finally:
+        server.stop()
+    result = {
+        "frames": len(total_ms),
+        "receive_ms_median": round(statistics.median(recv_ms), 3),
+        "receive_ms_p99": round(_percentile(recv_ms, 0.99), 3),
+        "decode_ms_median": round(statistics.median(decode_ms), 3),
+        "decode_ms_p99": round(_percentile(decode_ms, 0.99), 3),
+        "receive_decode_ms_median": round(statistics.median(total_ms), 3),
+        "receive_decode_ms_p99": round(_percentile(total_ms, 0.99), 3),
+        "target_ms": 3.0,
+    }
+    return result
