@@ -218,19 +218,27 @@ class ViewRenderer:
         """Sample the texture at surface coordinates (s, t) in metres, tint per surface class, add noise."""
         shape = label.shape
         f32 = np.float32
-        level = np.clip(np.floor(np.log2(np.maximum(foot_m, f32(1e-9)) * f32(1.0 / self.texel_m)) + f32(0.5)),
-                        f32(0), f32(_LEVELS - 1))
-        p = np.exp2(-level)  # 2^-level: texel size factor of the level
-        scale = p * f32(1.0 / self.texel_m)
-        size = p * f32(_TILE)
-        u = s_m * scale
-        v = t_m * scale
-        u -= np.floor(u / size) * size
-        v -= np.floor(v / size) * size
-        # level L starts at x = sum_{j<L} (TILE/2^j + 2) = 2*TILE*(1 - 2^-L) + 2L in the atlas
-        map_x = (u + f32(1.0) + f32(2 * _TILE) * (f32(1.0) - p) + f32(2.0) * level).astype(f32)
-        map_y = (v + f32(1.0)).astype(f32)
-        grey = cv2.remap(self.atlas, map_x, map_y, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        # trilinear mip-mapping: blend the two levels around the footprint, so the texture does not
+        # "pop" (a spurious image change) when a surface crosses a level boundary as the robot moves
+        lf = np.clip(np.log2(np.maximum(foot_m, f32(1e-9)) * f32(1.0 / self.texel_m)), f32(0), f32(_LEVELS - 1))
+        l0 = np.minimum(np.floor(lf), f32(_LEVELS - 2))
+        frac = lf - l0
+        grey = None
+        for level, wgt in ((l0, f32(1.0) - frac), (l0 + f32(1.0), frac)):
+            p = np.exp2(-level)  # 2^-level: texel size factor of the level
+            scale = p * f32(1.0 / self.texel_m)
+            size = p * f32(_TILE)
+            u = s_m * scale
+            v = t_m * scale
+            u -= np.floor(u / size) * size
+            v -= np.floor(v / size) * size
+            # level L starts at x = sum_{j<L} (TILE/2^j + 2) = 2*TILE*(1 - 2^-L) + 2L in the atlas
+            map_x = (u + f32(1.0) + f32(2 * _TILE) * (f32(1.0) - p) + f32(2.0) * level).astype(f32)
+            map_y = (v + f32(1.0)).astype(f32)
+            sample = cv2.remap(self.atlas, map_x, map_y, interpolation=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_REFLECT)
+            grey = sample * wgt if grey is None else grey + sample * wgt
+        assert grey is not None
         grey = np.where(label == 0, np.float32(150.0), grey) * gain.astype(np.float32)
         if self.noise_sigma > 0:
             grey += rng.standard_normal(shape, dtype=np.float32) * np.float32(self.noise_sigma)

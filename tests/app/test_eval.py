@@ -1,0 +1,113 @@
+"""``vipsm-robot eval``: metrics, scenario flags, plots and a short run of scenario 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import cv2
+import pytest
+
+from app import cmd_eval
+from app.cli import main
+from app.errors import AppError
+
+SHORT = ["--duration", "2.0", "--obstacle-start", "0.5", "--approach-time", "6.0"]
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[int, str, str]:
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_greedy_assignment_is_one_to_one_nearest_first() -> None:
+    truth = [(0, 0.0, 0.0), (1, 2.0, 0.0)]
+    est = [(1.9, 0.1), (0.2, 0.0), (5.0, 5.0)]
+    assert cmd_eval._assign(est, truth) == {1: 0, 0: 1}
+    assert cmd_eval._assign([(0.1, 0.0)], truth) == {0: 0}
+    assert cmd_eval._assign([], truth) == {}
+
+
+def test_in_camera_needs_half_the_body_inside_the_fov() -> None:
+    hfov = math.radians(54.0)
+    assert cmd_eval.obstacle_in_camera(0, 0, 0, hfov, 3.0, 0.0, 0.4)
+    edge_y = 3.0 * math.tan(hfov / 2)  # centre exactly on the FOV edge: half inside
+    assert cmd_eval.obstacle_in_camera(0, 0, 0, hfov, 3.0, edge_y - 0.05, 0.4)
+    assert not cmd_eval.obstacle_in_camera(0, 0, 0, hfov, 3.0, edge_y + 0.2, 0.4)
+    assert not cmd_eval.obstacle_in_camera(0, 0, 0, hfov, -3.0, 0.0, 0.4)  # behind
+    assert not cmd_eval.obstacle_in_camera(0, 0, math.pi, hfov, 3.0, 0.0, 0.4)  # camera turned away
+
+
+def test_metrics_of_an_empty_log_are_null_not_zero() -> None:
+    m = cmd_eval.MethodLog("vipsm").metrics()
+    assert set(m) == set(cmd_eval.METRIC_KEYS)
+    assert m["obstacle_err_mean_m"] is None and m["obstacle_detected_fraction"] is None
+    log = cmd_eval.MethodLog("x", errors_m=[0.1, 0.3], located=1, in_view=4, vel_errors_mps=[0.02])
+    m = log.metrics()
+    assert m["obstacle_err_mean_m"] == pytest.approx(0.2) and m["obstacle_err_std_m"] == pytest.approx(0.1)
+    assert m["obstacle_err_max_m"] == pytest.approx(0.3) and m["obstacle_detected_fraction"] == 0.25
+
+
+def test_scenario_flags_override_and_are_shared_with_sim(tmp_path: Path) -> None:
+    p = argparse.ArgumentParser()
+    cmd_eval.add_scenario_arguments(p, allow_all=False)
+    args = p.parse_args(["--scenario", "2", "--crossing-deg", "60", "--obstacles", "2", "--odom-noise", "3"])
+    sc = cmd_eval.build_scenario_from_args(args)
+    assert sc.name == "scenario2_90deg_custom" and sc.params["crossing_deg"] == 60.0
+    assert len(sc.obstacles) == 2 and sc.odometry_noise.scale_error == pytest.approx(0.03)
+    with pytest.raises(SystemExit):
+        p.parse_args(["--scenario", "all"])
+    f = tmp_path / "s.toml"
+    f.write_text('name = "fast"\nobstacle_speed_mps = 1.0\ncrossing_deg = 30.0\n')
+    args = p.parse_args(["--scenario-file", str(f), "--seed", "9"])
+    sc = cmd_eval.build_scenario_from_args(args)
+    assert sc.name == "fast" and sc.params["obstacle_speed_mps"] == 1.0 and sc.seed == 9
+    args = p.parse_args(["--obstacle-diameter", "0.1", "--closest-approach", "0.2"])
+    with pytest.raises(AppError, match="closest_approach_m"):
+        cmd_eval.build_scenario_from_args(args)
+
+
+def test_bad_values_are_one_line_errors_naming_the_key(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    code, out, err = run_cli(capsys, ["eval", "--scenario", "2", "--crossing-deg", "200"])
+    assert code == 2 and "crossing_deg" in err and out == ""
+    bad = tmp_path / "bad.toml"
+    bad.write_text("crossing = 30\n")
+    code, out, err = run_cli(capsys, ["eval", "--scenario-file", str(bad)])
+    assert code == 2 and "'crossing'" in err and len(err.strip().splitlines()) == 1
+
+
+def test_json_output_shape_and_plots(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    pytest.importorskip("vipsm.estimator")
+    code, out, _ = run_cli(capsys, ["eval", "--scenario", "2", *SHORT, "--json", "--plots", str(tmp_path)])
+    assert code == 0
+    doc = json.loads(out)
+    assert list(doc) == ["scenarios"] and len(doc["scenarios"]) == 1
+    sc = doc["scenarios"][0]
+    assert set(sc) == {"name", "params", "cycles", "vipsm", "plain_psm"}
+    assert sc["cycles"] == 21 and sc["params"]["crossing_deg"] == 90.0
+    for method in ("vipsm", "plain_psm"):
+        assert set(sc[method]) == set(cmd_eval.METRIC_KEYS)
+        assert sc[method]["ms_per_cycle"] > 0 and sc[method]["pose_err_final_m"] >= 0
+    pngs = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert pngs == [f"fig8_map_{sc['name']}.png", f"fig9_paths_{sc['name']}.png"]
+    for p in tmp_path.glob("*.png"):
+        img = cv2.imread(str(p))
+        assert img is not None and img.shape[0] > 100 and img.shape[1] > 200
+
+
+def test_short_scenario_2_vipsm_beats_plain_psm() -> None:
+    """The paper's claim on a shortened scenario 2 (the first 15 s: the obstacle starts at 5 s, crosses
+    in front of the robot and fills up to a sixth of the scan while in the camera's view)."""
+    pytest.importorskip("vipsm.estimator")
+    from hil_fakes.world import paper_scenario
+
+    log = cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 15.0}))
+    res = cmd_eval.scenario_result(log)
+    v, p = res["vipsm"], res["plain_psm"]
+    assert res["cycles"] == 151
+    assert v["obstacle_detected_fraction"] is not None and v["obstacle_detected_fraction"] >= 0.9
+    assert v["obstacle_err_mean_m"] < p["obstacle_err_mean_m"], (v, p)
+    assert v["obstacle_err_mean_m"] <= 0.2
