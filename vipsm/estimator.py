@@ -65,9 +65,11 @@ class EstimatorConfig:
     keyframe_stale_dist_m: float = 0.60
     max_frame_age_s: float = 0.25  # a frame further than this from the scan's stamp is not used
     track_mask_s: float = 1.0  # tracks confirmed by the camera within this long are masked too
+    track_sustain_speed_mps: float = 0.05  # ... and moving tracks the laser keeps detecting, indefinitely
     track_mask_margin_m: float = 0.15  # added to a track's radius for its predicted interval
     max_correction_m: float = 0.5  # a match further than this from the odometry prediction is refused
     max_correction_rad: float = math.radians(20.0)
+    weak_info: float = 0.03  # normalised translation information below which odometry is kept
     odom_sigma_per_m: float = 0.05  # covariance growth on odometry fallback
     odom_sigma_rad_per_rad: float = 0.05
 
@@ -129,7 +131,18 @@ class Estimator:
         out = []
         laser_world = compose(predicted, self.config.laser_mount)
         for t in self._tracker.tracks:
-            if stamp_s - t.camera_stamp_s > self.config.track_mask_s:
+            speed = math.hypot(float(t.state[2]), float(t.state[3]))
+            recent_camera = stamp_s - t.camera_stamp_s <= self.config.track_mask_s
+            # a body the camera confirmed once and the laser keeps following while it moves stays
+            # masked after it leaves the camera's view (a track latched on a wall stops "moving")
+            sustained = (
+                t.camera_stamp_s > -math.inf
+                and t.radius_known
+                and t.hits >= 5
+                and t.missed <= 1
+                and speed >= self.config.track_sustain_speed_mps
+            )
+            if not (recent_camera or sustained):
                 continue
             wx, wy = self._tracker.predict_position(t, stamp_s)
             rel = between(laser_world, Pose2D(wx, wy, 0.0))
@@ -139,10 +152,25 @@ class Estimator:
                 continue
             b = math.atan2(rel.y_m, rel.x_m)
             half = math.asin(min(half_w / d, 1.0))
-            if any(iv.bearing_min_rad <= b + half and b - half <= iv.bearing_max_rad for iv in camera):
-                continue
             out.append(BearingInterval(b - half, b + half, 0.0, 0.0, "track", t.track_id))
         return out
+
+    def _constrain_weak_directions(self, res: PsmResult, guess: Pose2D) -> Pose2D:
+        """Keep the odometry's translation along directions the scene does not constrain (e.g. along
+        a corridor, or when the masked obstacle hides the only cross wall): there PSM's range
+        residuals creep instead of measuring, so its correction is dropped."""
+        info = res.info_xy
+        if info is None:
+            return res.pose
+        lam, vec = np.linalg.eigh(info)
+        dx, dy = res.dx_m - guess.x_m, res.dy_m - guess.y_m
+        for k in range(2):
+            if lam[k] < self.config.weak_info:
+                v = vec[:, k]
+                along = dx * v[0] + dy * v[1]
+                dx -= along * v[0]
+                dy -= along * v[1]
+        return Pose2D(guess.x_m + dx, guess.y_m + dy, res.dtheta_rad)
 
     # ------------------------------------------------------------------ step
     def step(self, scan: Scan, odometry: Odometry, frame: Frame | None = None) -> Estimate:
@@ -166,13 +194,16 @@ class Estimator:
             self._flow.reset()
         else:
             pose_f = pose_at(odometry, frame.stamp_s)
-            depth_pts = self._prev_points_robot
-            if depth_pts is None:
-                depth_pts = self._laser_to_robot_points(scan.ranges_m, scan.bearings_rad)
+            # depth for the frame's pixels: this scan, moved into the robot frame at the frame's stamp
+            pts = self._laser_to_robot_points(scan.ranges_m, scan.bearings_rad)
+            rel_sf = between(pose_f, pose_at(odometry, scan.stamp_s))
+            cs, sn = math.cos(rel_sf.theta_rad), math.sin(rel_sf.theta_rad)
+            depth_pts = np.stack(
+                [rel_sf.x_m + cs * pts[:, 0] - sn * pts[:, 1], rel_sf.y_m + sn * pts[:, 0] + cs * pts[:, 1]], axis=1
+            )
             fres = self._flow.detect(frame, pose_f, depth_pts, odometry.v_mps, odometry.w_radps)
             if fres is not None:
-                rel_fs = between(pose_f, pose_at(odometry, scan.stamp_s))
-                camera_ivs = [interval_to_laser(iv, rel_fs, cfg.laser_mount) for iv in fres.intervals]
+                camera_ivs = [interval_to_laser(iv, rel_sf, cfg.laser_mount) for iv in fres.intervals]
         intervals = camera_ivs + self._track_intervals(scan.stamp_s, predicted, camera_ivs)
 
         # 2. restoration ------------------------------------------------------------------
@@ -210,7 +241,8 @@ class Estimator:
                 res = match_prepared(kf.prep, cur, guess, cfg.psm)
                 refused = res.refused
                 if not refused:
-                    rel_robot = compose(compose(mount, res.pose), inverse(mount))
+                    matched = self._constrain_weak_directions(res, guess)
+                    rel_robot = compose(compose(mount, matched), inverse(mount))
                     cand = compose(kf.pose, rel_robot)
                     corr = between(predicted, cand)
                     if (

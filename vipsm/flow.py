@@ -29,11 +29,12 @@ class FlowConfig:
     max_width_px: int = 320  # larger frames are scaled down to this width first
     dis_preset: int = 1  # cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST=0, FAST=1, MEDIUM=2
     grid_step_px: int = 2  # the residual flow is evaluated on this pixel grid
-    alpha_base_px: float = 0.8  # threshold with the robot at rest (per frame interval)
-    alpha_v_px_per_m: float = 40.0  # grows with the distance driven between the frames
-    alpha_w_px_per_rad: float = 60.0  # ... and with the angle turned
+    baseline_s: float = 0.30  # flow against the oldest kept frame at most this much older
+    alpha_base_px: float = 0.8  # threshold with the robot at rest
+    alpha_v_px_per_m: float = 10.0  # grows with the distance driven between the two frames
+    alpha_w_px_per_rad: float = 30.0  # ... and with the angle turned
     alpha_max_px: float = 6.0
-    alpha_rel: float = 0.3  # plus this share of the predicted ego-motion flow (depth errors scale with it)
+    alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
     border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
     min_texture: float = 20.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
     min_blob_cells: int = 30  # grid cells (grid_step_px^2 pixels each)
@@ -108,16 +109,38 @@ def _project(px, py, pz, fx, fy, cx, cy, pan, tilt):
 
 
 class FlowDetector:
-    """Keeps the previous frame; :meth:`detect` returns the moving-body bearing intervals."""
+    """Keeps recent frames; :meth:`detect` returns the moving-body bearing intervals of the newest.
+
+    Flow is computed *backwards*, from the newest frame to the oldest kept frame at most
+    ``baseline_s`` earlier (a longer baseline makes a slow body's residual flow stand out from the
+    flow noise), so the pixel grid, the blobs and the bearings belong to the newest frame."""
 
     def __init__(self, config: FlowConfig | None = None, mount: CameraMount | None = None) -> None:
         self.config = config or FlowConfig()
         self.mount = mount or CameraMount()
         self._dis = cv2.DISOpticalFlow_create(self.config.dis_preset)
-        self._prev: tuple[np.ndarray, float, Frame, Pose2D] | None = None
+        self._history: list[tuple[np.ndarray, float, Frame, Pose2D]] = []
+        #: (residual flow px, threshold px, usable mask, grid step) of the last detection, for diagnostics
+        self.last_residual: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None
 
     def reset(self) -> None:
-        self._prev = None
+        self._history = []
+
+    def _pick_old(self, stamp_s: float, shape: tuple[int, ...]) -> tuple[np.ndarray, float, Frame, Pose2D] | None:
+        cfg = self.config
+        best = None
+        for item in self._history:
+            dt = stamp_s - item[2].stamp_s
+            if item[0].shape != shape or not (0.0 < dt <= cfg.max_frame_gap_s):
+                continue
+            if dt <= cfg.baseline_s + 1e-6 and (best is None or item[2].stamp_s < best[2].stamp_s):
+                best = item
+        if best is None:  # nothing inside the baseline: the newest older frame within the gap
+            older = [it for it in self._history if it[0].shape == shape
+                     and 0.0 < stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s]
+            if older:
+                best = max(older, key=lambda it: it[2].stamp_s)
+        return best
 
     def detect(
         self,
@@ -127,24 +150,25 @@ class FlowDetector:
         speed_mps: float,
         turn_radps: float,
     ) -> FlowResult | None:
-        """``depth_points_robot``: (k, 2) laser points (robot frame) from the scan closest to the
-        previous frame, giving depth per viewing direction. Returns None when there is no usable
-        previous frame yet."""
+        """``depth_points_robot``: (k, 2) laser points in the robot frame *at this frame's stamp*
+        (the scan nearest to the frame), giving the depth per viewing direction. Returns None when
+        there is no usable earlier frame yet."""
         cfg = self.config
         grey, scale = _grey(frame, cfg.max_width_px)
-        prev = self._prev
-        self._prev = (grey, scale, frame, odom_pose_at_frame)
-        if prev is None:
+        old = self._pick_old(frame.stamp_s, grey.shape)
+        self._history.append((grey, scale, frame, odom_pose_at_frame))
+        self._history = [
+            it for it in self._history if frame.stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s + 1e-9
+        ][-8:]
+        if old is None:
             return None
-        pgrey, pscale, pframe, ppose = prev
-        dt = frame.stamp_s - pframe.stamp_s
-        if not (0.0 < dt <= cfg.max_frame_gap_s) or pgrey.shape != grey.shape:
-            return None
+        ogrey, oscale, oframe, opose = old
+        dt = frame.stamp_s - oframe.stamp_s
         k = frame.intrinsics
         fx, fy, cx, cy = k.fx_px * scale, k.fy_px * scale, k.cx_px * scale, k.cy_px * scale
-        kp = pframe.intrinsics
-        pfx, pfy, pcx, pcy = kp.fx_px * pscale, kp.fy_px * pscale, kp.cx_px * pscale, kp.cy_px * pscale
-        flow = self._dis.calc(pgrey, grey, None)
+        ko = oframe.intrinsics
+        ofx, ofy, ocx, ocy = ko.fx_px * oscale, ko.fy_px * oscale, ko.cx_px * oscale, ko.cy_px * oscale
+        flow = self._dis.calc(grey, ogrey, None)  # newest -> older
         h, w = grey.shape
         st = max(1, cfg.grid_step_px)
         vs, us = np.mgrid[0:h:st, 0:w:st]
@@ -153,7 +177,7 @@ class FlowDetector:
         fl = flow[0:h:st, 0:w:st].astype(np.float64)
         # ---- predicted static-scene flow
         m = self.mount
-        rx, ry, rz = _rays(us, vs, pfx, pfy, pcx, pcy, pframe.pan_rad, pframe.tilt_rad)
+        rx, ry, rz = _rays(us, vs, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad)
         hn = np.hypot(rx, ry)
         az = np.arctan2(ry, rx)
         depth = np.full(az.shape, cfg.max_depth_m)
@@ -163,27 +187,21 @@ class FlowDetector:
             pb = np.arctan2(dy, dx)
             pd = np.hypot(dx, dy)
             order = np.argsort(pb)
-            pb, pd = pb[order], pd[order]
-            col_az = az[0]  # azimuth varies along columns mainly; interpolate on the full grid
-            del col_az
-            depth = np.interp(az, pb, pd, left=cfg.max_depth_m, right=cfg.max_depth_m)
-            # beyond the scan's angular coverage near gaps, interp bridges; acceptable for walls
+            depth = np.interp(az, pb[order], pd[order], left=cfg.max_depth_m, right=cfg.max_depth_m)
         slope = rz / np.maximum(hn, 1e-9)
-        with np.errstate(divide="ignore"):
-            floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
+        floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
         dist_h = np.minimum(depth, floor_d)
         valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
         t = dist_h / np.maximum(hn, 1e-9)
-        # points relative to the previous camera, then in the previous robot frame
+        # points in the newest robot frame, then in the older robot frame, relative to its camera
         px = m.x_m + rx * t
         py = m.y_m + ry * t
-        pz = rz * t  # relative to camera height
-        rel = between(ppose, odom_pose_at_frame)  # current robot pose in the previous robot frame
-        inv = inverse(rel)
-        c, s = math.cos(inv.theta_rad), math.sin(inv.theta_rad)
-        qx = inv.x_m + c * px - s * py - m.x_m
-        qy = inv.y_m + s * px + c * py - m.y_m
-        u2, v2, f2 = _project(qx, qy, pz, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad)
+        pz = rz * t
+        rel = between(opose, odom_pose_at_frame)  # newest robot pose in the older robot frame
+        c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
+        qx = rel.x_m + c * px - s * py - m.x_m
+        qy = rel.y_m + s * px + c * py - m.y_m
+        u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad)
         valid &= f2 > 1e-3
         bd = cfg.border_px
         with np.errstate(invalid="ignore"):
@@ -197,12 +215,14 @@ class FlowDetector:
             turn_radps
         ) * dt
         alpha = min(alpha, cfg.alpha_max_px)
-        gx = cv2.Sobel(pgrey, cv2.CV_32F, 1, 0, ksize=3)
-        gy = cv2.Sobel(pgrey, cv2.CV_32F, 0, 1, ksize=3)
+        gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
+        gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
         tex = np.hypot(gx, gy)[0:h:st, 0:w:st] / 4.0
         tex = cv2.dilate(tex, np.ones((3, 3), np.uint8))
         thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
-        moving = valid & (res > thr) & (tex > cfg.min_texture)
+        usable = valid & (tex > cfg.min_texture)
+        moving = usable & (res > thr)
+        self.last_residual = (res, thr, usable, st)
         mask = moving.astype(np.uint8)
         if cfg.open_cells > 1:
             mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((cfg.open_cells, cfg.open_cells), np.uint8))

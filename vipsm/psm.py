@@ -64,6 +64,7 @@ class PsmConfig:
     stop_count: int = 3  # consecutive small iterations to stop
     min_valid_beams: int = 300  # refuse below this many beams in a translation step
     max_pair_gap_rad: float = 0.25  # do not interpolate a projected pair across a wider bearing gap
+    line_interpolation: bool = True  # True: ray/chord intersection; False: range linear in bearing (original)
     degenerate_eig: float = 1e-3  # refuse if min eig of H'WH / sum(w) is below this
     damping: float = 1e-6  # Tikhonov term (relative to sum w) toward the current guess
     cov_floor_sigma_xy_m: float = 0.20  # heuristic floor (PM_MIN_STD_XY)
@@ -101,6 +102,7 @@ class PsmConfig:
             # v0.3 reduces C only when iteration 10 is a translation step, and iteration 10 is an
             # orientation step: C is never reduced. Reproduced here to agree with its results.
             change_weight_iter=10**9,
+            line_interpolation=False,
         )
 
     @classmethod
@@ -145,6 +147,10 @@ class PsmResult:
     refused: bool
     reason: PsmRefusal = PsmRefusal.NONE
     corridor: bool = False
+    #: 2x2 translation information per used beam from the surface normals (point-to-line model):
+    #: its small eigenvalues show directions the scene does not constrain (corridors), which the
+    #: range-residual Jacobian (cos, sin) of PSM does not reveal
+    info_xy: np.ndarray | None = None
 
     @property
     def pose(self) -> Pose2D:
@@ -166,6 +172,8 @@ class PreparedScan:
     x_m: np.ndarray  # Cartesian points of the filtered ranges (laser frame)
     y_m: np.ndarray
     dphi_rad: float  # mean bearing step
+    normal_x: np.ndarray | None = None  # unit surface normal per beam (0 where unknown)
+    normal_y: np.ndarray | None = None
 
     @property
     def n_good(self) -> int:
@@ -256,6 +264,7 @@ def prepare_scan(
         pa = np.flatnonzero(good[:-1] & good[1:] & (seg[:-1] == seg[1:]))
     else:
         pa = np.zeros(0, dtype=np.intp)
+    nx, ny = _normals(x, y, good, seg)
     return PreparedScan(
         ranges_m=rf,
         bearings_rad=b,
@@ -268,7 +277,34 @@ def prepare_scan(
         x_m=x,
         y_m=y,
         dphi_rad=dphi,
+        normal_x=nx,
+        normal_y=ny,
     )
+
+
+def _normals(x: np.ndarray, y: np.ndarray, good: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals from the neighbouring points of the same segment (central differences, one-sided
+    at segment ends); zero where a beam has no neighbour in its segment."""
+    n = x.size
+    nx = np.zeros(n)
+    ny = np.zeros(n)
+    if n < 2:
+        return nx, ny
+    same_next = np.zeros(n, dtype=bool)
+    same_next[:-1] = good[:-1] & good[1:] & (seg[:-1] == seg[1:])
+    same_prev = np.zeros(n, dtype=bool)
+    same_prev[1:] = same_next[:-1]
+    i = np.arange(n)
+    hi = np.where(same_next, np.minimum(i + 1, n - 1), i)
+    lo = np.where(same_prev, np.maximum(i - 1, 0), i)
+    tx = x[hi] - x[lo]
+    ty = y[hi] - y[lo]
+    norm = np.hypot(tx, ty)
+    ok = good & (hi != lo) & (norm > 0)
+    safe = np.where(ok, norm, 1.0)
+    nx[ok] = (-ty / safe)[ok]
+    ny[ok] = (tx / safe)[ok]
+    return nx, ny
 
 
 def prepare(scan: Scan, config: PsmConfig, weights: np.ndarray | None = None) -> PreparedScan:
@@ -324,7 +360,22 @@ def project(cur: PreparedScan, ref_bearings_rad: np.ndarray, pose: Pose2D, confi
     fa_r = fa[rep]
     den = fb[rep] - fa_r
     den[den == 0.0] = 1.0
-    rr = ra[rep] + (ref_bearings_rad[j] - fa_r) / den * (rb - ra)[rep]
+    if config.line_interpolation:
+        # the reference ray meets the straight chord between the two projected points (exact for
+        # flat surfaces, where interpolating the range linearly in bearing overestimates it)
+        xa_, ya_ = X[pa][rep], Y[pa][rep]
+        ex = (X[pb] - X[pa])[rep]
+        ey = (Y[pb] - Y[pa])[rep]
+        bj = ref_bearings_rad[j]
+        num = xa_ * ey - ya_ * ex
+        dd = np.cos(bj) * ey - np.sin(bj) * ex
+        lin = ra[rep] + (bj - fa_r) / den * (rb - ra)[rep]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rr = np.where(np.abs(dd) > 1e-12, num / dd, lin)
+        bad = ~np.isfinite(rr) | (rr <= 0.0)
+        rr[bad] = lin[bad]
+    else:
+        rr = ra[rep] + (ref_bearings_rad[j] - fa_r) / den * (rb - ra)[rep]
     np.minimum.at(out, j, rr)
     win = rr <= out[j]
     jw = j[win]
@@ -538,15 +589,13 @@ def match_prepared(
     if n_used < config.min_valid_beams:
         return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it, n_used, config)
     residual = float(np.mean(np.abs(e))) if n_used else float("nan")
-    a = np.array(
-        [[np.dot(w, hc * hc), np.dot(w, hc * hs)], [np.dot(w, hc * hs), np.dot(w, hs * hs)]], dtype=np.float64
-    )
     sw = float(w.sum())
     dof = max(sw - 2.0, 1.0)
     sigma2 = float(np.dot(w, e * e)) / dof
+    info = _normal_information(ref, idx, w, hc, hs)
     cov = np.zeros((3, 3))
     try:
-        cov[:2, :2] = sigma2 * np.linalg.inv(a + config.damping * sw * np.eye(2))
+        cov[:2, :2] = sigma2 * np.linalg.inv(info * max(sw, 1e-9) + config.damping * max(sw, 1e-9) * np.eye(2))
     except np.linalg.LinAlgError:
         cov[:2, :2] = np.eye(2) * config.cov_floor_sigma_xy_m**2
     # Orientation: the mean-|dr| cost near its minimum is J0 + 0.5 k (dtheta)^2; its noise is about
@@ -569,7 +618,27 @@ def match_prepared(
             floor[:2, :2] = np.eye(2) * config.cov_floor_sigma_xy_m**2
         floor[2, 2] = config.cov_floor_sigma_theta_rad**2
         cov = _loewner_max(floor * factor, cov)
-    return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor)
+    return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor, info)
+
+
+def _normal_information(
+    ref: PreparedScan, idx: np.ndarray, w: np.ndarray, hc: np.ndarray, hs: np.ndarray
+) -> np.ndarray:
+    """Weighted mean of g g^T with g = n / (n . u): how a translation changes the range along each
+    used beam when the surface is a plane with normal n (u the beam direction)."""
+    if ref.normal_x is None or ref.normal_y is None or idx.size == 0:
+        return np.zeros((2, 2))
+    nx, ny = ref.normal_x[idx], ref.normal_y[idx]
+    nu = nx * hc + ny * hs
+    ok = np.abs(nu) >= 0.2  # grazing beams: the sensitivity blows up and the normal is unreliable
+    gx = np.where(ok, nx / np.where(ok, nu, 1.0), 0.0)
+    gy = np.where(ok, ny / np.where(ok, nu, 1.0), 0.0)
+    sw = float(w.sum())
+    if sw <= 0:
+        return np.zeros((2, 2))
+    return np.array(
+        [[np.dot(w, gx * gx), np.dot(w, gx * gy)], [np.dot(w, gx * gy), np.dot(w, gy * gy)]]
+    ) / sw
 
 
 def match(

@@ -40,6 +40,8 @@ class RestoreConfig:
     seg_jump_range_factor: float = 3.0
     min_inside_frac: float = 0.60  # a segment is the obstacle when this share lies in the interval
     min_obstacle_beams: int = 3
+    max_body_chord_m: float = 1.5  # a segment wider than this is background, not a body
+    bump_m: float = 0.15  # a body merged with a wall segment must stand this much in front of it
     max_cut_fraction: float = 0.50  # refuse when the cut covers more of the valid beams than this
     same_surface_tol_m: float = 0.15  # bridge endpoints must lie on one line within this
     fit_beams: int = 5  # beams each side used to test the background surface
@@ -91,6 +93,23 @@ def _beams_in(interval: BearingInterval, r: np.ndarray, b: np.ndarray, margin: f
     y = r * np.sin(b) - interval.origin_y_m
     seen = np.where(np.isfinite(r), np.arctan2(y, x), b)
     return (seen >= interval.bearing_min_rad - margin) & (seen <= interval.bearing_max_rad + margin)
+
+
+def _compact_foreground(r: np.ndarray, b: np.ndarray, seg: np.ndarray, s: int, cfg: RestoreConfig) -> bool:
+    """A segment no wider than a body that stands in front of what lies beside it."""
+    beams = np.flatnonzero(seg == s)
+    if beams.size < cfg.min_obstacle_beams:
+        return False
+    i0, i1 = int(beams[0]), int(beams[-1])
+    p0 = (r[i0] * math.cos(b[i0]), r[i0] * math.sin(b[i0]))
+    p1 = (r[i1] * math.cos(b[i1]), r[i1] * math.sin(b[i1]))
+    if math.hypot(p1[0] - p0[0], p1[1] - p0[1]) > cfg.max_body_chord_m:
+        return False
+    near = float(np.min(r[beams]))
+    for j in (i0 - 1, i1 + 1):
+        if 0 <= j < r.size and np.isfinite(r[j]) and r[j] < near + cfg.bump_m:
+            return False
+    return True
 
 
 def _same_surface(r: np.ndarray, b: np.ndarray, valid: np.ndarray, lo: int, hi: int, cfg: RestoreConfig) -> bool:
@@ -149,14 +168,21 @@ def restore(
         inside = np.bincount(seg[wide & valid], minlength=nseg)
         touched = np.flatnonzero(np.bincount(seg[core & valid], minlength=nseg))
         touched = touched[touched > 0]
-        chosen = [s for s in touched if inside[s] >= cfg.min_inside_frac * seg_len[s]]
-        if not chosen and touched.size:
-            # The body merges with a background segment: take the nearest segment seen in the
-            # core interval and only its beams inside the core.
+        chosen = [
+            s
+            for s in touched
+            if inside[s] >= cfg.min_inside_frac * seg_len[s] or _compact_foreground(r, b, seg, s, cfg)
+        ]
+        if not chosen and touched.size and iv.source == "camera":
+            # The body merges with a background segment in range: take the nearest segment seen in
+            # the core interval, only its beams inside the core, and only if they stand out in front
+            # of that segment's beams outside the interval (a bump, not a wall).
             rng_of = [float(np.min(r[(seg == s) & core])) for s in touched]
             s_near = int(touched[int(np.argmin(rng_of))])
             beams = np.flatnonzero((seg == s_near) & core)
-            if beams.size >= cfg.min_obstacle_beams:
+            outside = (seg == s_near) & ~wide
+            bump = outside.any() and float(np.median(r[beams])) < float(np.min(r[outside])) - cfg.bump_m
+            if beams.size >= cfg.min_obstacle_beams and bump:
                 obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
             cut_mask |= wide
             continue
