@@ -1,0 +1,90 @@
+"""`vipsm-robot fake scanner` served to other programs, probed with `vipsm-robot probe --scanner`."""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _run_cli(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "app", *args], cwd=REPO, capture_output=True, text=True,
+                          timeout=timeout_s)
+
+
+@pytest.fixture
+def fake_process(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], list[str], Path]]:
+    link = tmp_path / "hokuyo"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app", "fake", "scanner", "--pty", "--link", str(link), "--tcp", "127.0.0.1:0"],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    assert proc.stdout is not None
+    ready, _, _ = select.select([proc.stdout], [], [], 30.0)
+    assert ready, "the fake did not print its addresses"
+    # both addresses are printed back to back (readline returns '' if the fake died)
+    lines = [proc.stdout.readline().strip(), proc.stdout.readline().strip()]
+    yield proc, lines, link
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+
+def test_fake_prints_addresses_and_probe_reads_it(fake_process: tuple[subprocess.Popen[str], list[str], Path]) -> None:
+    proc, lines, link = fake_process
+    assert lines[0] == str(link) and link.is_symlink()
+    assert lines[1].startswith("socket://127.0.0.1:")
+    for url in lines:
+        result = _run_cli("probe", "--scanner", url, "--json")
+        assert result.returncode == 0, result.stderr
+        out = json.loads(result.stdout)["scanner"]
+        assert out["vv"]["SERI"] == "00903971" and out["vv"]["FIRM"] == "P.1.05(17/Apr./2009)"
+        assert out["pp"]["AMAX"] == "1080" and out["pp"]["SCAN"] == "2400"
+        assert out["ii"]["STAT"] == "Sensor works well."
+        scan = out["scan"]
+        assert scan["count"] == 1081 and scan["valid_count"] == 1081
+        assert 0.5 < scan["min_range_m"] <= scan["max_range_m"] < 10.0
+        assert scan["device_stamp_ms"] > 0 and scan["host_stamp_s"] > 0
+    # SIGTERM ends the fake cleanly and removes its link
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(10) == 0
+    assert not link.exists()
+
+
+def test_probe_failure_is_one_line_and_nonzero(tmp_path: Path) -> None:
+    result = _run_cli("probe", "--scanner", str(tmp_path / "absent"), "--json")
+    assert result.returncode == 2
+    assert result.stdout == ""
+    assert len(result.stderr.strip().splitlines()) == 1 and "cannot open" in result.stderr
+
+
+def test_probe_list_reports_devices_or_why_not() -> None:
+    result = _run_cli("probe", "--list", "--json")
+    assert result.returncode == 0, result.stderr
+    devices = json.loads(result.stdout)["devices"]
+    assert isinstance(devices, list)
+    scanners = [d for d in devices if d.get("device") == "scanner"]
+    for d in scanners:
+        assert d["vendor_id"] == "0x15d1"
+    if not scanners:
+        # nothing attached here; where libusb is missing the reason is printed, not a traceback
+        assert "Traceback" not in result.stderr
+
+
+def test_fake_needs_a_transport() -> None:
+    result = _run_cli("fake", "scanner")
+    assert result.returncode == 2 and "--pty" in result.stderr
