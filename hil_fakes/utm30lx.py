@@ -192,6 +192,8 @@ class Utm30lxConfig:
     hs_status: str = "03"
     #: status for a known command with the wrong number of parameter characters [?: 0C or 0F]
     missing_parameter_status: str = "0C"
+    #: some older firmware summed the II SCSP line only up to '<-' (P.1.05 sums all of it) [PEER]
+    ii_sum_before_arrow: bool = False
 
     @property
     def scan_period_s(self) -> float:
@@ -503,7 +505,14 @@ class Utm30lxModel(DeviceModel):
                 ("TIME", f"{self.device_ms(now_s):06X}"),
                 ("STAT", c.status_text),
             )
-            self._reply(echo, "00", now_s, b"".join(info_line(k, v) for k, v in rows))
+            lines = []
+            for k, v in rows:
+                line = info_line(k, v)
+                if c.ii_sum_before_arrow and "<-" in v:
+                    content = f"{k}:{v}".encode("ascii")
+                    line = content + b";" + scip_sum(content[: content.index(b"<-")]) + b"\n"
+                lines.append(line)
+            self._reply(echo, "00", now_s, b"".join(lines))
 
     def _cmd_bm(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
         if self._no_params(echo, params, now_s):

@@ -18,6 +18,7 @@ the buffer (raised by the next :meth:`Utm30lxClient.next_scan`) and :attr:`Utm30
 from __future__ import annotations
 
 import enum
+import logging
 import math
 import threading
 import time
@@ -66,6 +67,8 @@ from .timebase import ClockOffset, ClockOffsetEstimator, TimestampUnwrapper
 Clock = Callable[[], float]
 
 DEFAULT_TCP_PORT = 10940
+
+log = logging.getLogger(__name__)
 
 
 class ConnectionState(enum.Enum):
@@ -364,6 +367,12 @@ class Utm30lxClient:
             state.checksum_fallback_keys,
             {"VV": dict(version.values), "PP": dict(params.values), "II": dict(state.values)},
         )
+        if state.checksum_fallback_keys:
+            log.warning(
+                "%s: II line(s) %s matched their checksum only before '<-' (old firmware quirk)",
+                self.url,
+                ", ".join(state.checksum_fallback_keys),
+            )
         self._bearings_cache.clear()
         # A new connection may be a power-cycled sensor: its clock is a new epoch.
         self._unwrapper.reset()

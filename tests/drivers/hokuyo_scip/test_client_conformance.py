@@ -217,3 +217,16 @@ def test_open_of_a_missing_device_is_a_typed_error(tmp_path: Path) -> None:
         Utm30lxClient(str(tmp_path / "nothing"), fast_config()).open()
     with pytest.raises(ScipDisconnectedError):
         Utm30lxClient("socket://127.0.0.1:1", fast_config()).open()
+
+
+def test_old_firmware_ii_checksum_quirk_is_accepted_and_flagged(tmp_path: Path,
+                                                                caplog: pytest.LogCaptureFixture) -> None:
+    model = Utm30lxModel(Utm30lxConfig(ii_sum_before_arrow=True))
+    server = start_fake("pty", tmp_path, model)
+    try:
+        with caplog.at_level("WARNING"), Utm30lxClient(server.address, fast_config()) as c:
+            assert c.info.checksum_fallback_keys == ("SCSP",)
+            assert c.info.state.motor_speed.startswith("Initial(2400[rpm])<-")
+    finally:
+        server.stop()
+    assert any("before '<-'" in r.getMessage() for r in caplog.records)
