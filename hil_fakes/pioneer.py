@@ -269,6 +269,10 @@ class PioneerStats:
     sessions_opened: int = 0
     sessions_closed: int = 0
     sync_restarts: int = 0
+    #: wraps of the sent counters (ground truth for the wrap tests)
+    x_wraps: int = 0
+    y_wraps: int = 0
+    th_wraps: int = 0
 
 
 class FakePioneer(DeviceModel):
@@ -295,6 +299,7 @@ class FakePioneer(DeviceModel):
             theta_rad=cfg.start_th_units * _ANGLE_UNIT_RAD,
         )
         self._prev_truth: tuple[float, float, float] | None = None
+        self._prev_sent: tuple[int, int, int] | None = None
         self._wheel_mm = [0.0, 0.0]
         self.state = "open" if cfg.start_open else "sync0"
         self.motors_enabled = cfg.motors_enabled_at_start
@@ -578,6 +583,7 @@ class FakePioneer(DeviceModel):
         th_units = round(oth / _ANGLE_UNIT_RAD) % 4096
         if cfg.heading_signed and th_units >= 2048:
             th_units -= 4096
+        self._count_wraps(x_counts & 0x7FFF, y_counts & 0x7FFF, th_units)
         v_mmps = v_mps * 1000.0
         w_term = w_radps / 0.0056
         left = round(v_mmps - w_term)
@@ -628,6 +634,18 @@ class FakePioneer(DeviceModel):
                 )
             )
             self.stats.encoder_packets += 1
+
+    def _count_wraps(self, x15: int, y15: int, th: int) -> None:
+        prev = self._prev_sent
+        self._prev_sent = (x15, y15, th)
+        if prev is None:
+            return
+        if abs(x15 - prev[0]) > 16384:
+            self.stats.x_wraps += 1
+        if abs(y15 - prev[1]) > 16384:
+            self.stats.y_wraps += 1
+        if abs(th - prev[2]) > 2048:
+            self.stats.th_wraps += 1
 
     def _sonar_readings(self, now_s: float) -> list[tuple[int, int]]:
         cfg = self.config
