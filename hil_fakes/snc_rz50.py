@@ -41,7 +41,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from .transport import DeviceModel, DeviceServer, Endpoint, PtyEndpoint, TcpEndpoint, wait_forever
+from .transport import DeviceModel, DeviceServer, Endpoint, PtyEndpoint, TcpEndpoint
 
 
 class Renderer(Protocol):
@@ -543,6 +543,7 @@ class FakeCamera:
         self.state = CameraState(self.spec)
         self.renderer: Renderer = renderer or TestPatternRenderer(self.spec.width_px, self.spec.height_px)
         self.visca = ViscaCameraModel(self.state)
+        self.visca_served = False
         # the pass-through CGI is its own VISCA "session" on the same mechanics
         self.passthrough = ViscaCameraModel(self.state)
         self._pt_out: list[bytes] = []
@@ -768,8 +769,14 @@ class CameraHttpServer(ThreadingHTTPServer):
 
 
 def serve_visca(camera: FakeCamera, endpoint: Endpoint) -> DeviceServer:
-    """Run the camera's VISCA port on an endpoint (pty or TCP); returns the started server."""
-    return DeviceServer(camera.visca, endpoint).start()
+    """Run a VISCA port of the camera on an endpoint (pty or TCP); returns the started server.
+
+    The first port serves ``camera.visca`` (where tests inject VISCA faults); each further port
+    gets its own model (its own input buffer, sockets and replies) on the same mechanics.
+    """
+    model = camera.visca if not camera.visca_served else ViscaCameraModel(camera.state)
+    camera.visca_served = True
+    return DeviceServer(model, endpoint).start()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -803,26 +810,25 @@ def run_cli(args: argparse.Namespace, renderer: Renderer | None = None) -> int:
     camera = FakeCamera(spec, renderer, username=args.user, password=args.password)
     servers: list[DeviceServer] = []
     http: CameraHttpServer | None = None
-    if args.visca_pty:
-        servers.append(serve_visca(camera, PtyEndpoint(args.link)))
-        print(f"visca-pty {servers[-1].address}", flush=True)
-    if args.visca_tcp:
-        host, port = _host_port(args.visca_tcp)
-        servers.append(serve_visca(camera, TcpEndpoint(host, port)))
-        print(f"visca-tcp {servers[-1].address}", flush=True)
-    if args.http:
-        host, port = _host_port(args.http)
-        http = CameraHttpServer(camera, host, port).start()
-        print(f"http {http.url}", flush=True)
-    try:
-        if servers:
-            wait_forever(servers)
-        else:
-            while True:
-                time.sleep(0.5)
+    try:  # Ctrl-C may come at any moment, even before everything is up
+        if args.visca_pty:
+            servers.append(serve_visca(camera, PtyEndpoint(args.link)))
+            print(f"visca-pty {servers[-1].address}", flush=True)
+        if args.visca_tcp:
+            host, port = _host_port(args.visca_tcp)
+            servers.append(serve_visca(camera, TcpEndpoint(host, port)))
+            print(f"visca-tcp {servers[-1].address}", flush=True)
+        if args.http:
+            host, port = _host_port(args.http)
+            http = CameraHttpServer(camera, host, port).start()
+            print(f"http {http.url}", flush=True)
+        while all(s.error is None for s in servers):
+            time.sleep(0.2)
     except KeyboardInterrupt:
         pass
     finally:
         if http is not None:
             http.stop()
+        for server in servers:
+            server.stop()  # re-raises a model failure: a broken fake is never a silent one
     return 0
