@@ -28,7 +28,7 @@ from .types import Frame, Odometry, Pose2D
 class FlowConfig:
     max_width_px: int = 320  # larger frames are scaled down to this width first
     dis_preset: int = 1  # cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST=0, FAST=1, MEDIUM=2
-    grid_step_px: int = 2  # the residual flow is evaluated on this pixel grid
+    grid_step_px: int = 4  # the residual flow is evaluated on this pixel grid
     baseline_s: float = 0.30  # flow against the oldest kept frame at most this much older
     alpha_base_px: float = 0.8  # threshold with the robot at rest
     alpha_v_px_per_m: float = 10.0  # grows with the distance driven between the two frames
@@ -37,9 +37,9 @@ class FlowConfig:
     alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
     border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
     min_texture: float = 20.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
-    min_blob_cells: int = 30  # grid cells (grid_step_px^2 pixels each)
-    open_cells: int = 3  # morphological opening of the moving mask (grid cells, odd)
-    close_cells: int = 5  # closing to merge fragments of one body
+    min_blob_px: int = 120  # blobs smaller than this many pixels are dropped
+    open_px: int = 6  # morphological opening of the moving mask (pixels; odd number of grid cells)
+    close_px: int = 10  # closing to merge fragments of one body
     max_frame_gap_s: float = 0.5  # older previous frames are not used for flow
     max_depth_m: float = 30.0  # columns without a laser surface get this depth (far background)
     min_flow_valid_depth_m: float = 0.2
@@ -224,15 +224,17 @@ class FlowDetector:
         moving = usable & (res > thr)
         self.last_residual = (res, thr, usable, st)
         mask = moving.astype(np.uint8)
-        if cfg.open_cells > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((cfg.open_cells, cfg.open_cells), np.uint8))
-        if cfg.close_cells > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((cfg.close_cells, cfg.close_cells), np.uint8))
+        k_open = max(1, int(round(cfg.open_px / st)) | 1)
+        k_close = max(1, int(round(cfg.close_px / st)) | 1)
+        if k_open > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
+        if k_close > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((k_close, k_close), np.uint8))
         n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         spans: list[list[float]] = []
         for i in range(1, n):
             x0, y0, ww, hh, area = (int(v) for v in stats[i])
-            if area < cfg.min_blob_cells:
+            if area * st * st < cfg.min_blob_px:
                 continue
             spans.append([x0 * st, (x0 + ww) * st, y0 * st, (y0 + hh) * st])
         spans.sort()

@@ -51,6 +51,7 @@ class PsmConfig:
     seg_jump_range_factor: float = 3.0  # ... raised to k * r * dphi at long range
     min_segment_beams: int = 3  # shorter segments are dropped
     max_error_m: float = 0.30  # residual gate in both steps (PM_MAX_ERROR)
+    max_error_first_m: float | None = None  # gate before change_weight_iter (None: max_error_m)
     weight_c_m2: float = 0.30**2  # C of w = C / (C + e^2) (PM_WEIGHTING_FACTOR)
     change_weight_iter: int = 10  # at this iteration C becomes C / weight_c_divisor
     weight_c_divisor: float = 50.0
@@ -111,7 +112,7 @@ class PsmConfig:
         (min 40 valid beams, +-20 beam window) with scan-to-scan settings."""
         return cls(
             max_range_m=10.0,
-            min_valid_beams=40,
+            min_valid_beams=20,
             search_window_first_beams=20,
             search_window_beams=10,
             max_error_m=0.5,
@@ -172,6 +173,8 @@ class PreparedScan:
     x_m: np.ndarray  # Cartesian points of the filtered ranges (laser frame)
     y_m: np.ndarray
     dphi_rad: float  # mean bearing step
+    pair_ok: np.ndarray | None = None  # (n-1,) bool: beams i, i+1 form a pair
+    pair_w: np.ndarray | None = None  # (n-1,) weight of the pair (min of its two beams)
     normal_x: np.ndarray | None = None  # unit surface normal per beam (0 where unknown)
     normal_y: np.ndarray | None = None
 
@@ -261,9 +264,13 @@ def prepare_scan(
     x = rf * np.cos(b)
     y = rf * np.sin(b)
     if n > 1:
-        pa = np.flatnonzero(good[:-1] & good[1:] & (seg[:-1] == seg[1:]))
+        pair_ok = good[:-1] & good[1:] & (seg[:-1] == seg[1:])
+        pa = np.flatnonzero(pair_ok)
+        pair_w = np.minimum(w[:-1], w[1:])
     else:
+        pair_ok = np.zeros(0, dtype=bool)
         pa = np.zeros(0, dtype=np.intp)
+        pair_w = np.zeros(0)
     nx, ny = _normals(x, y, good, seg)
     return PreparedScan(
         ranges_m=rf,
@@ -277,6 +284,8 @@ def prepare_scan(
         x_m=x,
         y_m=y,
         dphi_rad=dphi,
+        pair_ok=pair_ok,
+        pair_w=pair_w,
         normal_x=nx,
         normal_y=ny,
     )
@@ -320,72 +329,95 @@ class _Projection:
 
 def project(cur: PreparedScan, ref_bearings_rad: np.ndarray, pose: Pose2D, config: PsmConfig) -> _Projection:
     """Project the current scan, placed at ``pose`` in the reference frame, onto the reference
-    bearings: linear interpolation in bearing between consecutive beams of one segment, a z-buffer
-    keeping the nearest range, back-facing pairs flagged occluded (they hide what is behind but are
-    not used). Bearings that receive nothing are empty (not good)."""
+    bearings: interpolation between consecutive beams of one segment (the ray/chord intersection,
+    or the original's range linear in bearing), a z-buffer keeping the nearest range, back-facing
+    pairs flagged occluded (they hide what is behind but are not used). Bearings that receive
+    nothing are empty (not good)."""
     n_ref = ref_bearings_rad.size
     out = np.full(n_ref, np.inf)
     wout = np.zeros(n_ref)
-    pa, pb = cur.pair_a, cur.pair_b
+    pa = cur.pair_a
     if pa.size == 0 or n_ref == 0:
         return _Projection(out, np.zeros(n_ref, dtype=bool), wout)
     c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
-    X = pose.x_m + c * cur.x_m - s * cur.y_m
-    Y = pose.y_m + s * cur.x_m + c * cur.y_m
-    r = np.hypot(X, Y)
+    X = pose.x_m + (c * cur.x_m - s * cur.y_m)
+    Y = pose.y_m + (s * cur.x_m + c * cur.y_m)
     f = np.arctan2(Y, X)
-    fa, fb = f[pa], f[pb]
-    ra, rb = r[pa], r[pb]
-    front = fb > fa
+    # consecutive beams as views (no gathers); pairs not in one segment get a zero count below
+    fa, fb = f[:-1], f[1:]
     lo = np.minimum(fa, fb)
     hi = np.maximum(fa, fb)
     b0 = float(ref_bearings_rad[0])
     db = float(ref_bearings_rad[-1] - b0) / max(n_ref - 1, 1)
     if _uniform(ref_bearings_rad):
-        j0 = np.ceil((lo - b0) / db).astype(np.intp)
-        j1 = np.floor((hi - b0) / db).astype(np.intp) + 1
-        np.clip(j0, 0, n_ref, out=j0)
-        np.clip(j1, 0, n_ref, out=j1)
+        inv = 1.0 / db
+        j0 = np.ceil((lo - b0) * inv).astype(np.intp)
+        j1 = np.floor((hi - b0) * inv).astype(np.intp)
+        np.maximum(j0, 0, out=j0)
+        np.minimum(j1, n_ref - 1, out=j1)
+        cnt = j1 - j0 + 1
     else:
         j0 = np.searchsorted(ref_bearings_rad, lo, side="left")
-        j1 = np.searchsorted(ref_bearings_rad, hi, side="right")
-    cnt = j1 - j0
-    cnt[(hi - lo) >= config.max_pair_gap_rad] = 0
-    np.maximum(cnt, 0, out=cnt)
+        cnt = np.searchsorted(ref_bearings_rad, hi, side="right") - j0
+    ok = cur.pair_ok & ((hi - lo) < config.max_pair_gap_rad) & (cnt > 0)
+    cnt = np.where(ok, cnt, 0)
     total = int(cnt.sum())
     if total == 0:
         return _Projection(out, np.zeros(n_ref, dtype=bool), wout)
-    rep = np.repeat(np.arange(pa.size), cnt)
+    rep = np.repeat(np.arange(cnt.size), cnt)
     j = np.arange(total) + np.repeat(j0 - (np.cumsum(cnt) - cnt), cnt)
-    fa_r = fa[rep]
-    den = fb[rep] - fa_r
-    den[den == 0.0] = 1.0
+    xa, ya = X[rep], Y[rep]
+    ex = X[rep + 1] - xa
+    ey = Y[rep + 1] - ya
     if config.line_interpolation:
         # the reference ray meets the straight chord between the two projected points (exact for
         # flat surfaces, where interpolating the range linearly in bearing overestimates it)
-        xa_, ya_ = X[pa][rep], Y[pa][rep]
-        ex = (X[pb] - X[pa])[rep]
-        ey = (Y[pb] - Y[pa])[rep]
-        bj = ref_bearings_rad[j]
-        num = xa_ * ey - ya_ * ex
-        dd = np.cos(bj) * ey - np.sin(bj) * ex
-        lin = ra[rep] + (bj - fa_r) / den * (rb - ra)[rep]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rr = np.where(np.abs(dd) > 1e-12, num / dd, lin)
-        bad = ~np.isfinite(rr) | (rr <= 0.0)
-        rr[bad] = lin[bad]
+        dd = cur_cos_sin(ref_bearings_rad)
+        cj, sj = dd[0][j], dd[1][j]
+        den = cj * ey - sj * ex
+        num = xa * ey - ya * ex
+        small = np.abs(den) < 1e-12
+        den[small] = 1.0
+        rr = num / den
+        bad = small | (rr <= 0.0)
+        if bad.any():
+            ra = np.hypot(xa[bad], ya[bad])
+            rb = np.hypot(xa[bad] + ex[bad], ya[bad] + ey[bad])
+            fa_b, fb_b = fa[rep[bad]], fb[rep[bad]]
+            d_b = fb_b - fa_b
+            d_b[d_b == 0.0] = 1.0
+            rr[bad] = ra + (ref_bearings_rad[j[bad]] - fa_b) / d_b * (rb - ra)
     else:
-        rr = ra[rep] + (ref_bearings_rad[j] - fa_r) / den * (rb - ra)[rep]
+        ra = np.hypot(xa, ya)
+        rb = np.hypot(xa + ex, ya + ey)
+        fa_r = fa[rep]
+        d_r = fb[rep] - fa_r
+        d_r[d_r == 0.0] = 1.0
+        rr = ra + (ref_bearings_rad[j] - fa_r) / d_r * (rb - ra)
     np.minimum.at(out, j, rr)
     win = rr <= out[j]
     jw = j[win]
     repw = rep[win]
-    wpair = np.minimum(cur.weights[pa], cur.weights[pb])
-    wout[jw] = wpair[repw]
+    wout[jw] = cur.pair_w[repw]
     good = np.zeros(n_ref, dtype=bool)
-    good[jw] = front[repw]
+    good[jw] = fb[repw] > fa[repw]  # front-facing pair won the z-buffer: usable; else occluded
     good &= (out > config.min_range_m) & (out < config.max_range_m)
     return _Projection(out, good, wout)
+
+
+_TRIG_CACHE: dict[tuple[int, float, float], tuple[np.ndarray, np.ndarray]] = {}
+
+
+def cur_cos_sin(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin of a bearing table (cached per table)."""
+    key = (b.size, float(b[0]), float(b[-1]) if b.size else 0.0)
+    hit = _TRIG_CACHE.get(key)
+    if hit is None or hit[0].size != b.size:
+        if len(_TRIG_CACHE) > 64:
+            _TRIG_CACHE.clear()
+        hit = (np.cos(b), np.sin(b))
+        _TRIG_CACHE[key] = hit
+    return hit
 
 
 _UNIFORM_CACHE: dict[tuple[int, float, float], bool] = {}
@@ -409,7 +441,7 @@ def _uniform(b: np.ndarray) -> bool:
 
 
 def _orientation_search(
-    ref: PreparedScan, proj: _Projection, window: int, config: PsmConfig
+    ref: PreparedScan, proj: _Projection, window: int, config: PsmConfig, max_error_m: float | None = None
 ) -> tuple[float, float, float] | None:
     """Best bearing shift (in steps, sub-step refined) by the mean absolute range difference.
     Returns (shift_steps, cost_m, curvature_m_per_step2) or None when no shift is valid."""
@@ -417,22 +449,21 @@ def _orientation_search(
     w = min(window, n - 1)
     ref_ok = ref.good & (ref.weights > 0.0)
     new_ok = proj.good & (proj.weights > 0.0)
-    idx = np.flatnonzero(new_ok)
-    n_ref, n_new = int(np.count_nonzero(ref_ok)), int(idx.size)
+    n_ref, n_new = int(np.count_nonzero(ref_ok)), int(np.count_nonzero(new_ok))
     if n_ref == 0 or n_new == 0:
         return None
     big = np.float32(1e6)
-    me = np.float32(config.max_error_m)
+    me = np.float32(config.max_error_m if max_error_m is None else max_error_m)
     ref_pad = np.full(n + 2 * w, big, dtype=np.float32)
     ref_pad[w : w + n] = np.where(ref_ok, ref.ranges_m, big)
-    # g[k, m] = ref_r[idx[m] + k - w]: shift d = k - w compares new_r[i] with ref_r[i + d]
-    g = ref_pad[idx[None, :] + np.arange(2 * w + 1)[:, None]]
-    np.subtract(g, proj.ranges_m[idx].astype(np.float32), out=g)
+    new_r = np.where(new_ok, proj.ranges_m, -big).astype(np.float32)
+    # g[k, i] = |ref_r[i + k - w] - new_r[i]|: shift d = k - w compares new_r[i] with ref_r[i + d]
+    g = np.subtract(np.lib.stride_tricks.sliding_window_view(ref_pad, n), new_r)
     np.abs(g, out=g)
     valid = g < me
     cnt = np.count_nonzero(valid, axis=1)
     np.minimum(g, me, out=g)
-    tot = g.sum(axis=1, dtype=np.float64) - float(me) * (n_new - cnt)
+    tot = g.sum(axis=1, dtype=np.float64) - float(me) * (n - cnt)
     min_cnt = max(1, int(math.ceil(config.min_overlap_frac * min(n_ref, n_new))))
     ok = cnt >= min_cnt
     if not ok.any():
@@ -455,7 +486,7 @@ def _orientation_search(
 
 
 def _translation_terms(
-    ref: PreparedScan, proj: _Projection, c_m2: float, config: PsmConfig
+    ref: PreparedScan, proj: _Projection, c_m2: float, config: PsmConfig, max_error_m: float | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Beams used, residuals, weights and Jacobian rows (cos, sin of the reference bearing)."""
     e = ref.ranges_m - proj.ranges_m
@@ -465,7 +496,7 @@ def _translation_terms(
             & proj.good
             & (ref.weights > 0.0)
             & (proj.weights > 0.0)
-            & (np.abs(e) < config.max_error_m)
+            & (np.abs(e) < (config.max_error_m if max_error_m is None else max_error_m))
         )
     idx = np.flatnonzero(use)
     ee = e[idx]
@@ -483,16 +514,17 @@ def _is_corridor(scan: PreparedScan, threshold_rad: float) -> tuple[bool, float]
         return False, 0.0
     ang = np.mod(np.arctan2(scan.y_m[pb] - scan.y_m[pa], scan.x_m[pb] - scan.x_m[pa]), math.pi)
     if ang.size >= 3:
-        win = np.lib.stride_tricks.sliding_window_view(np.concatenate((ang[:1], ang, ang[-1:])), 3)
-        ang = np.median(win, axis=1)
+        a0 = np.concatenate((ang[:1], ang[:-1]))
+        a2 = np.concatenate((ang[1:], ang[-1:]))
+        ang = np.maximum(np.minimum(a0, ang), np.minimum(np.maximum(a0, ang), a2))  # median of 3
     sd1 = float(np.std(ang))
     rot = np.mod(ang + math.radians(36.0), math.pi)
     sd2 = float(np.std(rot))
     if min(sd1, sd2) >= threshold_rad:
         return False, 0.0
-    hist, edges = np.histogram(ang, bins=90, range=(0.0, math.pi))
-    k = int(np.argmax(hist))
-    return True, float(0.5 * (edges[k] + edges[k + 1]))
+    bins = np.minimum((ang * (90.0 / math.pi)).astype(np.intp), 89)
+    k = int(np.argmax(np.bincount(bins, minlength=90)))
+    return True, float((k + 0.5) * math.pi / 90.0)
 
 
 def _refused(guess: Pose2D, reason: PsmRefusal, iterations: int, beams: int, config: PsmConfig) -> PsmResult:
@@ -539,10 +571,13 @@ def match_prepared(
         if it == config.change_weight_iter:
             c_m2 = c_m2 / config.weight_c_divisor
         proj = project(cur, ref.bearings_rad, Pose2D(x, y, th), config)
+        gate = config.max_error_m
+        if config.max_error_first_m is not None and it < config.change_weight_iter:
+            gate = config.max_error_first_m
         if it % 2 == 0:
             window = config.search_window_first_beams if first_orientation else config.search_window_beams
             first_orientation = False
-            found = _orientation_search(ref, proj, window, config)
+            found = _orientation_search(ref, proj, window, config, gate)
             if found is None:
                 return _refused(initial_guess, PsmRefusal.NO_VALID_SHIFT, it + 1, 0, config)
             shift, cost_th, curv_th = found
@@ -550,7 +585,7 @@ def match_prepared(
             th = math.remainder(th + d, 2.0 * math.pi)
             last_dth = abs(d)
         else:
-            idx, e, w, hc, hs = _translation_terms(ref, proj, c_m2, config)
+            idx, e, w, hc, hs = _translation_terms(ref, proj, c_m2, config, gate)
             if idx.size < config.min_valid_beams:
                 return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it + 1, int(idx.size), config)
             a11 = float(np.dot(w, hc * hc))
