@@ -42,6 +42,11 @@ _TINTS = np.array(
 )
 
 
+_TINT_TABLE = np.clip(
+    np.round(np.arange(256, dtype=np.float32)[None, :, None] * _TINTS[:, None, :]), 0, 255
+).astype(np.uint8).reshape(-1, 3)
+
+
 def _periodic_blur(img: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian blur with wrap-around borders (through the FFT), so the texture tiles seamlessly."""
     f = np.fft.fftfreq(img.shape[0])
@@ -220,30 +225,34 @@ class ViewRenderer:
         f32 = np.float32
         # trilinear mip-mapping: blend the two levels around the footprint, so the texture does not
         # "pop" (a spurious image change) when a surface crosses a level boundary as the robot moves
-        lf = np.clip(np.log2(np.maximum(foot_m, f32(1e-9)) * f32(1.0 / self.texel_m)), f32(0), f32(_LEVELS - 1))
+        foot32 = np.maximum(foot_m.astype(f32, copy=False), f32(1e-9))
+        lf = np.clip(np.log2(foot32 * f32(1.0 / self.texel_m)), f32(0), f32(_LEVELS - 1))
         l0 = np.minimum(np.floor(lf), f32(_LEVELS - 2))
         frac = lf - l0
+        # texel coordinates at level 0, wrapped once into the tile; level L is the same tile 2^L
+        # times smaller, so its coordinates are these times 2^-L and need no further wrap
+        u0 = s_m.astype(f32, copy=False) * f32(1.0 / self.texel_m)
+        v0 = t_m.astype(f32, copy=False) * f32(1.0 / self.texel_m)
+        u0 -= np.floor(u0 * f32(1.0 / _TILE)) * f32(_TILE)
+        v0 -= np.floor(v0 * f32(1.0 / _TILE)) * f32(_TILE)
+        p0 = np.exp2(-l0)
         grey = None
-        for level, wgt in ((l0, f32(1.0) - frac), (l0 + f32(1.0), frac)):
-            p = np.exp2(-level)  # 2^-level: texel size factor of the level
-            scale = p * f32(1.0 / self.texel_m)
-            size = p * f32(_TILE)
-            u = s_m * scale
-            v = t_m * scale
-            u -= np.floor(u / size) * size
-            v -= np.floor(v / size) * size
+        for p, level, wgt in ((p0, l0, f32(1.0) - frac), (p0 * f32(0.5), l0 + f32(1.0), frac)):
             # level L starts at x = sum_{j<L} (TILE/2^j + 2) = 2*TILE*(1 - 2^-L) + 2L in the atlas
-            map_x = (u + f32(1.0) + f32(2 * _TILE) * (f32(1.0) - p) + f32(2.0) * level).astype(f32)
-            map_y = (v + f32(1.0)).astype(f32)
+            map_x = u0 * p + (f32(1.0 + 2 * _TILE) - f32(2 * _TILE) * p + f32(2.0) * level)
+            map_y = v0 * p + f32(1.0)
             sample = cv2.remap(self.atlas, map_x, map_y, interpolation=cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_REFLECT)
             grey = sample * wgt if grey is None else grey + sample * wgt
         assert grey is not None
-        grey = np.where(label == 0, np.float32(150.0), grey) * gain.astype(np.float32)
+        grey *= gain.astype(f32)
         if self.noise_sigma > 0:
-            grey += rng.standard_normal(shape, dtype=np.float32) * np.float32(self.noise_sigma)
-        img = grey[..., None] * np.take(_TINTS, label.astype(np.intp), axis=0)
-        return np.clip(img, 0.0, 255.0).astype(np.uint8)
+            grey += rng.standard_normal(shape, dtype=f32) * f32(self.noise_sigma)
+        grey_u8 = np.clip(grey, 0.0, 255.0).astype(np.uint8)
+        grey_u8[label == 0] = 150
+        # tint per surface class through one lookup: table[label * 256 + grey] = BGR
+        idx = label.astype(np.intp) * 256 + grey_u8
+        return np.take(_TINT_TABLE, idx, axis=0)
 
     def _render_level(
         self,
@@ -267,38 +276,48 @@ class ViewRenderer:
         xs = (np.arange(width_px, dtype=np.float64) - cx) / fx
         az = heading_rad - np.arctan(xs)
         hn = np.sqrt(1.0 + xs * xs)
-        q = (-((np.arange(height_px, dtype=np.float64) - cy) / fy)[:, None] / hn[None, :]).astype(f32)  # tan(elev)
+        yr = (np.arange(height_px, dtype=np.float64) - cy) / fy  # image y per row (down positive)
+        q = (-yr[:, None] / hn[None, :]).astype(f32)  # tan(elevation) per pixel
         dx, dy = np.cos(az), np.sin(az)
         ox = np.full(width_px, cam_x_m)
         oy = np.full(width_px, cam_y_m)
         d_wall, w_idx, along = cast_walls(ox, oy, dx, dy, self.walls)
         has_wall = w_idx >= 0
-        wall_h = np.where(has_wall, self.wall_heights_m[np.maximum(w_idx, 0)], 0.0)
+        wi = np.maximum(w_idx, 0)
+        wall_h = np.where(has_wall, self.wall_heights_m[wi], 0.0)
         d_safe = np.where(has_wall, d_wall, 1.0)
         q_lo = np.where(has_wall, -cam_z_m / d_safe, 0.0).astype(f32)
         q_hi = np.where(has_wall, (wall_h - cam_z_m) / d_safe, -1.0).astype(f32)
-        is_wall = (q >= q_lo) & (q <= q_hi)
-        # floor (q < 0) and ceiling (q > 0): horizontal distance to the plane
+        wall = (q >= q_lo) & (q <= q_hi)
+        wall_f = wall.astype(f32)
+        # floor (rows below the horizon) and ceiling (above): horizontal distance to the plane is
+        # plane_h / |tan(elev)| = (plane_h / |y|)(row) * hn(col)
         ch = self.ceiling_height_m - cam_z_m
-        plane_h = np.where(q < 0, f32(cam_z_m), f32(ch))
-        d_fc = plane_h / np.maximum(np.abs(q), f32(1e-6))
+        below = yr > 0
+        plane_h = np.where(below, cam_z_m, ch)
+        row_k = (plane_h / np.maximum(np.abs(yr), 1e-6)).astype(f32)[:, None]
+        d_fc = row_k * hn.astype(f32)[None, :]
         s_fc = f32(cam_x_m) + d_fc * dx.astype(f32)
         t_fc = f32(cam_y_m) + d_fc * dy.astype(f32)
         x0, y0, x1, y1 = self.room_box
-        is_open = (q > 0) & ~is_wall & ((s_fc < x0) | (s_fc > x1) | (t_fc < y0) | (t_fc > y1))
-        label = np.where(is_wall, np.int8(1), np.where(q < 0, np.int8(2), np.where(is_open, np.int8(0), np.int8(3))))
-        s_wall = (along + 11.3 * np.maximum(w_idx, 0)).astype(f32)
-        z_wall = f32(cam_z_m) + d_safe.astype(f32) * q
-        ceil_off = np.where(q > 0, f32(5.7), f32(37.0))
-        s_m = np.where(is_wall, s_wall, s_fc)
-        t_m = np.where(is_wall, z_wall, t_fc + ceil_off)
-        foot = np.where(is_wall, d_safe.astype(f32), d_fc * np.sqrt(np.maximum(f32(1.0), d_fc / plane_h)))
-        gain = np.where(is_wall, self.wall_gain[np.maximum(w_idx, 0)].astype(f32), f32(1.0))
+        up = ~below[:, None]
+        open_ = up & ~wall & ((s_fc < x0) | (s_fc > x1) | (t_fc < y0) | (t_fc > y1))
+        # labels: 1 wall, 2 floor, 3 ceiling, 0 open space
+        label = np.where(below, np.int8(2), np.int8(3))[:, None] * ~wall + wall.astype(np.int8)
+        label[open_] = 0
+        s_wall = (along + 11.3 * wi).astype(f32)[None, :]
+        z_wall = f32(cam_z_m) + d_safe.astype(f32)[None, :] * q
+        t_fc += np.where(below, f32(37.0), f32(5.7)).astype(f32)[:, None]
+        s_m = s_fc + wall_f * (s_wall - s_fc)
+        t_m = t_fc + wall_f * (z_wall - t_fc)
+        foot_fc = d_fc * np.sqrt(np.maximum(f32(1.0), d_fc * (1.0 / plane_h).astype(f32)[:, None]))
+        foot = foot_fc + wall_f * (d_safe.astype(f32)[None, :] - foot_fc)
+        gain = f32(1.0) + wall_f * (self.wall_gain[wi] - f32(1.0))[None, :]
         if obstacles:
             ob = np.asarray(obstacles, dtype=float)
             t_ob = cast_circles(ox, oy, dx, dy, ob[:, 0], ob[:, 1], ob[:, 2])  # (W, K)
-            nearest = np.full(q.shape, np.inf, dtype=f32)
-            for k in range(ob.shape[0]):
+            order = np.argsort(np.min(t_ob, axis=0))[::-1]  # paint far to near: nearer bodies occlude
+            for k in order:
                 tk = t_ob[:, k]
                 visible = np.isfinite(tk) & (tk < np.where(has_wall, d_wall, np.inf))
                 if not visible.any():
@@ -306,15 +325,15 @@ class ViewRenderer:
                 tks = np.where(visible, tk, 1.0)
                 lo = np.where(visible, -cam_z_m / np.maximum(tks, 1e-6), 1.0).astype(f32)
                 hi = np.where(visible, (ob[k, 3] - cam_z_m) / np.maximum(tks, 1e-6), -1.0).astype(f32)
-                tk32 = tks.astype(f32)
-                hit = (q >= lo) & (q <= hi) & (tk32 < nearest)
-                nearest = np.where(hit, tk32, nearest)
+                hit = (q >= lo) & (q <= hi)
+                hit_f = hit.astype(f32)
                 hx = cam_x_m + tks * dx - ob[k, 0]
                 hy = cam_y_m + tks * dy - ob[k, 1]
-                s_ob = (np.arctan2(-hy, -hx) * ob[k, 2] + 23.0 * k + 61.0).astype(f32)
-                label = np.where(hit, np.int8(4 + (k % 4)), label)
-                s_m = np.where(hit, s_ob, s_m)
-                t_m = np.where(hit, f32(cam_z_m + 3.3) + tk32 * q, t_m)
-                foot = np.where(hit, tk32, foot)
-                gain = np.where(hit, f32(1.0), gain)
+                s_ob = (np.arctan2(-hy, -hx) * ob[k, 2] + 23.0 * k + 61.0).astype(f32)[None, :]
+                tk32 = tks.astype(f32)[None, :]
+                label[hit] = 4 + (k % 4)
+                s_m += hit_f * (s_ob - s_m)
+                t_m += hit_f * ((f32(cam_z_m + 3.3) + tk32 * q) - t_m)
+                foot += hit_f * (tk32 - foot)
+                gain += hit_f * (f32(1.0) - gain)
         return self._shade(s_m, t_m, foot / f32(fx), label, gain, rng)
