@@ -69,7 +69,7 @@ class EstimatorConfig:
     track_mask_margin_m: float = 0.15  # added to a track's radius for its predicted interval
     max_correction_m: float = 0.5  # a match further than this from the odometry prediction is refused
     max_correction_rad: float = math.radians(20.0)
-    weak_info: float = 0.03  # normalised translation information below which odometry is kept
+    weak_info: float = 0.10  # normalised translation information below which odometry is kept
     odom_sigma_per_m: float = 0.05  # covariance growth on odometry fallback
     odom_sigma_rad_per_rad: float = 0.05
 
@@ -160,6 +160,10 @@ class Estimator:
         a corridor, or when the masked obstacle hides the only cross wall): there PSM's range
         residuals creep instead of measuring, so its correction is dropped."""
         info = res.info_xy
+        if not res.converged:
+            # still creeping after max_iterations: PSM's slow divergence where the scene barely
+            # constrains the translation; keep the odometry's translation, take the rotation
+            return Pose2D(guess.x_m, guess.y_m, res.dtheta_rad)
         if info is None:
             return res.pose
         lam, vec = np.linalg.eigh(info)

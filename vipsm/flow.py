@@ -35,6 +35,9 @@ class FlowConfig:
     alpha_w_px_per_rad: float = 30.0  # ... and with the angle turned
     alpha_max_px: float = 6.0
     alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
+    fit_global: bool = True  # remove a fitted global shift + scale of the ego-motion flow (odometry errors)
+    global_shift_max_px: float = 8.0
+    global_scale_max: float = 0.5
     border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
     min_texture: float = 20.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
     min_blob_px: int = 120  # blobs smaller than this many pixels are dropped
@@ -106,6 +109,43 @@ def _project(px, py, pz, fx, fy, cx, cy, pan, tilt):
         u = cx - fx * yl / f
         v = cy - fy * up / f
     return u, v, f
+
+
+def _remove_global_error(
+    ru: np.ndarray, rv: np.ndarray, pu: np.ndarray, pv: np.ndarray, usable: np.ndarray, cfg: FlowConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Odometry errors show up in the residual flow as a near-uniform shift (a heading error) plus a
+    share of the predicted flow (a distance error). Fit residual = (a, b) + s * predicted robustly
+    over the usable pixels (moving bodies are a minority and are down-weighted) and remove it."""
+    idx = np.flatnonzero(usable.ravel())
+    if idx.size < 50:
+        return ru, rv
+    u_r, v_r = ru.ravel()[idx], rv.ravel()[idx]
+    u_p, v_p = pu.ravel()[idx], pv.ravel()[idx]
+    keep = np.ones(idx.size, dtype=bool)
+    a = b = sc = 0.0
+    for _ in range(3):
+        k = np.flatnonzero(keep)
+        if k.size < 30:
+            break
+        # normal equations of [1 0 pu; 0 1 pv] [a b s]' = [ru; rv]
+        n = float(k.size)
+        spu, spv = float(u_p[k].sum()), float(v_p[k].sum())
+        spp = float(np.dot(u_p[k], u_p[k]) + np.dot(v_p[k], v_p[k]))
+        sru, srv = float(u_r[k].sum()), float(v_r[k].sum())
+        srp = float(np.dot(u_p[k], u_r[k]) + np.dot(v_p[k], v_r[k]))
+        m = np.array([[n, 0.0, spu], [0.0, n, spv], [spu, spv, spp]])
+        rhs = np.array([sru, srv, srp])
+        try:
+            a, b, sc = np.linalg.solve(m + 1e-6 * np.eye(3), rhs)
+        except np.linalg.LinAlgError:
+            return ru, rv
+        sc = float(np.clip(sc, -cfg.global_scale_max, cfg.global_scale_max))
+        a = float(np.clip(a, -cfg.global_shift_max_px, cfg.global_shift_max_px))
+        b = float(np.clip(b, -cfg.global_shift_max_px, cfg.global_shift_max_px))
+        e = np.hypot(u_r - a - sc * u_p, v_r - b - sc * v_p)
+        keep = e < max(3.0 * float(np.median(e)), 0.3)
+    return ru - a - sc * pu, rv - b - sc * pv
 
 
 class FlowDetector:
@@ -209,7 +249,8 @@ class FlowDetector:
         valid &= (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
         pred_u = np.where(valid, u2 - us, 0.0)
         pred_v = np.where(valid, v2 - vs, 0.0)
-        res = np.hypot(fl[..., 0] - pred_u, fl[..., 1] - pred_v)
+        ru = fl[..., 0] - pred_u
+        rv = fl[..., 1] - pred_v
         # ---- threshold (eq. 1: grows with the robot's speed)
         alpha = cfg.alpha_base_px + cfg.alpha_v_px_per_m * abs(speed_mps) * dt + cfg.alpha_w_px_per_rad * abs(
             turn_radps
@@ -221,6 +262,9 @@ class FlowDetector:
         tex = cv2.dilate(tex, np.ones((3, 3), np.uint8))
         thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
         usable = valid & (tex > cfg.min_texture)
+        if cfg.fit_global:
+            ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
+        res = np.hypot(ru, rv)
         moving = usable & (res > thr)
         self.last_residual = (res, thr, usable, st)
         mask = moving.astype(np.uint8)

@@ -291,25 +291,29 @@ def prepare_scan(
     )
 
 
-def _normals(x: np.ndarray, y: np.ndarray, good: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals from the neighbouring points of the same segment (central differences, one-sided
-    at segment ends); zero where a beam has no neighbour in its segment."""
+def _normals(
+    x: np.ndarray, y: np.ndarray, good: np.ndarray, seg: np.ndarray, half: int = 3
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals from the points ``half`` beams either side within the same segment (clipped at
+    segment ends, so one-sided there); zero where a beam has no neighbour in its segment. A wide
+    stencil keeps range noise from tilting the normals of distant, grazing walls."""
     n = x.size
     nx = np.zeros(n)
     ny = np.zeros(n)
     if n < 2:
         return nx, ny
-    same_next = np.zeros(n, dtype=bool)
-    same_next[:-1] = good[:-1] & good[1:] & (seg[:-1] == seg[1:])
-    same_prev = np.zeros(n, dtype=bool)
-    same_prev[1:] = same_next[:-1]
     i = np.arange(n)
-    hi = np.where(same_next, np.minimum(i + 1, n - 1), i)
-    lo = np.where(same_prev, np.maximum(i - 1, 0), i)
+    seg_g = np.where(good, seg, 0)
+    # first and last beam index of each beam's segment
+    starts = np.flatnonzero(np.concatenate(([True], seg_g[1:] != seg_g[:-1])))
+    run_id = np.cumsum(np.concatenate(([True], seg_g[1:] != seg_g[:-1]))) - 1
+    ends = np.concatenate((starts[1:], [n])) - 1
+    lo = np.maximum(i - half, starts[run_id])
+    hi = np.minimum(i + half, ends[run_id])
     tx = x[hi] - x[lo]
     ty = y[hi] - y[lo]
     norm = np.hypot(tx, ty)
-    ok = good & (hi != lo) & (norm > 0)
+    ok = good & (seg > 0) & (hi != lo) & (norm > 0)
     safe = np.where(ok, norm, 1.0)
     nx[ok] = (-ty / safe)[ok]
     ny[ok] = (tx / safe)[ok]

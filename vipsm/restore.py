@@ -40,6 +40,8 @@ class RestoreConfig:
     seg_jump_range_factor: float = 3.0
     min_inside_frac: float = 0.60  # a segment is the obstacle when this share lies in the interval
     min_obstacle_beams: int = 3
+    tight_cut: bool = True  # with a body segment found, cut only it (+edge_beams), not the whole interval
+    edge_beams: int = 3  # beams either side of a body segment cut with it (mixed edge returns)
     max_body_chord_m: float = 1.5  # a segment wider than this is background, not a body
     bump_m: float = 0.15  # a body merged with a wall segment must stand this much in front of it
     max_cut_fraction: float = 0.50  # refuse when the cut covers more of the valid beams than this
@@ -186,14 +188,19 @@ def restore(
                 obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
             cut_mask |= wide
             continue
+        found = False
         for s in chosen:
             beams = np.flatnonzero(seg == s)
             if beams.size >= cfg.min_obstacle_beams:
                 obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
-            cut_mask[beams[0] : beams[-1] + 1] = True
-        # the wall beams inside the interval (+margin) get no weight either: the obstacle's edge
-        # beams mix with the background, and the camera bearing is only an estimate
-        cut_mask |= wide
+                found = True
+            lo_b = max(int(beams[0]) - cfg.edge_beams, 0)
+            hi_b = min(int(beams[-1]) + 1 + cfg.edge_beams, n)
+            cut_mask[lo_b:hi_b] = True
+        if not (found and cfg.tight_cut):
+            # no body segment identified: the whole interval (+margin) gets no weight, since the
+            # camera bearing is only an estimate
+            cut_mask |= wide
     cut_fraction = float(np.count_nonzero(cut_mask & valid)) / max(n_valid, 1)
     # one body seen through several intervals (camera and track) is one obstacle: merge overlaps,
     # preferring a camera interval as the source
