@@ -41,6 +41,7 @@ class PtzCalibration:
 
     pan_counts_per_deg: float = 14.4  # [SEC] two sources
     pan_sign: int = -1  # VISCA + = right [?]; API + = left
+    pan_zero_offset_deg: float = 0.0  # API pan of the camera's pan 0 (mount yaw on the robot; measure it)
     tilt_counts_per_deg: float = 14.4  # [?] sources conflict (14.4 or ~15.65, sign inverted)
     tilt_sign: int = 1  # VISCA + = up [?]
     pan_min_deg: float = -170.0  # [SEC]
@@ -72,13 +73,13 @@ class PtzCalibration:
     # -- pan/tilt -----------------------------------------------------------------------------
 
     def pan_rad_to_counts(self, pan_rad: float) -> int:
-        return int(round(self.pan_sign * pan_rad / _DEG * self.pan_counts_per_deg))
+        return int(round(self.pan_sign * (pan_rad / _DEG - self.pan_zero_offset_deg) * self.pan_counts_per_deg))
 
     def tilt_rad_to_counts(self, tilt_rad: float) -> int:
         return int(round(self.tilt_sign * tilt_rad / _DEG * self.tilt_counts_per_deg))
 
     def pan_counts_to_rad(self, counts: int) -> float:
-        return self.pan_sign * counts / self.pan_counts_per_deg * _DEG
+        return (self.pan_sign * counts / self.pan_counts_per_deg + self.pan_zero_offset_deg) * _DEG
 
     def tilt_counts_to_rad(self, counts: int) -> float:
         return self.tilt_sign * counts / self.tilt_counts_per_deg * _DEG
@@ -86,7 +87,7 @@ class PtzCalibration:
     def check_pan_tilt(self, pan_rad: float, tilt_rad: float) -> None:
         """Raise :class:`ViscaConfigError` for a target outside the mechanical range."""
         for name, value, lo, hi in (
-            ("pan", pan_rad, self.pan_min_deg, self.pan_max_deg),
+            ("pan", pan_rad - self.pan_zero_offset_deg * _DEG, self.pan_min_deg, self.pan_max_deg),
             ("tilt", tilt_rad, self.tilt_min_deg, self.tilt_max_deg),
         ):
             if not math.isfinite(value) or not lo * _DEG - 1e-9 <= value <= hi * _DEG + 1e-9:

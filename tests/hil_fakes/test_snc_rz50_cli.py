@@ -95,3 +95,16 @@ def test_to_vipsm_frame_decodes_and_adds_intrinsics(fake: dict[str, str]) -> Non
     assert frame.image.shape == (240, 320, 3)
     assert frame.intrinsics.width_px == 320 and frame.intrinsics.cx_px == 160
     assert frame.intrinsics.fx_px == pytest.approx(160 / 0.5095254494944288)  # tan(27 deg)
+
+
+def test_bench_reports_figures_without_judging_them() -> None:
+    import argparse
+
+    from app.cmd_camera import bench
+
+    figures = bench(argparse.Namespace())
+    assert figures["frames"] == 115
+    for key in ("receive_ms_median", "receive_ms_p99", "decode_ms_median", "decode_ms_p99",
+                "receive_decode_ms_median", "receive_decode_ms_p99"):
+        assert figures[key] >= 0
+    assert figures["receive_decode_ms_p99"] >= figures["receive_decode_ms_median"]

@@ -27,6 +27,15 @@ def test_pan_examples_and_sign_convention() -> None:
         cal.check_pan_tilt(float("nan"), 0)
 
 
+def test_pan_zero_offset_is_the_mount_yaw() -> None:
+    cal = PtzCalibration(pan_zero_offset_deg=10.0)
+    assert cal.pan_rad_to_counts(math.radians(10)) == 0
+    assert cal.pan_counts_to_rad(-144) == pytest.approx(math.radians(20))
+    cal.check_pan_tilt(math.radians(180), 0)  # 170 deg from the camera's own zero
+    with pytest.raises(ViscaConfigError):
+        cal.check_pan_tilt(math.radians(-165), 0)
+
+
 def test_zoom_table_is_log_interpolated_and_invertible() -> None:
     cal = PtzCalibration()
     assert cal.magnification(0) == 1.0

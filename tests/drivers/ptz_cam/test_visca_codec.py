@@ -240,3 +240,28 @@ def test_positions_round_trip_through_garbage(pan: int, tilt: int, junk: bytes) 
     answers = [e for e in events if isinstance(e, v.InquiryAnswer)]
     assert answers and v.decode_pan_tilt_position(answers[-1]) == v.PanTiltPosition(pan, tilt,
                                                                                       v.PanTiltLayout.FOUR_FOUR)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=64), st.sampled_from(["inquiry", "command", "cancel", "if_clear", "none"]))
+def test_client_reply_matching_survives_arbitrary_bytes(data: bytes, pending_kind: str) -> None:
+    """Whatever the camera sends, matching only settles requests with typed results or errors."""
+    from drivers.ptz_cam.client import CommandHandle, ViscaClient, _Pending
+
+    client = ViscaClient("socket://127.0.0.1:9")  # never opened: the matcher is exercised alone
+    requests = {"inquiry": v.zoom_position_inquiry(), "command": v.pan_tilt_home(), "cancel": v.command_cancel(1),
+                "if_clear": v.if_clear()}
+    slot = _Pending(requests[pending_kind]) if pending_kind in requests else None
+    client._pending = slot
+    held = CommandHandle(v.zoom_direct(0x1000), 1, 0.0, 1.0)
+    client._sockets[1] = held
+    client._dispatch(v.ViscaParser().feed(data))
+    if slot is not None and slot.done:
+        assert slot.error is None or isinstance(slot.error, ViscaError)
+        if slot.error is None:
+            assert slot.result is not None
+    if held.done:
+        try:
+            held.wait(0)
+        except ViscaError:
+            pass
