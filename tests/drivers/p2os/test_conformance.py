@@ -193,11 +193,18 @@ def test_streaming_at_the_sip_cycle(make_rig: Callable[..., Rig]) -> None:
 
 def test_scripted_drive_matches_ground_truth_through_all_wraps(make_rig: Callable[..., Rig], transport: str) -> None:
     heading_signed = transport == "tcp"  # AMRISim sends -2048..2047; cover 0..4095 on the pty
-    rig = make_rig(start_x_counts=32500, start_y_counts=32700, start_th_units=3900, heading_signed=heading_signed)
+    rig = make_rig(
+        start_x_counts=32500,
+        start_y_counts=32700,
+        start_th_units=3900,  # 342.8 deg: the drive turns through 360 (unsigned wrap) and 540 (signed wrap)
+        heading_signed=heading_signed,
+        trans_accel_mmps2=1500,
+        rot_accel_degps2=300,
+    )
     c = rig.client()
     c.connect()
     c.get_sample(5.0)
-    script = [(0.4, 0.0, 1.0), (0.4, 1.0, 3.8), (-0.3, -0.4, 1.0), (0.0, 0.0, 0.0)]
+    script = [(0.8, 0.0, 0.5), (0.6, 2.0, 2.0), (-0.3, -0.5, 0.6), (0.0, 0.0, 0.0)]
     for v, w, seconds in script:
         end = time.monotonic() + seconds
         while True:
@@ -248,9 +255,12 @@ def test_limits_and_seto(make_rig: Callable[..., Rig]) -> None:
     c = rig.client()
     c.connect()
     c.set_limits(max_v_mps=0.1, accel_mps2=0.5, decel_mps2=0.5, max_w_radps=1.0, rot_accel_radps2=2.0)
-    c.set_velocity(0.5, 0.0)
-    keep_alive_for(c, 1.0)
-    assert rig.fake.truth(time.monotonic())[3] == pytest.approx(0.1)  # SETV clamps VEL on the robot
+    assert command_until(c, 0.5, 0.0, lambda: rig.fake.truth(time.monotonic())[3] >= 0.1 - 1e-9)
+    end = time.monotonic() + 0.5
+    while time.monotonic() < end:
+        c.set_velocity(0.5, 0.0)
+        assert rig.fake.truth(time.monotonic())[3] == pytest.approx(0.1)  # SETV clamps VEL on the robot
+        time.sleep(0.1)
     c.set_velocity(0.0, 0.0)
     assert wait_for(lambda: rig.fake.truth(time.monotonic())[3] == 0.0)
     keep_alive_for(c, 0.3)
@@ -264,24 +274,24 @@ def test_limits_and_seto(make_rig: Callable[..., Rig]) -> None:
 
 
 def test_firmware_watchdog_stops_the_robot_when_keepalives_cease(make_rig: Callable[..., Rig]) -> None:
-    rig = make_rig(watchdog_s=1.0)
-    c = rig.client(command_timeout_s=None, heartbeat_timeout_s=0.3, keepalive_interval_s=0.2)
+    rig = make_rig(watchdog_s=0.6)
+    c = rig.client(command_timeout_s=None, heartbeat_timeout_s=0.2, keepalive_interval_s=0.1)
     c.connect()
     c.set_velocity(0.2, 0.0)  # then the application "hangs": no heartbeat, no command
     assert wait_for(lambda: rig.fake.stats.watchdog_trips >= 1, timeout_s=10.0)
     assert wait_for(lambda: newest(c).v_mps == 0.0)
     assert c.stats.command_timeouts == 0
     sent = c.stats.keepalives_sent
-    time.sleep(0.5)
+    time.sleep(0.3)
     assert c.stats.keepalives_sent == sent  # nothing feeds the watchdog while the app is dead
 
 
 def test_keepalive_feeds_the_watchdog_while_the_app_is_alive(make_rig: Callable[..., Rig]) -> None:
-    rig = make_rig(watchdog_s=1.0)
-    c = rig.client(command_timeout_s=None, heartbeat_timeout_s=0.5, keepalive_interval_s=0.2)
+    rig = make_rig(watchdog_s=0.6)
+    c = rig.client(command_timeout_s=None, heartbeat_timeout_s=0.3, keepalive_interval_s=0.1)
     c.connect()
     c.set_velocity(0.2, 0.0)
-    keep_alive_for(c, 2.5)  # more than twice the watchdog without a motion command
+    keep_alive_for(c, 1.5)  # more than twice the watchdog without a motion command
     assert rig.fake.stats.watchdog_trips == 0
     assert c.stats.keepalives_sent >= 3
     assert newest(c).v_mps > 0.1
@@ -289,15 +299,14 @@ def test_keepalive_feeds_the_watchdog_while_the_app_is_alive(make_rig: Callable[
 
 def test_command_timeout_commands_zero_velocity(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig(watchdog_s=5.0)
-    c = rig.client(command_timeout_s=0.5, heartbeat_timeout_s=1.0)
+    c = rig.client(command_timeout_s=0.3, heartbeat_timeout_s=1.0)
     c.connect()
     c.set_velocity(0.3, 0.2)
     keep_alive_for(c, 0.2)
     assert rig.fake.setpoint == (300.0, pytest.approx(math.degrees(0.2), abs=0.5))
     assert wait_for(lambda: c.stats.command_timeouts == 1)
     assert wait_for(lambda: rig.fake.setpoint == (0.0, 0.0))
-    keep_alive_for(c, 1.5)
-    assert rig.fake.truth(time.monotonic())[3] == 0.0
+    assert wait_for(lambda: rig.fake.truth(time.monotonic())[3] == 0.0)
     assert rig.fake.stats.watchdog_trips == 0
     assert c.stats.command_timeouts == 1
 
@@ -354,7 +363,7 @@ def test_recovers_from_corrupted_frames(make_rig: Callable[..., Rig]) -> None:
 
 
 def test_junk_before_sips_costs_no_sip(make_rig: Callable[..., Rig]) -> None:
-    rig = make_rig()
+    rig = make_rig(sip_cycle_s=0.05)
     c = _connected(rig)
     rig.fake.junk_before_sips(every=2)
     seen: list[int] = []
@@ -380,8 +389,8 @@ def test_split_and_dropped_bytes(make_rig: Callable[..., Rig]) -> None:
 
 def test_stall_longer_than_the_silence_timeout_reconnects(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig()
-    c = _connected(rig)
-    rig.server.faults.stall(1.6)
+    c = _connected(rig, sip_silence_timeout_s=0.5)
+    rig.server.faults.stall(0.8)
     assert wait_for(lambda: c.stats.reconnects >= 1, timeout_s=20.0)
     assert c.state is ConnectionState.CONNECTED
     _samples_keep_flowing(c)
@@ -402,13 +411,11 @@ def test_disconnect_reconnects(make_rig: Callable[..., Rig]) -> None:
 def test_controller_reset_reconnects_and_keeps_the_pose(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig(subclass="p3dx-sh")
     c = _connected(rig)
-    c.set_velocity(0.3, 0.0)
-    keep_alive_for(c, 1.0)
+    assert command_until(c, 0.3, 0.0, lambda: newest(c).x_m > 0.05)
     c.set_velocity(0.0, 0.0)
     assert wait_for(lambda: rig.fake.truth(time.monotonic())[3] == 0.0)
     keep_alive_for(c, 0.3)
     before = newest(c)
-    assert before.x_m > 0.1
     rig.fake.send_reset_packet()
     assert wait_for(lambda: c.stats.controller_resets >= 1 and c.stats.reconnects >= 1, timeout_s=20.0)
     _samples_keep_flowing(c)
