@@ -242,6 +242,7 @@ class Utm30lxClient:
         self._seq = 0
         self._last_error: BaseException | None = None
         self._stream_finished = False
+        self._leftover: list[tuple[Event, float]] = []
 
     # ---------------------------------------------------------------- properties
 
@@ -330,6 +331,7 @@ class Utm30lxClient:
         close_quietly(self._port)
         self._port = None
         self._decoder.reset()
+        self._leftover = []
 
     def _connect(self) -> None:
         """Open the port and bring the sensor to a known idle state; read VV/PP/II; sync the clock."""
@@ -446,6 +448,9 @@ class Utm30lxClient:
         expected = request.rstrip(b"\r\n").decode("ascii")
         command = expected[:3] if expected.startswith("%") else expected[:2]
         deadline_s = timeout_s if timeout_s is not None else self.config.reply_timeout_s
+        if self._leftover:  # replies decoded after an earlier request's reply: nobody waits for them now
+            self._count_events([ev for ev, _ in self._leftover], expected=None)
+            self._leftover = []
         t_sent = self._clock()
         self._write(request)
         deadline = t_sent + deadline_s
@@ -456,7 +461,9 @@ class Utm30lxClient:
                 events = self._decoder.feed(data)
                 for i, ev in enumerate(events):
                     if isinstance(ev, Reply) and ev.echo == expected:
-                        self._count_events(events[:i] + events[i + 1 :], expected=None)
+                        self._count_events(events[:i], expected=None)
+                        # e.g. the first MD frame read in the same chunk as the acknowledgement
+                        self._leftover = [(later, now) for later in events[i + 1 :]]
                         return ev, t_sent, now
                     if isinstance(ev, DecodeError) and ev.command == command and ev.raw.startswith(expected.encode()):
                         self._count_events(events[:i] + events[i + 1 :], expected=None)
@@ -632,6 +639,11 @@ class Utm30lxClient:
         last_valid = self._clock()
         silent = 0
         while not self._stop.is_set():
+            # replies decoded together with the (re)start acknowledgement come first
+            pending, self._leftover = self._leftover, []
+            for ev, t in pending:
+                if self._handle_stream_event(ev, t):
+                    last_valid, silent = t, 0
             try:
                 data = self._read()
             except ScipDisconnectedError as exc:
@@ -644,9 +656,9 @@ class Utm30lxClient:
                 for ev in self._decoder.feed(data):
                     if self._handle_stream_event(ev, now):
                         last_valid, silent = now, 0
-                if self._stream is not None and self._stream_finished:
-                    self._set_state(ConnectionState.IDLE)
-                    return
+            if self._stream is not None and self._stream_finished:
+                self._set_state(ConnectionState.IDLE)
+                return
             if now - last_valid > cfg.frame_timeout_s:
                 silent += 1
                 last_valid = now
@@ -689,6 +701,7 @@ class Utm30lxClient:
 
     def _recover(self, reason: str) -> None:
         """Close, reopen with backoff, handshake, restart the stream. Raises when attempts run out."""
+        log.warning("%s: reconnecting (%s)", self.url, reason)
         self._set_state(ConnectionState.RECONNECTING)
         with self._cmd_lock:
             self._reopen_with_backoff(self.config.max_reconnect_attempts, restart_stream=True)

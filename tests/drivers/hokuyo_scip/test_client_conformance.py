@@ -230,3 +230,20 @@ def test_old_firmware_ii_checksum_quirk_is_accepted_and_flagged(tmp_path: Path,
     finally:
         server.stop()
     assert any("before '<-'" in r.getMessage() for r in caplog.records)
+
+
+def test_first_frame_read_with_the_acknowledgement_is_delivered(tmp_path: Path) -> None:
+    # With a 50 ms reply latency the first frame is queued right behind the MD acknowledgement, so
+    # both usually arrive in one read; that frame must be delivered, not skipped as a stray reply.
+    model = Utm30lxModel(Utm30lxConfig(reply_latency_s=0.05))
+    server = start_fake("pty", tmp_path, model)
+    try:
+        with Utm30lxClient(server.address, fast_config()) as c:
+            strays = c.stats.stray_replies
+            c.start_stream()
+            first = c.next_scan(timeout_s=5.0)
+            assert c.stats.stray_replies == strays  # (frames in flight before the QT echo are strays)
+            assert first.seq == 1
+            c.stop_stream()
+    finally:
+        server.stop()
