@@ -113,7 +113,6 @@ class Estimator:
         self._last_pose: Pose2D | None = None
         self._last_odo: Pose2D | None = None
         self._last_cov = np.zeros((3, 3))
-        self._prev_points_robot: np.ndarray | None = None
         self.last_debug: StepDebug | None = None
 
     # ------------------------------------------------------------------ helpers
@@ -355,7 +354,6 @@ class Estimator:
         self._last_pose = Pose2D(pose.x_m, pose.y_m, wrap_angle(pose.theta_rad))
         self._last_odo = odo
         self._last_cov = cov
-        self._prev_points_robot = self._laser_to_robot_points(scan.ranges_m, scan.bearings_rad)
         self.last_debug = StepDebug(tuple(intervals), rest, res, kf_replaced, tuple(pts_out))
         return Estimate(
             stamp_s=scan.stamp_s,

@@ -27,7 +27,7 @@ from .types import Frame, Odometry, Pose2D
 @dataclass(frozen=True)
 class FlowConfig:
     max_width_px: int = 320  # larger frames are scaled down to this width first
-    dis_preset: int = 1  # cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST=0, FAST=1, MEDIUM=2
+    dis_preset: int = 0  # cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST=0, FAST=1, MEDIUM=2
     grid_step_px: int = 4  # the residual flow is evaluated on this pixel grid
     baseline_s: float = 0.30  # flow against the oldest kept frame at most this much older
     alpha_base_px: float = 0.8  # threshold with the robot at rest
@@ -124,7 +124,7 @@ def _remove_global_error(
     u_p, v_p = pu.ravel()[idx], pv.ravel()[idx]
     keep = np.ones(idx.size, dtype=bool)
     a = b = sc = 0.0
-    for _ in range(3):
+    for _ in range(2):
         k = np.flatnonzero(keep)
         if k.size < 30:
             break
@@ -160,6 +160,7 @@ class FlowDetector:
         self.mount = mount or CameraMount()
         self._dis = cv2.DISOpticalFlow_create(self.config.dis_preset)
         self._history: list[tuple[np.ndarray, float, Frame, Pose2D]] = []
+        self._geo: tuple | None = None
         #: (residual flow px, threshold px, usable mask, grid step) of the last detection, for diagnostics
         self.last_residual: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None
 
@@ -211,15 +212,23 @@ class FlowDetector:
         flow = self._dis.calc(grey, ogrey, None)  # newest -> older
         h, w = grey.shape
         st = max(1, cfg.grid_step_px)
-        vs, us = np.mgrid[0:h:st, 0:w:st]
-        us = us.astype(np.float64) + 0.5 * (st - 1)
-        vs = vs.astype(np.float64) + 0.5 * (st - 1)
         fl = flow[0:h:st, 0:w:st].astype(np.float64)
-        # ---- predicted static-scene flow
+        # ---- predicted static-scene flow (the viewing geometry is cached per camera state)
         m = self.mount
-        rx, ry, rz = _rays(us, vs, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad)
-        hn = np.hypot(rx, ry)
-        az = np.arctan2(ry, rx)
+        geo_key = (h, w, st, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad, m.z_m)
+        if self._geo is None or self._geo[0] != geo_key:
+            vs, us = np.mgrid[0:h:st, 0:w:st]
+            us = us.astype(np.float64) + 0.5 * (st - 1)
+            vs = vs.astype(np.float64) + 0.5 * (st - 1)
+            rx, ry, rz = _rays(us, vs, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad)
+            hn = np.hypot(rx, ry)
+            az = np.arctan2(ry, rx)
+            slope = rz / np.maximum(hn, 1e-9)
+            floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
+            bd = cfg.border_px
+            inside = (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
+            self._geo = (geo_key, us, vs, rx, ry, rz, hn, az, floor_d, inside)
+        _, us, vs, rx, ry, rz, hn, az, floor_d, inside = self._geo
         depth = np.full(az.shape, cfg.max_depth_m)
         if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
             dx = depth_points_robot[:, 0] - m.x_m
@@ -228,8 +237,6 @@ class FlowDetector:
             pd = np.hypot(dx, dy)
             order = np.argsort(pb)
             depth = np.interp(az, pb[order], pd[order], left=cfg.max_depth_m, right=cfg.max_depth_m)
-        slope = rz / np.maximum(hn, 1e-9)
-        floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
         dist_h = np.minimum(depth, floor_d)
         valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
         t = dist_h / np.maximum(hn, 1e-9)
@@ -246,7 +253,7 @@ class FlowDetector:
         bd = cfg.border_px
         with np.errstate(invalid="ignore"):
             valid &= (u2 >= bd) & (u2 < w - bd) & (v2 >= bd) & (v2 < h - bd)
-        valid &= (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
+        valid &= inside
         pred_u = np.where(valid, u2 - us, 0.0)
         pred_v = np.where(valid, v2 - vs, 0.0)
         ru = fl[..., 0] - pred_u
@@ -256,10 +263,10 @@ class FlowDetector:
             turn_radps
         ) * dt
         alpha = min(alpha, cfg.alpha_max_px)
-        gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
-        gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
-        tex = np.hypot(gx, gy)[0:h:st, 0:w:st] / 4.0
-        tex = cv2.dilate(tex, np.ones((3, 3), np.uint8))
+        gx = cv2.Sobel(grey, cv2.CV_16S, 1, 0, ksize=3)
+        gy = cv2.Sobel(grey, cv2.CV_16S, 0, 1, ksize=3)
+        mag = cv2.add(cv2.convertScaleAbs(gx, alpha=0.25), cv2.convertScaleAbs(gy, alpha=0.25))  # ~ |grad| (L1)
+        tex = cv2.dilate(mag, np.ones((3, 3), np.uint8))[0:h:st, 0:w:st]
         thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
         usable = valid & (tex > cfg.min_texture)
         if cfg.fit_global:
