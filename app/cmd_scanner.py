@@ -102,17 +102,26 @@ def _cmd_fake(args: argparse.Namespace) -> int:
     if not args.pty and not args.tcp:
         raise AppError("fake scanner needs --pty and/or --tcp HOST:PORT")
     config = Utm30lxConfig(initial_time_ms=args.initial_time_ms, laser_on_at_start=not args.laser_off)
+    source = None
+    if args.scenario:
+        from hil_fakes.world import ScenarioError, World, paper_scenario
+
+        try:
+            # world time = the fake's clock (time.monotonic), starting now
+            source = World(paper_scenario(args.scenario), start_s=time.monotonic()).range_source()
+        except ScenarioError as exc:
+            raise AppError(f"--scenario {args.scenario}: {exc}") from exc
     servers: list[DeviceServer] = []
     try:
         if args.pty:
-            servers.append(DeviceServer(Utm30lxModel(config), PtyEndpoint(args.link)).start())
+            servers.append(DeviceServer(Utm30lxModel(config, source), PtyEndpoint(args.link)).start())
         if args.tcp:
             host, port = _parse_host_port(args.tcp)
             try:
                 endpoint = TcpEndpoint(host, port)
             except OSError as exc:
                 raise AppError(f"cannot listen on {args.tcp}: {exc}") from exc
-            servers.append(DeviceServer(Utm30lxModel(config), endpoint).start())
+            servers.append(DeviceServer(Utm30lxModel(config, source), endpoint).start())
     except BaseException:
         for s in servers:
             s.stop()
@@ -132,6 +141,12 @@ def register_fake(fake_sub: argparse._SubParsersAction) -> None:  # type: ignore
     p.add_argument("--tcp", metavar="HOST:PORT", help="serve on TCP, e.g. 127.0.0.1:10940")
     p.add_argument("--initial-time-ms", type=int, default=4821456, help="the sensor clock at start (24-bit ms)")
     p.add_argument("--laser-off", action="store_true", help="start with the laser off (BM then answers 00)")
+    p.add_argument(
+        "--scenario",
+        choices=("1", "2"),
+        help="ranges from the simulated world of the paper's scenario (robot standing still; the cylinder moves) "
+        "instead of the fixed room",
+    )
     p.set_defaults(func=_cmd_fake)
 
 

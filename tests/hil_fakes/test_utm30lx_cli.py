@@ -88,3 +88,28 @@ def test_probe_list_reports_devices_or_why_not() -> None:
 def test_fake_needs_a_transport() -> None:
     result = _run_cli("fake", "scanner")
     assert result.returncode == 2 and "--pty" in result.stderr
+
+
+def test_fake_with_a_paper_scenario_world() -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app", "fake", "scanner", "--tcp", "127.0.0.1:0", "--scenario", "1"],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        assert proc.stdout is not None
+        ready, _, _ = select.select([proc.stdout], [], [], 30.0)
+        assert ready, "the fake did not print its address"
+        url = proc.stdout.readline().strip()
+        result = _run_cli("probe", "--scanner", url, "--json")
+        assert result.returncode == 0, result.stderr
+        scan = json.loads(result.stdout)["scanner"]["scan"]
+        # the room is walled on three sides: the open side gives no return (NaN, not a range)
+        assert scan["count"] == 1081 and 0 < scan["valid_count"] < 1081
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
