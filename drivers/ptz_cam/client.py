@@ -25,6 +25,7 @@ by the next call.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -652,7 +653,7 @@ class ViscaClient:
         with self._cv:
             state = self._last_state
             if state is not None and state.moving != self._moving_locked():
-                state = PtzState(**{**state.__dict__, "moving": self._moving_locked()})
+                state = dataclasses.replace(state, moving=self._moving_locked())
             return state
 
     def start_state_poller(self, interval_s: float = 0.2) -> None:

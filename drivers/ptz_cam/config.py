@@ -217,7 +217,6 @@ class HttpConfig:
     reconnect_max_s: float = 5.0
     buffer_frames: int = 4
     max_frame_bytes: int = 8 * 1024 * 1024  # guard against a runaway part, far above any real JPEG
-    ptz_query_interval_s: float = 0.2  # when the frame source queries PTZ itself (5 Hz; pitfall 14)
 
     def __post_init__(self) -> None:
         if not 1 <= self.frame_rate <= 30:
