@@ -72,6 +72,8 @@ class PsmConfig:
     cov_floor_sigma_theta_rad: float = math.radians(4.0)  # (PM_MIN_STD_ORIENTATION)
     cov_error_offset_m: float = 0.05  # (PM_MATCH_ERROR_OFFSET)
     cov_floor_scale_m: float = 0.01  # the error index is counted in these units (the original: cm)
+    corridor_info_ratio: float = 0.05  # corridor: weak/strong translation information below this
+    corridor_direction_test: bool = False  # also run the original's direction-spread test (noisy at short range)
     corridor_threshold_rad: float = math.radians(25.0)
     corridor_sigma_along_m: float = 4.0
     corridor_sigma_across_m: float = 0.30
@@ -204,8 +206,8 @@ def segment_scan(
     """Segment ids (1..) per beam, 0 for bad beams. A segment breaks at a bad beam, or where the
     range jump exceeds max(jump_m, range_factor * r * dphi) and the straight-line extrapolation from
     the two previous beams misses by as much (the extrapolation test of the original, which keeps
-    grazing walls in one piece). Vectorised: the extrapolation is trusted when the two previous beams
-    are good and not separated by a plain jump."""
+    grazing walls in one piece). Vectorised: the extrapolation is used whenever the two previous beams
+    are good (the original also joins three aligned points that straddle a jump)."""
     n = ranges_m.size
     seg = np.zeros(n, dtype=np.int32)
     if n == 0:
@@ -217,12 +219,17 @@ def segment_scan(
     jump = np.zeros(n, dtype=bool)
     jump[1:] = d1[1:] >= thr[1:]
     pred_ok = np.zeros(n, dtype=bool)
-    pred_ok[2:] = good[1:-1] & good[:-2] & ~jump[1:-1]
+    pred_ok[2:] = good[1:-1] & good[:-2]
     miss = np.ones(n, dtype=bool)
     miss[2:] = np.abs(r[2:] - (2.0 * r[1:-1] - r[:-2])) >= thr[2:]
+    # the same test backwards: beam i-1 on the line through beams i and i+1 (a segment's first pair)
+    miss_b = np.ones(n, dtype=bool)
+    if n >= 3:
+        back_ok = good[1:-1] & good[2:]
+        miss_b[1:-1] = ~back_ok | (np.abs(r[:-2] - (2.0 * r[1:-1] - r[2:])) >= thr[1:-1])
     prev_good = np.zeros(n, dtype=bool)
     prev_good[1:] = good[:-1]
-    brk = ~prev_good | (jump & (miss | ~pred_ok))
+    brk = ~prev_good | (jump & (miss | ~pred_ok) & miss_b)
     brk &= good
     ids = np.cumsum(brk).astype(np.int32)
     seg[good] = ids[good]
@@ -531,6 +538,17 @@ def _is_corridor(scan: PreparedScan, threshold_rad: float) -> tuple[bool, float]
     return True, float((k + 0.5) * math.pi / 90.0)
 
 
+def _corridor_from_information(info: np.ndarray, ratio: float) -> tuple[bool, float]:
+    """A corridor when the normal-based translation information along one direction is below
+    ``ratio`` times the other; the corridor's axis (reference frame) is that weak direction."""
+    lam, vec = np.linalg.eigh(info)
+    if lam[1] <= 0.0:
+        return False, 0.0
+    if lam[0] < ratio * lam[1]:
+        return True, float(math.atan2(vec[1, 0], vec[0, 0]))
+    return False, 0.0
+
+
 def _refused(guess: Pose2D, reason: PsmRefusal, iterations: int, beams: int, config: PsmConfig) -> PsmResult:
     cov = np.diag(
         [config.cov_floor_sigma_xy_m**2, config.cov_floor_sigma_xy_m**2, config.cov_floor_sigma_theta_rad**2]
@@ -645,12 +663,14 @@ def match_prepared(
     else:
         var_th = (4.0 * dphi) ** 2
     cov[2, 2] = var_th
-    corridor, corr_angle = _is_corridor(cur, config.corridor_threshold_rad)
+    corridor, corr_angle = _corridor_from_information(info, config.corridor_info_ratio)
+    if not corridor and config.corridor_direction_test:
+        corridor, corr_angle = _is_corridor(cur, config.corridor_threshold_rad)
     if config.use_cov_floor:
         factor = max((residual - config.cov_error_offset_m) / config.cov_floor_scale_m, 1.0)
         floor = np.zeros((3, 3))
         if corridor:
-            ca, sa = math.cos(corr_angle + th), math.sin(corr_angle + th)
+            ca, sa = math.cos(corr_angle), math.sin(corr_angle)
             rot = np.array([[ca, -sa], [sa, ca]])
             floor[:2, :2] = rot @ np.diag([config.corridor_sigma_along_m**2, config.corridor_sigma_across_m**2]) @ rot.T
         else:

@@ -1,0 +1,278 @@
+"""Polar scan matching on ray-cast scans with exact ground truth."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from vipsm.geometry import between, compose
+from vipsm.psm import (
+    TAG_INVALID,
+    TAG_RANGE,
+    TAG_SEGMENT,
+    PsmConfig,
+    PsmRefusal,
+    match,
+    median_filter_valid,
+    prepare_scan,
+    segment_scan,
+)
+from vipsm.types import Pose2D, Scan
+
+from .sim import UTM_BEARINGS, Circle, World, box_room, corridor
+
+# Scans up to 0.5 m / 30 deg apart from a zero initial guess: the original's wide settings
+# (1 m residual gate, C = 0.7^2, a +-40 deg first orientation search).
+WIDE = PsmConfig(max_error_m=1.0, weight_c_m2=0.49, search_window_first_beams=160, search_window_beams=20)
+
+
+def _err(truth: Pose2D, est: Pose2D) -> tuple[float, float]:
+    e = between(truth, est)
+    return math.hypot(e.x_m, e.y_m), abs(math.degrees(e.theta_rad))
+
+
+def _pair(world: World, p0: Pose2D, rel: Pose2D, noise: float = 0.01, seed: int = 0) -> tuple[Scan, Scan]:
+    rng = np.random.default_rng(seed)
+    return world.scan(p0, noise_m=noise, rng=rng), world.scan(compose(p0, rel), noise_m=noise, rng=rng)
+
+
+CASES = [
+    Pose2D(0.5, 0.0, 0.0),
+    Pose2D(0.0, 0.5, 0.0),
+    Pose2D(-0.35, 0.35, 0.0),
+    Pose2D(0.0, 0.0, math.radians(30.0)),
+    Pose2D(0.0, 0.0, math.radians(-30.0)),
+    Pose2D(0.3, -0.2, math.radians(15.0)),
+    Pose2D(-0.25, -0.25, math.radians(-20.0)),
+    Pose2D(0.2, 0.3, math.radians(25.0)),
+]
+
+
+@pytest.mark.parametrize("rel", CASES, ids=lambda p: f"{p.x_m:+.2f},{p.y_m:+.2f},{math.degrees(p.theta_rad):+.0f}")
+def test_room_pairs_recovered_from_zero_guess(rel: Pose2D) -> None:
+    world = box_room(8.0, 6.0)
+    s0, s1 = _pair(world, Pose2D(0.4, 0.2, 0.3), rel)
+    res = match(s0, s1, Pose2D(0.0, 0.0, 0.0), WIDE)
+    assert not res.refused, res.reason
+    et, er = _err(rel, res.pose)
+    assert et <= 0.01 and er <= 0.1, (et, er, res)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    x=st.floats(-0.3, 0.3),
+    y=st.floats(-0.3, 0.3),
+    th=st.floats(-25.0, 25.0),
+    start_th=st.floats(-math.pi, math.pi),
+)
+def test_property_random_poses_recovered(x: float, y: float, th: float, start_th: float) -> None:
+    world = box_room(7.0, 5.0)
+    rel = Pose2D(x, y, math.radians(th))
+    s0, s1 = _pair(world, Pose2D(0.5, 0.5, start_th), rel, seed=3)
+    res = match(s0, s1, Pose2D(0.0, 0.0, 0.0), WIDE)
+    assert not res.refused
+    et, er = _err(rel, res.pose)
+    assert et <= 0.01 and er <= 0.1
+
+
+def test_default_config_with_odometry_guess_is_millimetre_accurate() -> None:
+    world = box_room(8.0, 6.0)
+    rel = Pose2D(0.03, 0.004, math.radians(1.5))
+    s0, s1 = _pair(world, Pose2D(1.0, -0.5, 2.0), rel)
+    guess = Pose2D(0.05, -0.01, math.radians(0.5))  # odometry 2 cm / 1 deg off
+    res = match(s0, s1, guess)
+    et, er = _err(rel, res.pose)
+    assert not res.refused and res.converged
+    assert et <= 0.003 and er <= 0.05
+    assert res.beams_used >= 700 and 0.0 < res.residual_m < 0.02 and res.iterations >= 2
+
+
+def test_partial_overlap_handled() -> None:
+    # L-shaped space: after the move half of the current view is new area
+    walls = np.array(
+        [(-1, -1, 6, -1), (6, -1, 6, 1), (6, 1, 2, 1), (2, 1, 2, 6), (2, 6, -1, 6), (-1, 6, -1, -1)], dtype=float
+    )
+    world = World(walls)
+    rel = Pose2D(0.45, 0.1, math.radians(25.0))
+    s0, s1 = _pair(world, Pose2D(0.5, 0.0, 0.0), rel)
+    res = match(s0, s1, Pose2D(0.3, 0.0, math.radians(15.0)), WIDE)
+    assert not res.refused
+    et, er = _err(rel, res.pose)
+    assert et <= 0.01 and er <= 0.1
+
+
+def test_corridor_does_not_diverge_and_is_flagged() -> None:
+    world = corridor(length_m=40.0, width_m=2.0)
+    rel = Pose2D(0.3, 0.05, math.radians(3.0))
+    s0, s1 = _pair(world, Pose2D(10.0, 0.0, 0.0), rel)  # far from the door recess: no along-corridor cue
+    guess = Pose2D(0.25, 0.0, 0.0)  # odometry 5 cm short
+    res = match(s0, s1, guess)
+    assert not res.refused
+    e = between(rel, res.pose)
+    assert abs(e.y_m) <= 0.01 and abs(math.degrees(e.theta_rad)) <= 0.1  # across: measured
+    assert abs(e.x_m) <= 0.10  # along: bounded, no runaway
+    assert res.corridor
+    lam = np.linalg.eigvalsh(res.info_xy)
+    assert lam[0] < 0.05 * lam[1]  # the normal-based information exposes the weak direction
+    evals = np.linalg.eigvalsh(res.covariance[:2, :2])
+    assert evals[-1] >= 1.0  # covariance stretched along the corridor (heuristic floor, >= (1 m)^2)
+
+
+def test_occlusion_by_pillars() -> None:
+    world = box_room(8.0, 6.0)
+    world.circles = [Circle(1.2, 0.6, 0.25), Circle(0.5, -1.0, 0.2), Circle(2.5, -0.3, 0.3)]
+    rel = Pose2D(0.4, 0.25, math.radians(12.0))
+    s0, s1 = _pair(world, Pose2D(0.0, 0.0, 0.0), rel)
+    res = match(s0, s1, Pose2D(0.3, 0.2, math.radians(8.0)), WIDE)
+    et, er = _err(rel, res.pose)
+    assert not res.refused and et <= 0.01 and er <= 0.1
+
+
+def test_large_moving_body_pulls_plain_psm_and_zero_weights_fix_it() -> None:
+    # a 1.4 m wide body 1 m ahead covers ~90 deg of the scan and moves 15 cm between the scans
+    world = box_room(8.0, 5.0, x0=-1.0, y0=-2.5, pillars=False)
+    body = Circle(1.0, 0.3, 0.7)
+    world.circles = [body]
+    p0 = Pose2D(0.0, 0.0, 0.0)
+    rel = Pose2D(0.10, 0.0, 0.0)
+    s0 = world.scan(p0, noise_m=0.005, rng=np.random.default_rng(1))
+    body.y_m = 0.15
+    s1 = world.scan(compose(p0, rel), noise_m=0.005, rng=np.random.default_rng(2))
+    guess = Pose2D(0.10, 0.0, 0.0)
+    plain = match(s0, s1, guess)
+    et_p, er_p = _err(rel, plain.pose)
+
+    def body_weights(scan: Scan, pose: Pose2D, cy: float) -> np.ndarray:
+        bx, by = 1.0 - pose.x_m, cy - pose.y_m
+        b = math.atan2(by, bx)
+        half = math.asin(0.7 / math.hypot(bx, by)) + math.radians(3.0)
+        return np.where(np.abs(scan.bearings_rad - b) <= half, 0.0, 1.0)
+
+    w0 = body_weights(s0, p0, 0.3)
+    w1 = body_weights(s1, compose(p0, rel), 0.15)
+    fixed = match(s0, s1, guess, PsmConfig(), ref_weights=w0, cur_weights=w1)
+    et, er = _err(rel, fixed.pose)
+    assert not fixed.refused and et <= 0.005 and er <= 0.05
+    assert et_p >= 0.015 and et_p >= 4 * et, (et_p, er_p, et, er)
+
+
+@pytest.mark.parametrize(
+    "ranges",
+    [np.zeros(0), np.full(1081, np.nan), np.full(1081, 0.01)],
+    ids=["empty", "all-invalid", "all-below-min"],
+)
+def test_degenerate_scans_are_refused_not_raised(ranges: np.ndarray) -> None:
+    bearings = UTM_BEARINGS if ranges.size else np.zeros(0)
+    scan = Scan(ranges, bearings, 0.0)
+    good = box_room(6.0, 6.0).scan(Pose2D(0, 0, 0))
+    guess = Pose2D(0.1, 0.0, 0.0)
+    for a, b in ((scan, good), (good, scan)):
+        res = match(a, b, guess)
+        assert res.refused and res.reason is PsmRefusal.EMPTY_SCAN
+        assert res.pose == guess and res.covariance.shape == (3, 3)
+
+
+def test_too_few_beams_refused() -> None:
+    world = box_room(6.0, 6.0)
+    s = world.scan(Pose2D(0, 0, 0))
+    r = s.ranges_m.copy()
+    r[200:] = np.nan
+    few = Scan(r, s.bearings_rad, 0.0)
+    res = match(few, few, Pose2D(0, 0, 0))
+    assert res.refused and res.reason in (PsmRefusal.TOO_FEW_BEAMS, PsmRefusal.NO_VALID_SHIFT)
+
+
+def test_bad_bearings_refused() -> None:
+    s = box_room(6.0, 6.0).scan(Pose2D(0, 0, 0))
+    bad = Scan(s.ranges_m, s.bearings_rad[::-1].copy(), 0.0)
+    res = match(s, bad, Pose2D(0, 0, 0))
+    assert res.refused and res.reason is PsmRefusal.BAD_INPUT
+
+
+def test_bearings_come_from_the_scan() -> None:
+    # a 180-beam 1-degree scanner (Intel-like) in the same room
+    bearings = np.radians(np.arange(-90.0, 90.0, 1.0))
+    world = box_room(8.0, 6.0)
+    rel = Pose2D(0.2, 0.05, math.radians(4.0))
+    s0 = world.scan(Pose2D(0.2, 0.1, 0.5), bearings=bearings, noise_m=0.005, rng=np.random.default_rng(0))
+    s1 = world.scan(compose(Pose2D(0.2, 0.1, 0.5), rel), bearings=bearings, noise_m=0.005, rng=np.random.default_rng(1))
+    res = match(s0, s1, Pose2D(0.15, 0.0, 0.0), PsmConfig.sick_1deg())
+    et, er = _err(rel, res.pose)
+    assert not res.refused and et <= 0.02 and er <= 0.3
+
+
+def test_deterministic() -> None:
+    world = box_room(8.0, 6.0)
+    s0, s1 = _pair(world, Pose2D(0.0, 0.0, 1.0), Pose2D(0.2, 0.1, 0.1))
+    a = match(s0, s1, Pose2D(0, 0, 0), WIDE)
+    b = match(s0, s1, Pose2D(0, 0, 0), WIDE)
+    assert a.pose == b.pose and np.array_equal(a.covariance, b.covariance) and a.iterations == b.iterations
+
+
+def test_covariance_is_symmetric_positive_and_above_the_floor() -> None:
+    world = box_room(8.0, 6.0)
+    s0, s1 = _pair(world, Pose2D(0.0, 0.0, 0.0), Pose2D(0.05, 0.0, 0.02))
+    res = match(s0, s1, Pose2D(0.0, 0.0, 0.0))
+    c = res.covariance
+    assert np.allclose(c, c.T)
+    assert np.all(np.linalg.eigvalsh(c) > 0)
+    cfg = PsmConfig()
+    assert c[0, 0] >= cfg.cov_floor_sigma_xy_m**2 * 0.999 and c[2, 2] >= cfg.cov_floor_sigma_theta_rad**2 * 0.999
+    no_floor = match(s0, s1, Pose2D(0.0, 0.0, 0.0), dataclasses.replace(cfg, use_cov_floor=False))
+    assert no_floor.covariance[0, 0] < 1e-4  # the normal-equation estimate alone is millimetric here
+
+
+def test_orientation_gain_blends_the_refined_angle() -> None:
+    world = box_room(8.0, 6.0)
+    s0, s1 = _pair(world, Pose2D(0.0, 0.0, 0.0), Pose2D(0.0, 0.0, math.radians(2.0)), noise=0.0)
+    half = match(s0, s1, Pose2D(0, 0, 0), dataclasses.replace(PsmConfig(), orientation_gain=0.5, max_iterations=1))
+    full = match(s0, s1, Pose2D(0, 0, 0), dataclasses.replace(PsmConfig(), orientation_gain=1.0, max_iterations=1))
+    assert full.dtheta_rad == pytest.approx(math.radians(2.0), abs=math.radians(0.1))
+    assert half.dtheta_rad == pytest.approx(0.5 * full.dtheta_rad, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------------------- preprocessing
+def test_median_filter_removes_two_beam_clutter_and_ignores_invalid() -> None:
+    r = np.full(20, 3.0)
+    r[8:10] = 1.0  # a chair leg, two beams wide
+    r[15] = np.nan
+    valid = np.isfinite(r)
+    med, ok = median_filter_valid(r, valid, 5)
+    assert np.allclose(med[8:10], 3.0)
+    assert not ok[15] and np.allclose(med[14], 3.0) and np.allclose(med[16], 3.0)
+    r2 = np.full(20, 3.0)
+    r2[5:8] = np.nan  # three invalid neighbours: the middle valid beams stay, far values do not leak in
+    med2, ok2 = median_filter_valid(r2, np.isfinite(r2), 5)
+    assert np.all(np.isfinite(med2[ok2])) and np.allclose(med2[ok2], 3.0)
+
+
+def test_segmentation_jump_extrapolation_and_minimum_length() -> None:
+    n = 60
+    r = np.full(n, 2.0)
+    r[20:40] = 5.0  # a step: two breaks
+    r[45] = 8.0  # an isolated far point
+    good = np.ones(n, dtype=bool)
+    seg = segment_scan(r, good, math.radians(0.25), 0.2, 3.0)
+    assert seg[19] != seg[20] and seg[39] != seg[40]
+    assert seg[44] != seg[45] != seg[46]
+    # a grazing wall: large steady range increments stay one segment (the extrapolation test)
+    ramp = 2.0 + 0.3 * np.arange(n)
+    seg2 = segment_scan(ramp, good, math.radians(0.25), 0.2, 3.0)
+    assert np.all(seg2 == seg2[0])
+    prep = prepare_scan(r, np.radians(np.linspace(-10, 10, n)), PsmConfig(median_window=1))
+    assert prep.tags[45] & TAG_SEGMENT and not prep.good[45]
+
+
+def test_range_gating_and_invalid_tags() -> None:
+    r = np.full(30, 2.0)
+    r[3] = 15.0
+    r[4] = 0.05
+    r[5] = np.nan
+    prep = prepare_scan(r, np.radians(np.linspace(-5, 5, 30)), PsmConfig(median_window=1, max_range_m=10.0))
+    assert prep.tags[3] & TAG_RANGE and prep.tags[4] & TAG_INVALID and prep.tags[5] & TAG_INVALID
+    assert prep.good[10]
