@@ -489,12 +489,18 @@ class Utm30lxClient:
         if self._state in (ConnectionState.CLOSED, ConnectionState.CONNECTING):
             raise ScipStateError(f"{command}: the client is not open")
         with self._cmd_lock:
+            if self._port is None:  # the reader gave up earlier (FAILED), or an earlier reopen failed
+                self._reopen_idle()
             try:
                 return self._command(request, command, timeout_s)
             except ScipDisconnectedError:
-                # Unplugged while idle: reopen once (same handshake) and retry the command.
-                self._reopen_with_backoff(max_attempts=max(1, self.config.max_reconnect_attempts or 3))
+                # Unplugged while idle: reopen (same handshake) and retry the command once.
+                self._reopen_idle()
                 return self._command(request, command, timeout_s)
+
+    def _reopen_idle(self) -> None:
+        self._reopen_with_backoff(max_attempts=max(1, self.config.max_reconnect_attempts or 3))
+        self._set_state(ConnectionState.IDLE)
 
     # ---------------------------------------------------------------- commands
 
@@ -586,8 +592,12 @@ class Utm30lxClient:
         parsed = parse_scan_echo(text[:2], request.rstrip(b"\n"))
         self._stream = _Stream(request, parsed, text.partition(";")[0][:-2], finite=count > 0)
         self._stream_finished = False
-        with self._cmd_lock:
-            self._command(request, text[:2])
+        try:
+            with self._cmd_lock:
+                self._command(request, text[:2])
+        except BaseException:
+            self._stream = None
+            raise
         self._buffer.clear()
         self._buffer.set_error(None)
         self._stop.clear()
@@ -603,7 +613,7 @@ class Utm30lxClient:
             return
         with self._cmd_lock:
             if self._port is None:
-                self._reopen_with_backoff(max_attempts=max(1, self.config.max_reconnect_attempts or 3))
+                self._reopen_idle()
             self._command(build_simple("QT"), "QT")
         self._set_state(ConnectionState.IDLE)
 
@@ -708,13 +718,19 @@ class Utm30lxClient:
         self._set_state(ConnectionState.STREAMING)
 
     def _reopen_with_backoff(self, max_attempts: int, restart_stream: bool = False) -> None:
+        """Reopen until it works (or ``max_attempts`` failed). From the reader thread (``restart_stream``)
+        a stop request aborts the wait; from the caller's thread it is a plain backoff sleep."""
         cfg = self.config
         backoff = Backoff(cfg.backoff_initial_s, cfg.backoff_max_s)
         attempts = 0
         self._close_port()
         while True:
-            if self._stop.wait(backoff.next_delay()):
-                raise ScipDisconnectedError(f"{self.url}: stopped while reconnecting")
+            delay = backoff.next_delay()
+            if restart_stream:
+                if self._stop.wait(delay):
+                    raise ScipDisconnectedError(f"{self.url}: stopped while reconnecting")
+            else:
+                time.sleep(delay)
             try:
                 self._connect()
                 if restart_stream and self._stream is not None:

@@ -224,3 +224,21 @@ def test_reader_gives_up_and_surfaces_the_error(tmp_path: Path) -> None:
     finally:
         c.close()
     assert c.state is ConnectionState.CLOSED
+
+
+def test_commands_after_the_reader_gave_up_reopen_when_the_device_is_back(tmp_path: Path) -> None:
+    link = tmp_path / "hokuyo"
+    server = start_fake("pty", tmp_path)
+    c = Utm30lxClient(str(link), fast_config(max_reconnect_attempts=1)).open()
+    try:
+        c.start_stream()
+        c.next_scan(timeout_s=5.0)
+        server.stop()
+        assert wait_until(lambda: c.state is ConnectionState.FAILED, 20.0), c.stats
+        server = start_fake("pty", tmp_path)  # plugged in again under the same name
+        c.stop_stream()  # the stream is over; nothing to stop on the device side
+        assert_all_true([c.get_scan()], server)
+        assert c.state is ConnectionState.IDLE
+    finally:
+        c.close()
+        server.stop()
