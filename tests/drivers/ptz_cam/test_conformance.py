@@ -102,10 +102,11 @@ def test_every_command_and_inquiry(rig: Rig) -> None:
     assert k.width_px == 320 and k.cx_px == 160
 
 
+@pytest.mark.parametrize("spec", [FakeCameraSpec(zoom_full_travel_s=4.0)])
 def test_two_commands_in_flight_and_buffer_full(rig: Rig) -> None:
     c = rig.client
-    pan = c.move_to(math.radians(-60), 0, speed=0.1, wait=False)  # ~0.7 s at the fake's speed 3
-    zoom = c.zoom_to(0x4000, wait=False)  # ~1 s
+    pan = c.move_to(math.radians(-60), 0, speed=0.05, wait=False)  # 864 counts at 25 deg/s: 2.4 s
+    zoom = c.zoom_to(0x2000, wait=False)  # 2 s: both long enough to still run for the third command
     assert {pan.socket, zoom.socket} == {1, 2}
     assert c.in_flight() == {pan.socket: "pan_tilt_absolute", zoom.socket: "zoom_direct"}
     assert c.last_state is not None and c.last_state.moving
@@ -118,7 +119,7 @@ def test_two_commands_in_flight_and_buffer_full(rig: Rig) -> None:
     zoom.wait()
     assert c.in_flight() == {}
     s = c.position()
-    assert (s.pan_counts, s.zoom_position) == (864, 0x4000) and not s.moving
+    assert (s.pan_counts, s.zoom_position) == (864, 0x2000) and not s.moving
 
 
 def test_move_slower_than_the_default_timeout(transport: str, tmp_path) -> None:  # type: ignore[no-untyped-def]

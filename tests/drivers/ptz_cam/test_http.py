@@ -79,7 +79,8 @@ def test_mjpeg_frames_carry_sequence_and_ptz_state(http_rig: HttpRig) -> None:
                 assert f.ptz.pan_deg == pytest.approx(30) and f.ptz.tilt_deg == pytest.approx(-5)
                 assert decode(f.jpeg).shape == (240, 320, 3)
             # move while streaming: frames after the completion carry the new pan, during it "moving"
-            h = client.move_to(math.radians(-10), 0, speed=0.2, wait=False)
+            h = client.move_to(math.radians(-10), 0, speed=0.05, wait=False)  # 40 deg at 25 deg/s
+            source.buffer.clear()  # frames from before the ACK
             during = source.get(10.0)
             h.wait()
             source.buffer.clear()
