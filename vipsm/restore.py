@@ -45,8 +45,9 @@ class RestoreConfig:
     max_body_chord_m: float = 1.5  # a segment wider than this is background, not a body
     bump_m: float = 0.15  # a body merged with a wall segment must stand this much in front of it
     max_cut_fraction: float = 0.50  # refuse when the cut covers more of the valid beams than this
-    same_surface_tol_m: float = 0.15  # bridge endpoints must lie on one line within this
-    fit_beams: int = 5  # beams each side used to test the background surface
+    same_surface_tol_m: float = 0.10  # bridge endpoints must lie on one line within this ...
+    same_surface_slope: float = 0.10  # ... plus this share of the gap
+    fit_beams: int = 12  # beams each side used to test the background surface
 
 
 @dataclass(frozen=True)
@@ -115,8 +116,9 @@ def _compact_foreground(r: np.ndarray, b: np.ndarray, seg: np.ndarray, s: int, c
 
 
 def _same_surface(r: np.ndarray, b: np.ndarray, valid: np.ndarray, lo: int, hi: int, cfg: RestoreConfig) -> bool:
-    """Whether beams just left of ``lo`` and just right of ``hi`` (exclusive) lie on one straight
-    surface: a line through the left neighbours predicts the right ones and vice versa."""
+    """Whether the beams just left of ``lo`` and just right of ``hi`` (exclusive) lie on one straight
+    surface: the line fitted to each side must pass near the other side's nearest point, within
+    ``same_surface_tol_m`` plus ``same_surface_slope`` times the gap (the fitted direction is noisy)."""
     n = r.size
     left = np.arange(max(0, lo - cfg.fit_beams), lo)
     right = np.arange(hi, min(n, hi + cfg.fit_beams))
@@ -126,14 +128,17 @@ def _same_surface(r: np.ndarray, b: np.ndarray, valid: np.ndarray, lo: int, hi: 
         return False
     pts = np.stack([r * np.cos(b), r * np.sin(b)], axis=1)
     pl, pr = pts[left], pts[right]
-    if left.size < 2 or right.size < 2:
-        return bool(abs(r[left[-1]] - r[right[0]]) < cfg.same_surface_tol_m)
-    allp = np.vstack([pl, pr])
-    c = allp.mean(axis=0)
-    _, _, vt = np.linalg.svd(allp - c, full_matrices=False)
-    normal = vt[-1]
-    resid = np.abs((allp - c) @ normal)
-    return bool(np.max(resid) < cfg.same_surface_tol_m)
+    gap = float(np.hypot(*(pr[0] - pl[-1])))
+    tol = cfg.same_surface_tol_m + cfg.same_surface_slope * gap
+    if left.size < 3 or right.size < 3:
+        return bool(abs(r[left[-1]] - r[right[0]]) < tol)
+
+    def off_line(side: np.ndarray, other: np.ndarray) -> float:
+        c = side.mean(axis=0)
+        _, _, vt = np.linalg.svd(side - c, full_matrices=False)
+        return float(abs((other - c) @ vt[-1]))
+
+    return off_line(pl, pr[0]) < tol and off_line(pr, pl[-1]) < tol
 
 
 def restore(
@@ -236,6 +241,17 @@ def restore(
             out[lo_i:hi_i] = np.nan
             bridge_invalid = True
             continue
-        t = (b[lo_i:hi_i] - b[left]) / (b[right] - b[left])
-        out[lo_i:hi_i] = r[left] + t * (r[right] - r[left])
+        # linear interpolation between the two neighbours along the straight chord joining them
+        # (the range where each cut beam's ray meets the chord; exact for the flat wall behind)
+        xl, yl = r[left] * math.cos(b[left]), r[left] * math.sin(b[left])
+        xr, yr = r[right] * math.cos(b[right]), r[right] * math.sin(b[right])
+        ex, ey = xr - xl, yr - yl
+        bb = b[lo_i:hi_i]
+        den = np.cos(bb) * ey - np.sin(bb) * ex
+        num = xl * ey - yl * ex
+        t = (bb - b[left]) / (b[right] - b[left])
+        lin = r[left] + t * (r[right] - r[left])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            chord = np.where(np.abs(den) > 1e-12, num / den, lin)
+        out[lo_i:hi_i] = np.where(np.isfinite(chord) & (chord > 0), chord, lin)
     return Restoration(out, weights, tuple(cuts), tuple(obstacles), False, bridge_invalid, cut_fraction)
