@@ -555,6 +555,8 @@ class FakeCamera:
         self.http_faults = HttpFaults()
         self.requested_rates: list[float] = []
         self.frames_sent = 0
+        #: the camera's current codec: in "mpeg4" mode /mjpeg answers 400 and /image is not MJPEG
+        self.codec = "jpeg"
         self.lock = threading.Lock()
 
     def _pt_emit(self, data: bytes) -> None:
@@ -642,7 +644,12 @@ class _Handler(BaseHTTPRequestHandler):
         if not self._authorised():
             return
         try:
-            if path in ("/image", "/mjpeg"):
+            if path in ("/image", "/mjpeg") and self.cam.codec == "mpeg4":
+                if path == "/mjpeg":
+                    self._text(400, "camera is in MPEG-4 mode")
+                else:
+                    self._text(200, "(an MPEG-4 stream would follow)", "video/mp4")
+            elif path in ("/image", "/mjpeg"):
                 self._stream(query)
             elif path in ("/oneshotimage.jpg", "/oneshotimage"):
                 jpeg = self.cam.encode_frame(time.monotonic())

@@ -18,7 +18,7 @@ import pytest
 from drivers.errors import DriverTimeoutError
 from drivers.ptz_cam import HttpConfig, MjpegFrameSource, ViscaClient, ViscaConfig
 from drivers.ptz_cam import visca as v
-from drivers.ptz_cam.errors import AuthenticationError, NotExecutableError
+from drivers.ptz_cam.errors import AuthenticationError, HttpCameraError, MjpegFormatError, NotExecutableError
 from drivers.ptz_cam.frames import CameraFrame, fetch_oneshot, inquiry_system
 from drivers.ptz_cam.mjpeg import is_complete_jpeg
 from hil_fakes.snc_rz50 import CameraHttpServer, FakeCamera, FakeCameraSpec, serve_visca
@@ -138,6 +138,15 @@ def test_wrong_credentials_are_a_typed_error(http_rig: HttpRig) -> None:
             source.get(10.0)
     with pytest.raises(AuthenticationError):
         fetch_oneshot(http_rig.config(username=None, password=None))
+
+
+@pytest.mark.parametrize(("path", "error"), [("/mjpeg", HttpCameraError), ("/image", MjpegFormatError)])
+def test_mpeg4_mode_is_a_permanent_typed_error(http_rig: HttpRig, path: str, error: type) -> None:
+    http_rig.camera.codec = "mpeg4"
+    with MjpegFrameSource(http_rig.config(stream_path=path)) as source:
+        with pytest.raises(error):
+            source.get(10.0)
+        assert source.stats.reconnects == 0
 
 
 def test_oneshot_and_inquiry_with_credentials_in_the_url(http_rig: HttpRig) -> None:
