@@ -305,11 +305,11 @@ class SensorState:
     """The II reply."""
 
     model: str
-    laser_on: bool
+    laser_on: bool | None  # None when the reply has no LASR line
     motor_speed: str
     measurement_mode: str
     bit_rate: str
-    time_ms: int
+    time_ms: int | None  # the 24-bit counter; None when the reply has no TIME line
     status_text: str
 
 
@@ -328,12 +328,15 @@ def _int_value(values: Mapping[str, str], key: str, command: str) -> int:
 
 
 def parse_version(values: Mapping[str, str]) -> VersionInfo:
+    """VV by key. Keys other models leave out become "" (the VV layout differs across URG models)."""
+    if not values:
+        raise ScipProtocolError("VV reply has no info lines")
     return VersionInfo(
-        vendor=_require(values, "VEND", "VV"),
-        product=_require(values, "PROD", "VV"),
-        firmware=_require(values, "FIRM", "VV"),
-        protocol=_require(values, "PROT", "VV"),
-        serial=_require(values, "SERI", "VV"),
+        vendor=values.get("VEND", ""),
+        product=values.get("PROD", ""),
+        firmware=values.get("FIRM", ""),
+        protocol=values.get("PROT", ""),
+        serial=values.get("SERI", ""),
     )
 
 
@@ -354,14 +357,20 @@ def parse_parameters(values: Mapping[str, str]) -> SensorParameters:
 
 
 def parse_state(values: Mapping[str, str]) -> SensorState:
-    time_text = _require(values, "TIME", "II")
-    try:
-        time_ms = int(time_text, 16)
-    except ValueError:
-        raise ScipProtocolError(f"II TIME is not hexadecimal: {time_text!r}") from None
+    """II by key. The UTM-30LX sends 7 lines; some models send 4, so absent keys become "" / None."""
+    if not values:
+        raise ScipProtocolError("II reply has no info lines")
+    time_text = values.get("TIME")
+    time_ms: int | None = None
+    if time_text is not None:
+        try:
+            time_ms = int(time_text, 16)
+        except ValueError:
+            raise ScipProtocolError(f"II TIME is not hexadecimal: {time_text!r}") from None
+    laser = values.get("LASR")
     return SensorState(
-        model=_require(values, "MODL", "II"),
-        laser_on=_require(values, "LASR", "II").upper().startswith("ON"),
+        model=values.get("MODL", ""),
+        laser_on=None if laser is None else laser.upper().startswith("ON"),
         motor_speed=values.get("SCSP", ""),
         measurement_mode=values.get("MESM", ""),
         bit_rate=values.get("SBPS", ""),

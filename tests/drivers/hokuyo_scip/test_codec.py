@@ -248,3 +248,17 @@ def test_errors_are_driver_errors() -> None:
     from drivers.errors import ChecksumError, DriverError
 
     assert issubclass(ScipChecksumError, ChecksumError) and issubclass(ScipChecksumError, DriverError)
+
+
+def _info_reply(command: bytes, rows: list[tuple[str, str]]) -> bytes:
+    body = b"".join(f"{k}:{v}".encode() + b";" + bytes([checksum(f"{k}:{v}".encode())]) + b"\n" for k, v in rows)
+    return command + b"\n00P\n" + body + b"\n"
+
+
+def test_short_ii_and_vv_of_other_models_parse_by_key() -> None:
+    [ii] = ScipDecoder().feed(_info_reply(b"II", [("MODL", "X"), ("LASR", "ON"), ("SCSP", "y"), ("STAT", "ok")]))
+    assert isinstance(ii, StateReply) and ii.info.time_ms is None and ii.info.laser_on is True
+    [vv] = ScipDecoder().feed(_info_reply(b"VV", [("SERI", "H1"), ("VEND", "Hokuyo")]))
+    assert vv.info.serial == "H1" and vv.info.firmware == ""  # type: ignore[union-attr]
+    [bad] = ScipDecoder().feed(_info_reply(b"PP", [("DMIN", "23")]))
+    assert isinstance(bad, DecodeError) and "lacks the" in bad.message  # PP values are needed to scan
