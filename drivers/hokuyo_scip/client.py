@@ -154,8 +154,10 @@ class LaserScan:
 
     ``ranges_m`` is NaN where the sensor returned an error code (any value below DMIN) or a value
     above DMAX; ``raw_mm`` keeps the device values (error codes included). ``stamp_s`` is the
-    host-clock (``time.monotonic``) time of step 0: device stamp + TM offset when
-    ``stamp_from_time_sync``, else arrival time minus the sweep duration.
+    host-clock (``time.monotonic``) time of the first beam (the window's first step; step 0 with the
+    default window): device stamp (latched at step 0) + start x step time + TM offset when
+    ``stamp_from_time_sync``, else arrival time minus the sweep duration. Beam i was taken at
+    ``stamp_s + i * beam_dt_s``.
     """
 
     ranges_m: np.ndarray
@@ -772,7 +774,8 @@ class Utm30lxClient:
         beam_dt_s = params.step_dt_s * max(frame.request.cluster, 1)
         offset = self._offset
         if offset is not None and offset.epoch == stamp.epoch:
-            stamp_s = stamp.unwrapped_ms / 1000.0 + offset.offset_s
+            # the counter is latched at step 0; the window's first beam comes start steps later
+            stamp_s = stamp.unwrapped_ms / 1000.0 + offset.offset_s + frame.request.start * params.step_dt_s
             synced = True
         else:
             if offset is not None:

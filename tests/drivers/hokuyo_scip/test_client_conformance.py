@@ -247,3 +247,16 @@ def test_first_frame_read_with_the_acknowledgement_is_delivered(tmp_path: Path) 
             c.stop_stream()
     finally:
         server.stop()
+
+
+def test_stamp_is_the_time_of_the_first_beam_of_the_window(fake: DeviceServer) -> None:
+    with Utm30lxClient(fake.address, fast_config(start_step=720, end_step=1080)) as c:
+        c.start_stream()
+        scan = c.next_scan(timeout_s=5.0)
+        c.stop_stream()
+        offset = c.clock_offset
+    assert offset is not None and scan.stamp_from_time_sync
+    step0_s = scan.device_stamp_ms / 1000.0 + offset.offset_s  # the counter is latched at step 0
+    assert scan.stamp_s - step0_s == pytest.approx(720 * 0.025 / 1440, abs=1e-9)
+    truth = model_of(fake).host_time_of_device_ms(scan.device_stamp_raw_ms)
+    assert abs(step0_s - truth) < 0.05
