@@ -85,7 +85,7 @@ class LogConfig:
 class StatusConfig:
     enabled: bool = _f(True, "serve the Modbus TCP status registers")
     host: str = _f("127.0.0.1", "Modbus TCP bind address")
-    port: int = _f(5020, "Modbus TCP port", min=1, max=65535)
+    port: int = _f(5020, "Modbus TCP port (0: any free port)", min=0, max=65535)
     allow_stop_coil: bool = _f(False, "honour writes to the stop coil (coil 0)")
 
 

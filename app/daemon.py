@@ -16,6 +16,7 @@ status registers:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -284,6 +285,10 @@ class ControlLoop:
         self._ready_sent = False
         self._last_watchdog_s = -1e9
         self.cycle = 0
+        if field_log is not None:
+            field_log.log("/vipsm/config", wall_clock(), dataclasses.asdict(config))
+        #: device counters taken at shutdown (the clients are closed afterwards)
+        self.final_counters: dict[str, dict[str, int]] = {}
         #: per-cycle records for the run summary: (stamp_s, estimate, truth)
         self.on_estimate: Callable[[Estimate, float], None] | None = None
 
@@ -579,6 +584,11 @@ class ControlLoop:
     def shutdown(self) -> None:
         """Stop the base, close devices, close the log (complete and indexed)."""
         self.notifier.stopping()
+        self.final_counters = {
+            name: dev.counters()
+            for name, dev in (("scanner", self.scanner), ("base", self.base), ("camera", self.camera))
+            if dev is not None
+        }
         if self.base is not None:
             try:
                 self.base.stop()

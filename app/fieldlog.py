@@ -12,6 +12,7 @@ Channels (topic: schema):
 ``/log``                     ``foxglove.Log``           daemon log lines (degraded modes, reconnects, faults)
 ``/truth``                   ``vipsm.GroundTruth``      simulated runs only: the world's true robot/obstacles
 ``/vipsm/cycle``             ``vipsm.Cycle``            the estimator's exact inputs and outputs (for replay)
+``/vipsm/config``            ``vipsm.Config``           the whole configuration, once at start (for replay)
 ``/raw/<device>``            ``vipsm.RawBytes``         optional: the device byte streams, both directions
 ===========================  =========================  =====================================================
 
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import os
 import queue
 import struct
@@ -35,6 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from mcap.exceptions import McapError
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
@@ -126,6 +129,7 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     "vipsm.LoopDiagnostics": {"type": "object", "description": "loop health and device states per cycle"},
     "vipsm.GroundTruth": {"type": "object", "description": "the simulated world's truth at the cycle's time"},
     "vipsm.Cycle": {"type": "object", "description": "the estimator's exact inputs and outputs for one cycle"},
+    "vipsm.Config": {"type": "object", "description": "the daemon's whole configuration at start"},
     "vipsm.RawBytes": {
         "type": "object",
         "properties": {
@@ -146,6 +150,7 @@ TOPIC_SCHEMAS: dict[str, str] = {
     "/log": "foxglove.Log",
     "/truth": "vipsm.GroundTruth",
     "/vipsm/cycle": "vipsm.Cycle",
+    "/vipsm/config": "vipsm.Config",
 }
 RAW_PREFIX = "/raw/"
 
@@ -167,8 +172,6 @@ def stamp(t_wall_s: float) -> dict[str, int]:
 
 
 def yaw_quaternion(theta_rad: float) -> dict[str, float]:
-    import math
-
     return {"x": 0.0, "y": 0.0, "z": math.sin(theta_rad / 2.0), "w": math.cos(theta_rad / 2.0)}
 
 
@@ -183,7 +186,42 @@ class FieldLogStats:
     dropped: int = 0
     files: list[str] = field(default_factory=list)
     bytes_written: int = 0
+    #: messages that could not be encoded (counted and skipped; the writer carries on)
+    bad_messages: int = 0
+    last_bad_message: str | None = None
     error: str | None = None
+
+
+def _json_default(obj: Any) -> Any:
+    """numpy scalars and arrays as plain JSON values."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
+def _finite(obj: Any) -> Any:
+    """NaN and infinities become null (JSON has neither)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _finite(obj.tolist())
+    if isinstance(obj, np.floating):
+        return _finite(float(obj))
+    return obj
+
+
+def encode_json(payload: Any) -> bytes:
+    try:
+        text = json.dumps(payload, separators=(",", ":"), allow_nan=False, default=_json_default)
+    except ValueError:
+        text = json.dumps(_finite(payload), separators=(",", ":"), allow_nan=False, default=_json_default)
+    return text.encode()
 
 
 _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
@@ -322,9 +360,14 @@ class FieldLog:
 
     def _write(self, topic: str, t_wall_s: float, payload: Any) -> None:
         assert self._writer is not None
-        if callable(payload):
-            payload = payload()
-        data = json.dumps(payload, separators=(",", ":"), allow_nan=False).encode()
+        try:
+            if callable(payload):
+                payload = payload()
+            data = encode_json(payload)
+        except (TypeError, ValueError, ArithmeticError) as exc:
+            self.stats.bad_messages += 1
+            self.stats.last_bad_message = f"{topic}: {type(exc).__name__}: {exc}"
+            return
         ns = int(round(t_wall_s * 1e9))
         self._writer.add_message(self._channel(topic), log_time=ns, publish_time=ns, data=data)
         self.stats.written += 1

@@ -123,14 +123,31 @@ def iter_cycles(path: str | Path, read: LogReadResult | None = None) -> Iterator
         yield emit(rec)
 
 
+def recorded_estimator_config(path: str | Path) -> EstimatorConfig | None:
+    """The estimator configuration the run used (``/vipsm/config``), if the log has it."""
+    from .config import from_dict
+
+    for msg in read_log(path):
+        if msg.topic == "/vipsm/config":
+            try:
+                return from_dict(EstimatorConfig, msg.data["estimator"], "estimator.")  # type: ignore[no-any-return]
+            except (KeyError, ValueError) as exc:
+                raise LogFormatError(f"{path}: the recorded configuration does not fit this version: {exc}") from exc
+        if msg.topic == "/vipsm/cycle":
+            break
+    return None
+
+
 def run_replay(
     path: str | Path,
     config: EstimatorConfig | None = None,
     plain_psm: bool = False,
     progress: Any = None,
 ) -> tuple[list[tuple[ReplayCycle, Estimate]], LogReadResult]:
+    """Runs the estimator over the log's cycles: with ``config``, or else the recorded one."""
     read = LogReadResult()
-    est = Estimator(config or EstimatorConfig(), plain_psm=plain_psm)
+    config = config or recorded_estimator_config(path) or EstimatorConfig()
+    est = Estimator(config, plain_psm=plain_psm)
     out: list[tuple[ReplayCycle, Estimate]] = []
     for i, cyc in enumerate(iter_cycles(path, read)):
         out.append((cyc, est.step(cyc.scan, cyc.odometry, cyc.frame)))

@@ -119,3 +119,17 @@ def test_sigkill_loses_at_most_the_last_flush_interval(tmp_path: Path) -> None:
     lost_s = killed_at - msgs[-1].data["t"]
     # flush every 0.5 s: the last second survives (slack for a loaded machine's scheduling)
     assert lost_s <= 1.0 + 0.5
+
+
+def test_numpy_values_nan_and_bad_messages_do_not_stop_the_writer(tmp_path: Path) -> None:
+    import numpy as np
+
+    log = FieldLog(str(tmp_path / "np.mcap"), flush_s=0.05).start()
+    log.log("/diagnostics", 0.0, {"n": np.int64(3), "x": np.float32(0.5), "cov": np.eye(2), "r": float("nan")})
+    log.log("/diagnostics", 0.0, {"bad": object()})
+    log.log("/diagnostics", 0.0, lambda: 1 / 0)
+    log.log("/diagnostics", 0.0, {"after": True})
+    log.close()
+    msgs = [m.data for m in read_log(log.path)]
+    assert msgs == [{"n": 3, "x": 0.5, "cov": [[1.0, 0.0], [0.0, 1.0]], "r": None}, {"after": True}]
+    assert log.stats.bad_messages == 2 and log.stats.error is None

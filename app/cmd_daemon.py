@@ -1,0 +1,214 @@
+"""``vipsm-robot run | sim | replay | dump-config``: the daemon and its simulated and replayed runs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from .cli import emit
+from .config import Config, dump_toml, load_config
+from .errors import AppError
+
+
+def _add_config_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", metavar="FILE.toml", help="configuration file (defaults: vipsm-robot dump-config)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("dump-config", help="print the default configuration as TOML")
+    _add_config_args(p)
+    p.set_defaults(func=cmd_dump_config)
+
+    p = sub.add_parser("run", help="run the daemon: devices from the config, 0.1 s control loop")
+    _add_config_args(p)
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    p.add_argument("--log", metavar="FILE", help="field log path (overrides log.path)")
+    p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser(
+        "sim", help="the simulated robot: world and byte-level fakes in a child process, the daemon against them"
+    )
+    _add_config_args(p)
+    from .cmd_eval import add_scenario_arguments
+
+    add_scenario_arguments(p, allow_all=False)
+    p.add_argument("--log", metavar="FILE", default=None, help="field log path (default: sim-<time>.mcap)")
+    p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
+    p.add_argument("--no-progress", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_sim)
+
+    p = sub.add_parser("replay", help="run the estimator on a field log as fast as possible")
+    p.add_argument("log", metavar="LOG.mcap")
+    p.add_argument("--plain-psm", action="store_true", help="replay with the plain-PSM baseline")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--plots", metavar="DIR", help="write PNG plots of the replayed run")
+    _add_config_args(p)
+    p.set_defaults(func=cmd_replay)
+
+
+def _config(args: argparse.Namespace) -> Config:
+    return load_config(args.config, args.set)
+
+
+def cmd_dump_config(args: argparse.Namespace) -> int:
+    sys.stdout.write(dump_toml(_config(args)))
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+class Progress:
+    """A one-line progress display, only on a terminal."""
+
+    def __init__(self, total_s: float | None, enabled: bool) -> None:
+        self.total_s = total_s
+        self.enabled = enabled and sys.stderr.isatty()
+        self._last = 0.0
+
+    def __call__(self, text: str, done_s: float) -> None:
+        if not self.enabled or time.monotonic() - self._last < 0.25:
+            return
+        self._last = time.monotonic()
+        frac = f" {100 * done_s / self.total_s:5.1f}%" if self.total_s else ""
+        sys.stderr.write(f"\r{text}{frac}   ")
+        sys.stderr.flush()
+
+    def finish(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def install_signal_handlers(stop: threading.Event) -> None:
+    def handler(signum: int, frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, handler)
+    signal.signal(signal.SIGINT, handler)
+
+
+def process_usage() -> dict[str, float]:
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    rss_mb = 0.0
+    try:
+        with open(f"/proc/{os.getpid()}/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    rss_mb = int(line.split()[1]) / 1024.0
+    except OSError:
+        rss_mb = ru.ru_maxrss / 1024.0
+    return {"cpu_s": ru.ru_utime + ru.ru_stime, "rss_mb": rss_mb, "max_rss_mb": ru.ru_maxrss / 1024.0}
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .devices import build_loop
+
+    config = _config(args)
+    stop = threading.Event()
+    install_signal_handlers(stop)
+    loop = build_loop(config, log_path=args.log)
+    try:
+        loop.run(stop, duration_s=args.duration)
+    finally:
+        loop.shutdown()
+    summary = loop_summary(loop)
+    emit(summary, args.json)
+    return 0
+
+
+def loop_summary(loop: Any) -> dict[str, Any]:
+    s = loop.stats
+    out: dict[str, Any] = dict(loop.health.summary())
+    out.update(
+        {
+            "scans": s.scans_in,
+            "odometry_samples": s.odometry_in,
+            "frames": s.frames_in,
+            "frames_used": s.frames_used,
+            "estimates": s.estimates,
+            "plain_psm_cycles": s.plain_psm_cycles,
+            "odometry_fallback_cycles": s.fallback_cycles,
+            "device_stop_cycles": s.device_stop_cycles,
+            "safety_stop_cycles": s.safety_stop_cycles,
+            "log_path": loop.log.path if loop.log is not None else None,
+            "log_files": list(loop.log.stats.files) if loop.log is not None else [],
+            "log_messages": loop.log.stats.written if loop.log is not None else 0,
+            "log_dropped": loop.log.stats.dropped if loop.log is not None else 0,
+            "log_bad_messages": loop.log.stats.bad_messages if loop.log is not None else 0,
+            "log_error": loop.log.stats.error if loop.log is not None else None,
+            "events": list(s.state_changes[-50:]),
+        }
+    )
+    out["devices"] = loop.final_counters or {
+        name: dev.counters() for name in ("scanner", "base", "camera") if (dev := getattr(loop, name)) is not None
+    }
+    return out
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    from .sim import run_sim
+
+    config = _config(args)
+    summary = run_sim(config, args)
+    emit(summary, args.json)
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from .daemon import estimate_to_dict
+    from .fieldlog import encode_json
+    from .replay import run_replay
+
+    # the estimator configuration recorded in the log, unless one is given here
+    estimator_config = _config(args).estimator if (args.config or args.set) else None
+    path = Path(args.log)
+    if not path.exists():
+        raise AppError(f"no such log: {path}")
+    progress = Progress(None, enabled=True)
+    t0 = time.perf_counter()
+    results, read = run_replay(
+        path, estimator_config, plain_psm=args.plain_psm, progress=lambda i: progress(f"replay: cycle {i + 1}", 0.0)
+    )
+    elapsed = time.perf_counter() - t0
+    progress.finish()
+    if not results:
+        raise AppError(f"{path}: no estimator cycles recorded (truncated: {read.truncated} {read.reason})".strip())
+    # compared in the log's JSON form (NaN is recorded as null)
+    identical = sum(1 for cyc, est in results if json.loads(encode_json(estimate_to_dict(est))) == cyc.recorded)
+    summary: dict[str, Any] = {
+        "log_path": str(path),
+        "cycles": len(results),
+        "truncated": read.truncated,
+        "truncation": read.reason,
+        "plain_psm": bool(args.plain_psm),
+        "identical_to_recorded": identical,
+        "ms_per_cycle": round(1e3 * elapsed / len(results), 3),
+    }
+    truths = [(cyc.truth, est) for cyc, est in results if cyc.truth is not None]
+    if truths:
+        from .sim import SimScorer
+
+        scorer = SimScorer(origin=tuple(truths[0][0]["origin"]))  # type: ignore[arg-type]
+        for truth, est in truths:
+            scorer.score(est, truth)
+        summary.update(scorer.metrics())
+    if args.plots:
+        from .plots import plot_replay
+
+        summary["plots"] = plot_replay(results, Path(args.plots))
+    emit(summary, args.json)
+    return 0

@@ -1,0 +1,433 @@
+"""Adapters from the driver clients to the control loop's ports, and the loop's assembly.
+
+Each adapter opens its client on a background thread and keeps trying with backoff, so a device
+that is absent at start-up, or fails for good, is picked up when it (re)appears without restarting
+the daemon; while open, the clients reconnect on their own. Driver samples become estimator types
+here (SI units throughout): ``LaserScan`` -> ``vipsm.types.Scan`` (bearings normalised by the one
+formula replay uses), ``OdometrySample`` -> ``Odometry``, ``CameraFrame`` (JPEG) -> ``Frame``
+(decoded with OpenCV, intrinsics from the camera calibration at the zoom in force).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import Any, Generic, TypeVar
+
+from drivers.common import Backoff
+from drivers.errors import DriverError, DriverTimeoutError
+from drivers.hokuyo_scip.client import ClientConfig as ScipConfig
+from drivers.hokuyo_scip.client import ConnectionState as ScipState
+from drivers.hokuyo_scip.client import LaserScan, Utm30lxClient
+from drivers.p2os.client import ArcosClient, ArcosClientConfig
+from drivers.p2os.client import ConnectionState as ArcosState
+from drivers.ptz_cam.client import ViscaClient
+from drivers.ptz_cam.config import HttpConfig, ViscaConfig
+from drivers.ptz_cam.frames import CameraFrame, MjpegFrameSource
+from vipsm.estimator import Estimator
+from vipsm.types import Frame, Intrinsics, Odometry, Scan
+
+from .config import Config
+from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
+from .errors import AppError
+from .fieldlog import FieldLog
+from .replay import decode_jpeg
+from .sdnotify import SystemdNotifier
+from .status import StatusServer
+
+C = TypeVar("C")
+
+
+class Opener(Generic[C]):
+    """Opens a client on a background thread, retrying with backoff until it works or we stop."""
+
+    def __init__(
+        self, name: str, open_fn: Callable[[], C], close_fn: Callable[[C], None], max_backoff_s: float
+    ) -> None:
+        self.name = name
+        self._open_fn = open_fn
+        self._close_fn = close_fn
+        self._backoff = Backoff(initial_s=0.1, max_s=max_backoff_s)
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self.client: C | None = None
+        self.attempts = 0
+        self.last_error: str = ""
+        self._thread = threading.Thread(target=self._run, name=f"open-{name}", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            self.attempts += 1
+            try:
+                client = self._open_fn()
+            except (DriverError, OSError) as exc:
+                self.last_error = f"{type(exc).__name__}: {exc}"
+                self._stop.wait(self._backoff.next_delay())
+                continue
+            with self._lock:
+                if self._stop.is_set():
+                    self._close_fn(client)
+                    return
+                self.client = client
+            return
+
+    def reopen(self) -> None:
+        """The client failed for good: close it and start opening again."""
+        with self._lock:
+            client, self.client = self.client, None
+        if client is not None:
+            try:
+                self._close_fn(client)
+            except (DriverError, OSError):
+                pass
+        if not self._thread.is_alive() and not self._stop.is_set():
+            self._thread = threading.Thread(target=self._run, name=f"open-{self.name}", daemon=True)
+            self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        with self._lock:
+            client, self.client = self.client, None
+        if client is not None:
+            try:
+                self._close_fn(client)
+            except (DriverError, OSError):
+                pass
+
+
+# ---------------------------------------------------------------------------------------------
+# scanner
+
+
+def scan_from_driver(s: LaserScan) -> Scan:
+    b = s.bearings_rad
+    n = len(b)
+    step = float(b[1] - b[0]) if n > 1 else 0.0
+    return Scan(
+        ranges_m=s.ranges_m.astype(float, copy=False),
+        bearings_rad=normalised_bearings(float(b[0]) if n else 0.0, step, n),
+        stamp_s=s.stamp_s,
+        seq=s.seq,
+        beam_dt_s=s.beam_dt_s,
+        intensities=None if s.intensities is None else s.intensities.astype(float, copy=False),
+    )
+
+
+class ScannerAdapter:
+    def __init__(self, url: str, intensity: bool, max_backoff_s: float) -> None:
+        self.intensity = intensity
+
+        def open_fn() -> Utm30lxClient:
+            client = Utm30lxClient(url, ScipConfig(buffer_capacity=16))  # the loop drains ~4 scans per cycle
+            client.open()
+            try:
+                client.start_stream(intensity=intensity)
+            except BaseException:
+                client.close()
+                raise
+            return client
+
+        self.opener: Opener[Utm30lxClient] = Opener("scanner", open_fn, lambda c: c.close(), max_backoff_s)
+
+    def state(self) -> str:
+        c = self.opener.client
+        if c is None:
+            return "connecting"
+        st = c.state
+        if st == ScipState.STREAMING:
+            return "ok"
+        if st in (ScipState.CONNECTING, ScipState.RECONNECTING):
+            return "connecting"
+        if st == ScipState.FAILED:
+            self.opener.reopen()
+            return "failed"
+        return "stalled"
+
+    def poll(self) -> list[ScanSample]:
+        c = self.opener.client
+        out: list[ScanSample] = []
+        if c is None:
+            return out
+        while True:
+            try:
+                s = c.next_scan(timeout_s=0.0)
+            except DriverTimeoutError:
+                break
+            except DriverError:
+                break  # the client's reader gave up; state() reports it and reopens
+            out.append(ScanSample(scan_from_driver(s), s.device_stamp_ms))
+        return out
+
+    def counters(self) -> dict[str, int]:
+        c = self.opener.client
+        d: dict[str, int] = {"open_attempts": self.opener.attempts}
+        if c is not None:
+            st = c.stats
+            d.update(
+                {
+                    k: int(getattr(st, k))
+                    for k in (
+                        "frames",
+                        "corrupted_frames",
+                        "buffer_drops",
+                        "reconnects",
+                        "status_errors",
+                        "garbage_events",
+                    )
+                }
+            )
+        return d
+
+    def close(self) -> None:
+        self.opener.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# base
+
+
+class BaseAdapter:
+    def __init__(self, url: str, baudrate: int, max_backoff_s: float) -> None:
+        def open_fn() -> ArcosClient:
+            client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate))
+            client.connect()
+            return client
+
+        self.opener: Opener[ArcosClient] = Opener("base", open_fn, lambda c: c.close(), max_backoff_s)
+
+    def state(self) -> str:
+        c = self.opener.client
+        if c is None:
+            return "connecting"
+        st = c.state
+        if st == ArcosState.CONNECTED:
+            return "ok"
+        if st in (ArcosState.CONNECTING, ArcosState.RECONNECTING):
+            return "connecting"
+        if st == ArcosState.LOST:
+            self.opener.reopen()
+            return "failed"
+        return "stalled"
+
+    def poll(self) -> list[OdomSample]:
+        c = self.opener.client
+        out: list[OdomSample] = []
+        if c is None:
+            return out
+        while True:
+            try:
+                s = c.get_sample(timeout_s=0.0)
+            except DriverTimeoutError:
+                break
+            except DriverError:
+                break
+            out.append(
+                OdomSample(
+                    Odometry(s.x_m, s.y_m, s.theta_rad, s.v_mps, s.w_radps, s.stamp_s),
+                    battery_v=s.battery_v,
+                    stalled=s.left_stall or s.right_stall,
+                    motors_enabled=s.motors_enabled,
+                )
+            )
+        return out
+
+    def command(self, v_mps: float, w_radps: float) -> None:
+        c = self.opener.client
+        if c is None:
+            return
+        try:
+            c.heartbeat()
+            c.set_velocity(v_mps, w_radps)
+        except DriverError:
+            pass  # the client reconnects; state() shows it, the firmware watchdog stops the wheels
+
+    def stop(self) -> None:
+        c = self.opener.client
+        if c is not None:
+            try:
+                c.stop()
+            except DriverError:
+                pass
+
+    def counters(self) -> dict[str, int]:
+        c = self.opener.client
+        d: dict[str, int] = {"open_attempts": self.opener.attempts}
+        if c is not None:
+            st = c.stats
+            d.update(
+                {
+                    k: int(getattr(st, k))
+                    for k in (
+                        "sessions",
+                        "checksum_errors",
+                        "bad_frames",
+                        "reconnects",
+                        "keepalives_sent",
+                        "command_timeouts",
+                        "controller_resets",
+                    )
+                }
+            )
+            d["samples"] = c.samples.put_count
+        return d
+
+    def close(self) -> None:
+        self.opener.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# camera
+
+
+class CameraAdapter:
+    """Frames over HTTP; PTZ over VISCA when a VISCA URL is given (else pan/tilt/zoom from the config)."""
+
+    def __init__(self, config: Config) -> None:
+        d = config.devices
+        self._fixed_pan = math.radians(d.camera_pan_deg)
+        self._fixed_tilt = math.radians(d.camera_tilt_deg)
+        self._zoom = d.camera_zoom
+        self._visca_cfg = ViscaConfig(baudrate=d.camera_baud)
+        self._intrinsics: dict[tuple[int, int, int], Intrinsics] = {}
+        self._last_seq: int | None = None
+        self.decode_errors = 0
+        self.visca: Opener[ViscaClient] | None = None
+        if d.camera_url:
+
+            def open_visca() -> ViscaClient:
+                client = ViscaClient(d.camera_url, self._visca_cfg)
+                client.open()
+                try:
+                    client.move_to(self._fixed_pan, self._fixed_tilt, wait=True)
+                    client.start_state_poller(0.2)
+                except BaseException:
+                    client.close()
+                    raise
+                return client
+
+            self.visca = Opener("camera-visca", open_visca, lambda c: c.close(), d.reconnect_max_s)
+
+        def ptz() -> Any:
+            c = self.visca.client if self.visca is not None else None
+            return c.last_state if c is not None else None
+
+        http_cfg = HttpConfig(base_url=d.camera_http_url, frame_rate=d.camera_fps)
+        self.source = MjpegFrameSource(http_cfg, ptz=ptz).start()
+
+    def _intr(self, zoom: int, w: int, h: int) -> Intrinsics:
+        key = (zoom, w, h)
+        if key not in self._intrinsics:
+            ci = self._visca_cfg.calibration.intrinsics(zoom, w, h)
+            self._intrinsics[key] = Intrinsics(ci.fx_px, ci.fy_px, ci.cx_px, ci.cy_px, ci.width_px, ci.height_px)
+        return self._intrinsics[key]
+
+    def frame_from_driver(self, f: CameraFrame) -> FrameSample:
+        image = decode_jpeg(f.jpeg)
+        if f.ptz is not None:
+            pan, tilt, zoom = f.ptz.pan_rad, f.ptz.tilt_rad, f.ptz.zoom_position
+        else:
+            pan, tilt, zoom = self._fixed_pan, self._fixed_tilt, self._zoom
+        h, w = image.shape[:2]
+        frame = Frame(
+            image=image, stamp_s=f.stamp_s, intrinsics=self._intr(zoom, w, h), pan_rad=pan, tilt_rad=tilt, seq=f.seq
+        )
+        return FrameSample(frame, f.jpeg, zoom)
+
+    def state(self) -> str:
+        if self.source.last_error is not None and not self.source.connected:
+            return "connecting"
+        return "ok" if self.source.connected else "connecting"
+
+    def latest(self) -> FrameSample | None:
+        f = self.source.latest()
+        if f is None or f.seq == self._last_seq:
+            return None
+        self._last_seq = f.seq
+        try:
+            return self.frame_from_driver(f)
+        except AppError:
+            self.decode_errors += 1
+            return None
+
+    def counters(self) -> dict[str, int]:
+        st = self.source.stats
+        d = {
+            "frames": st.frames,
+            "truncated": st.truncated,
+            "reconnects": st.reconnects,
+            "bytes_received": st.bytes_received,
+            "decode_errors": self.decode_errors,
+            "buffer_drops": self.source.buffer.dropped,
+        }
+        if self.visca is not None and self.visca.client is not None:
+            vs = self.visca.client.stats
+            d.update({"visca_requests": vs.requests, "visca_timeouts": vs.timeouts, "visca_reconnects": vs.reconnects})
+        return d
+
+    def close(self) -> None:
+        self.source.stop()
+        if self.visca is not None:
+            self.visca.close()
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def build_loop(
+    config: Config,
+    *,
+    log_path: str | None = None,
+    truth: TruthFn | None = None,
+    wait_for_devices_s: float = 10.0,
+) -> ControlLoop:
+    """Devices, estimator, field log, status server and systemd notifier, wired into one loop."""
+    d = config.devices
+    scanner = ScannerAdapter(d.scanner_url, d.scanner_intensity, d.reconnect_max_s) if d.scanner_url else None
+    base = BaseAdapter(d.robot_url, d.robot_baud, d.reconnect_max_s) if d.robot_url else None
+    camera = CameraAdapter(config) if d.camera_http_url else None
+    path = log_path if log_path is not None else config.log.path
+    field_log = None
+    if path:
+        lc = config.log
+        field_log = FieldLog(
+            path,
+            compression=lc.compression,
+            rotate_bytes=lc.rotate_bytes,
+            rotate_s=lc.rotate_s,
+            flush_s=lc.flush_s,
+            queue_size=lc.queue_size,
+        ).start()
+    status = None
+    if config.status.enabled:
+        s = config.status
+        try:
+            status = StatusServer(s.host, s.port, s.allow_stop_coil).start()
+        except AppError:
+            for dev in (scanner, base, camera):
+                if dev is not None:
+                    dev.close()
+            if field_log is not None:
+                field_log.close()
+            raise
+    loop = ControlLoop(
+        config,
+        scanner=scanner,
+        base=base,
+        camera=camera,
+        estimator=Estimator(config.estimator),
+        field_log=field_log,
+        status=status,
+        notifier=SystemdNotifier(),
+        truth=truth,
+    )
+    # give the devices a moment to open so the first cycles are not spent in device_stop
+    deadline = time.monotonic() + wait_for_devices_s
+    while time.monotonic() < deadline:
+        if all(dev is None or dev.state() == "ok" for dev in (scanner, base, camera)):
+            break
+        time.sleep(0.05)
+    return loop

@@ -1,0 +1,257 @@
+"""``vipsm-robot sim``: the daemon's own code against the simulated robot, through the real bytes.
+
+The world and the three byte-level fakes run in a child process (``app.simhost``); this process
+runs exactly what ``run`` runs (device adapters, driver clients, estimator, field log, status
+server) with the fakes' addresses as device URLs and the ``cruise`` mission at the scenario's robot
+speed. The child streams the world's ground truth; the summary compares the daemon's live estimates
+with it, using the evaluation's metric (``app.cmd_eval``: obstacle errors over the cycles where a
+moving obstacle is in the camera's view, greedy nearest assignment, located within 0.5 m).
+"""
+
+from __future__ import annotations
+
+import argparse
+import bisect
+import dataclasses
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import deque
+from typing import IO, Any
+
+from hil_fakes.world.scenarios import build_scenario
+from hil_fakes.world.sensors import RobotMount
+from vipsm.types import Estimate
+
+from .cmd_eval import (
+    LOCATED_GATE_M,
+    MIN_TRACK_AGE,
+    MethodLog,
+    _assign,
+    _replace_fields,
+    mount_values,
+    scenario_param_sets,
+)
+from .config import Config
+from .errors import AppError
+
+SIM_LOG_PATTERN = "sim-%Y%m%d-%H%M%S.mcap"
+
+
+def compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    th = a[2] + b[2]
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], math.atan2(math.sin(th), math.cos(th)))
+
+
+def inverse(a: tuple[float, float, float]) -> tuple[float, float, float]:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-(c * a[0] + s * a[1]), -(-s * a[0] + c * a[1]), -a[2])
+
+
+class TruthStream:
+    """Reads the child's truth lines; ``at(t)`` is the sample nearest to monotonic time ``t``."""
+
+    def __init__(self, stream: IO[str]) -> None:
+        self._stream = stream
+        self._times: deque[float] = deque(maxlen=3000)
+        self._samples: deque[dict[str, Any]] = deque(maxlen=3000)
+        self._lock = threading.Lock()
+        self.final: dict[str, Any] | None = None
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="sim-truth", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            for line in self._stream:
+                msg = json.loads(line)
+                if "final" in msg:
+                    self.final = msg["final"]
+                    continue
+                with self._lock:
+                    self._times.append(msg["t"])
+                    self._samples.append(msg)
+        except (ValueError, OSError) as exc:
+            self.error = f"{type(exc).__name__}: {exc}"
+
+    def at(self, t: float) -> dict[str, Any] | None:
+        with self._lock:
+            if not self._times:
+                return None
+            i = bisect.bisect_left(self._times, t)
+            cands = [j for j in (i - 1, i) if 0 <= j < len(self._times)]
+            j = min(cands, key=lambda k: abs(self._times[k] - t))
+            if abs(self._times[j] - t) > 0.1:
+                return None
+            return self._samples[j]
+
+    def join(self, timeout_s: float) -> None:
+        self._thread.join(timeout_s)
+
+
+class SimScorer:
+    """Compares estimates with the world's truth in the estimator's frame (live in ``sim``, and in
+    ``replay`` of a simulated run, where the truth and the frame origin come from the log)."""
+
+    def __init__(self, truth: TruthStream | None = None, origin: tuple[float, float, float] | None = None) -> None:
+        self.truth = truth
+        self.method = MethodLog("vipsm")
+        self.origin = origin
+        self.last_pose_err: tuple[float, float] | None = None
+
+    def to_est(self, x: float, y: float) -> tuple[float, float]:
+        assert self.origin is not None
+        inv = inverse(self.origin)
+        p = compose(inv, (x, y, 0.0))
+        return p[0], p[1]
+
+    def truth_for_log(self, t: float) -> dict[str, Any] | None:
+        assert self.truth is not None
+        sample = self.truth.at(t)
+        if sample is None or self.origin is None:
+            return None
+        return {"origin": list(self.origin), "robot": sample["robot"], "obstacles": sample["obstacles"]}
+
+    def on_estimate(self, est: Estimate, scan_stamp_s: float) -> None:
+        assert self.truth is not None
+        sample = self.truth.at(scan_stamp_s)
+        if sample is not None:
+            self.score(est, sample)
+
+    def score(self, est: Estimate, sample: dict[str, Any]) -> None:
+        """One estimate against one truth sample (``robot`` [x, y, theta] and ``obstacles`` rows
+        [x, y, vx, vy, r, moving, in_view], world frame)."""
+        robot = tuple(sample["robot"])
+        if self.origin is None:
+            # the estimator's frame is the odometry frame of its first scan: its first pose is the
+            # odometry there, and the world pose there is the truth
+            self.origin = compose(robot, inverse((est.pose.x_m, est.pose.y_m, est.pose.theta_rad)))  # type: ignore[arg-type]
+        tr = compose(inverse(self.origin), robot)  # type: ignore[arg-type]
+        dth = math.atan2(math.sin(est.pose.theta_rad - tr[2]), math.cos(est.pose.theta_rad - tr[2]))
+        self.last_pose_err = (math.hypot(est.pose.x_m - tr[0], est.pose.y_m - tr[1]), abs(math.degrees(dth)))
+        inv_th = -self.origin[2]
+        c, s = math.cos(inv_th), math.sin(inv_th)
+        vis = []
+        true_v = {}
+        for i, ob in enumerate(sample["obstacles"]):
+            x, y, vx, vy, _r, _moving, in_view = ob
+            if in_view:
+                ex, ey = self.to_est(x, y)
+                vis.append((i, ex, ey))
+                true_v[i] = (c * vx - s * vy, s * vx + c * vy)
+        est_xy = [(o.x_m, o.y_m) for o in est.obstacles]
+        assigned = _assign(est_xy, vis)
+        m = self.method
+        for i, tx, ty in vis:
+            m.in_view += 1
+            if i not in assigned:
+                continue
+            eo = est.obstacles[assigned[i]]
+            err = math.hypot(eo.x_m - tx, eo.y_m - ty)
+            m.errors_m.append(err)
+            if err <= LOCATED_GATE_M:
+                m.located += 1
+            if eo.age_cycles >= MIN_TRACK_AGE:
+                m.vel_errors_mps.append(math.hypot(eo.vx_mps - true_v[i][0], eo.vy_mps - true_v[i][1]))
+
+    def metrics(self) -> dict[str, Any]:
+        if self.last_pose_err is not None:
+            self.method.final_pose_err_m, self.method.final_heading_err_deg = self.last_pose_err
+        out = self.method.metrics()
+        out.pop("ms_per_cycle", None)
+        return out
+
+
+def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float) -> Config:
+    d = dataclasses.replace(
+        config.devices,
+        scanner_url=addresses["scanner"],
+        robot_url=addresses["robot"],
+        camera_url=addresses["camera"],
+        camera_http_url=addresses["camera_http"],
+    )
+    mission = dataclasses.replace(config.mission, mode="cruise", cruise_speed_mps=speed_mps)
+    estimator = _replace_fields(config.estimator, mount_values(RobotMount()))
+    return dataclasses.replace(config, devices=d, mission=mission, estimator=estimator)
+
+
+def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
+    from .cmd_daemon import Progress, loop_summary, process_usage
+    from .devices import build_loop
+
+    params = scenario_param_sets(args, getattr(args, "scenario", None) or "1")[0]
+    try:
+        scenario = build_scenario(params)  # checked here, so a bad flag is a one-line error
+    except ValueError as exc:
+        raise AppError(str(exc)) from exc
+    duration_s = float(scenario.duration_s)
+    tmp = tempfile.mkdtemp(prefix="vipsm-sim-")
+    err_path = os.path.join(tmp, "simhost.stderr")
+    with open(err_path, "wb") as err_file:
+        child = subprocess.Popen(
+            [sys.executable, "-m", "app.simhost", json.dumps(params), tmp],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=err_file,
+            text=True,
+        )
+    try:
+        assert child.stdout is not None and child.stdin is not None
+        first = child.stdout.readline()
+        if not first:
+            child.wait(10)
+            with open(err_path, encoding="utf-8", errors="replace") as f:
+                tail = f.read()[-2000:]
+            raise AppError(f"the simulated devices did not start (exit {child.returncode}): {tail.strip()}")
+        addresses = json.loads(first)
+        truth = TruthStream(child.stdout)
+        scorer = SimScorer(truth)
+        cfg = _sim_config(config, addresses, float(scenario.robot_speed_mps))
+        log_path = args.log if args.log is not None else (cfg.log.path if args.config else SIM_LOG_PATTERN)
+        loop = build_loop(cfg, log_path=log_path, truth=scorer.truth_for_log)
+        loop.on_estimate = scorer.on_estimate
+        stop = threading.Event()
+        from .cmd_daemon import install_signal_handlers
+
+        install_signal_handlers(stop)
+        progress = Progress(duration_s, enabled=not args.no_progress)
+        cpu0, wall0 = process_usage()["cpu_s"], time.monotonic()
+        rss_samples: list[float] = []
+
+        def show(lp: Any, elapsed: float) -> None:
+            if lp.cycle % 50 == 0:
+                rss_samples.append(process_usage()["rss_mb"])
+            progress(f"sim: {elapsed:6.1f}/{duration_s:.0f} s, cycle {lp.cycle}, {lp.mission_state}", elapsed)
+
+        try:
+            loop.run(stop, duration_s=duration_s, progress=show)
+        finally:
+            loop.shutdown()
+            progress.finish()
+        usage = process_usage()
+        wall = time.monotonic() - wall0
+        summary = loop_summary(loop)
+        summary.update(scorer.metrics())
+        summary["scenario"] = {"name": scenario.name, "params": dict(scenario.params)}
+        summary["daemon_cpu_percent"] = round(100.0 * (usage["cpu_s"] - cpu0) / wall, 2) if wall > 0 else None
+        summary["rss_mb"] = round(usage["rss_mb"], 1)
+        summary["rss_growth_mb"] = (
+            round(rss_samples[-1] - rss_samples[len(rss_samples) // 4], 2) if len(rss_samples) >= 4 else None
+        )
+        child.stdin.close()
+        child.wait(15)
+        truth.join(5)
+        summary["fakes"] = truth.final
+        return summary
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait(5)
+        shutil.rmtree(tmp, ignore_errors=True)

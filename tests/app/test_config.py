@@ -1,0 +1,77 @@
+"""Config: defaults round-trip through TOML, overrides, and one-line errors that name the key."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from app.config import Config, dump_toml, load_config, parse_override
+from app.errors import ConfigError
+
+
+def test_defaults_dump_and_load_back_exactly(tmp_path: Path) -> None:
+    text = dump_toml(Config())
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    assert load_config(path) == Config()
+    assert "[loop]" in text and "period_s = 0.1" in text and "[estimator" in text
+
+
+def test_file_and_overrides(tmp_path: Path) -> None:
+    path = tmp_path / "c.toml"
+    path.write_text('[mission]\nmode = "cruise"\ncruise_speed_mps = 0.3\n[devices]\nscanner_url = "socket://127.0.0.1:10940"\n')
+    cfg = load_config(path, ["loop.period_s=0.05", "devices.camera_http_url=http://cam", "status.enabled=false"])
+    assert cfg.mission.mode == "cruise" and cfg.mission.cruise_speed_mps == 0.3
+    assert cfg.devices.scanner_url == "socket://127.0.0.1:10940"
+    assert cfg.loop.period_s == 0.05 and cfg.devices.camera_http_url == "http://cam" and cfg.status.enabled is False
+
+
+@pytest.mark.parametrize(
+    ("override", "key", "words"),
+    [
+        ("loop.period_s=0", "loop.period_s", ">= 0.01"),
+        ("loop.period_s=fast", "loop.period_s", "expected a number"),
+        ("mission.mode=dance", "mission.mode", "one of"),
+        ("status.port=70000", "status.port", "<= 65535"),
+        ("status.enabled=1", "status.enabled", "true or false"),
+        ("devices.robot_baud=1234", "devices.robot_baud", "one of"),
+        ("loop.nope=1", "loop.nope", "unknown key"),
+        ("nope=1", "nope", "unknown key"),
+        ("loop=3", "loop", "expected a table"),
+    ],
+)
+def test_bad_values_name_their_key(override: str, key: str, words: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        load_config(None, [override])
+    assert info.value.key == key
+    assert words in str(info.value) and f"'{key}'" in str(info.value)
+
+
+def test_unreadable_files_are_config_errors(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="no such file"):
+        load_config(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[loop\nperiod_s = ")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(bad)
+
+
+def test_override_values_are_toml_else_strings() -> None:
+    assert parse_override("a.b=1.5") == (["a", "b"], 1.5)
+    assert parse_override("a=true") == (["a"], True)
+    assert parse_override("a=/dev/ttyACM0") == (["a"], "/dev/ttyACM0")
+    with pytest.raises(ConfigError):
+        parse_override("novalue")
+
+
+def test_cli_prints_one_line_error_naming_the_key() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "app", "dump-config", "--set", "loop.period_s=-1"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "loop.period_s" in lines[0]
