@@ -470,13 +470,21 @@ def write_plots(log: RunLog, out_dir: Path, mount: RobotMount | None = None) -> 
             ep = np.asarray(m.poses[:last])
             _dots(img, tp[:, 0], tp[:, 1], (0, 160, 0), scale)
             _dots(img, ep[:, 0], ep[:, 1], (200, 80, 0), scale)
+            k_now = max(last - 1, 0)
+            for i, (ox, oy) in enumerate(log.true_obstacles[k_now]):  # the obstacles now: true (green ring)
+                u, v = _to_px(ox, oy, scale, img.shape)
+                rad = int(round(sc.obstacles[i].radius_m * scale))
+                cv2.circle(img, (int(u), int(v)), rad, (0, 170, 0), 1, cv2.LINE_AA)
+            for ox, oy in m.obstacles[k_now]:  # ... and estimated (blue cross)
+                u, v = _to_px(ox, oy, scale, img.shape)
+                cv2.drawMarker(img, (int(u), int(v)), (200, 80, 0), cv2.MARKER_CROSS, 9, 2)
             label = f"{'VIPSM' if name == 'vipsm' else 'plain PSM'}  t = {ts:.1f} s"
             cv2.putText(img, label, (8, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
             row.append(img)
         panels_rows.append(np.hstack(row))
     fig8 = np.vstack(panels_rows)
-    cv2.putText(fig8, f"{sc.name}: map along time (grey), restored/cut beams (red), true path (green), "
-                "estimated (blue)", (8, fig8.shape[0] - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    caption = f"{sc.name}: map along time (grey), cut beams (red), true path and obstacle (green), estimated (blue)"
+    cv2.putText(fig8, caption, (8, fig8.shape[0] - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
     p8 = out_dir / f"fig8_map_{sc.name}.png"
     cv2.imwrite(str(p8), fig8)
 
