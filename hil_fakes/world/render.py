@@ -42,6 +42,15 @@ _TINTS = np.array(
 )
 
 
+#: horizontal direction the room's main light comes from (world frame, unit vector)
+_LIGHT = np.array([math.cos(math.radians(200.0)), math.sin(math.radians(200.0))])
+
+
+def _lambert(nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
+    """Brightness of a cylinder's side with outward normal (nx, ny): ambient plus diffuse light."""
+    return 0.55 + 0.45 * np.maximum(0.0, nx * _LIGHT[0] + ny * _LIGHT[1])
+
+
 _TINT_TABLE = np.clip(
     np.round(np.arange(256, dtype=np.float32)[None, :, None] * _TINTS[:, None, :]), 0, 255
 ).astype(np.uint8).reshape(-1, 3)
@@ -199,6 +208,7 @@ class ViewRenderer:
         if obstacles:
             ob = np.asarray(obstacles, dtype=float)
             t_ob = cast_circles(ox, oy, dx, dy, ob[:, 0], ob[:, 1], ob[:, 2])  # (.., K)
+            obj_gain = np.ones(shape)
             for k in range(ob.shape[0]):
                 tk = np.broadcast_to(t_ob[..., k], shape)
                 with np.errstate(invalid="ignore"):
@@ -211,10 +221,13 @@ class ViewRenderer:
                 hx = cam_x_m + tk[hit] * dxb[hit] - ob[k, 0]
                 hy = cam_y_m + tk[hit] * dyb[hit] - ob[k, 1]
                 s_m[hit] = np.arctan2(-hy, -hx) * ob[k, 2] + 23.0 * k + 61.0
+                obj_gain[hit] = _lambert(hx / ob[k, 2], hy / ob[k, 2])
                 t_m[hit] = zk[hit] + 3.3
                 foot[hit] = tk[hit]
-        return self._shade(s_m, t_m, foot / fx, label, np.where(is_wall, self.wall_gain[np.maximum(w_idx_b, 0)], 1.0),
-                           rng)
+        gain = np.where(is_wall, self.wall_gain[np.maximum(w_idx_b, 0)], 1.0)
+        if obstacles:
+            gain = np.where(label >= 4, obj_gain, gain)
+        return self._shade(s_m, t_m, foot / fx, label, gain, rng)
 
     def _shade(
         self, s_m: np.ndarray, t_m: np.ndarray, foot_m: np.ndarray, label: np.ndarray, gain: np.ndarray,
@@ -335,5 +348,6 @@ class ViewRenderer:
                 s_m += hit_f * (s_ob - s_m)
                 t_m += hit_f * ((f32(cam_z_m + 3.3) + tk32 * q) - t_m)
                 foot += hit_f * (tk32 - foot)
-                gain += hit_f * (f32(1.0) - gain)
+                shade = _lambert(hx / ob[k, 2], hy / ob[k, 2]).astype(f32)[None, :]
+                gain += hit_f * (shade - gain)
         return self._shade(s_m, t_m, foot / f32(fx), label, gain, rng)

@@ -88,6 +88,12 @@ PARAMS: dict[str, Param] = {
     "obstacles": Param(int, 1, 1, 4, "", "number of moving obstacles"),
     "odom_noise": Param(float, 1.0, 0.0, 20.0, "x", "odometry noise scale (0 = perfect, 1 = default model)"),
     "seed": Param(int, 1, None, None, "", "seed of every random generator of the world"),
+    # individual odometry-noise terms (OdometryNoise fields); when given they replace odom_noise x base
+    "odom_scale_error": Param(float, None, -0.5, 0.5, "", "odometry distance scale error (0.01 = +1 %)"),
+    "odom_heading_drift_rad_per_m": Param(float, None, -1.0, 1.0, "rad/m", "odometry heading drift"),
+    "odom_sigma_trans_frac": Param(float, None, 0.0, 1.0, "m/sqrt(m)", "odometry distance noise"),
+    "odom_sigma_rot_rad_per_rad": Param(float, None, 0.0, 1.0, "rad/sqrt(rad)", "odometry heading noise per turn"),
+    "odom_sigma_rot_rad_per_m": Param(float, None, 0.0, 1.0, "rad/sqrt(m)", "odometry heading noise per metre"),
     "closest_approach_m": Param(float, 1.0, 0.0, 3.0, "m", "closest distance robot centre - obstacle centre"),
     "closest_approach_time_s": Param(float, 17.0, 0.0, None, "s", "time of the closest approach"),
 }
@@ -128,6 +134,9 @@ def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
         spec = PARAMS.get(key)
         if spec is None:
             raise ScenarioError(key, f"unknown key (known: name, {', '.join(PARAMS)})")
+        if value is None and spec.default is None:
+            out[key] = None  # optional term left unset
+            continue
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ScenarioError(key, f"must be a number, got {value!r}")
         if spec.kind is int:
@@ -275,7 +284,11 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
             notes.append(f"obstacle {k + 1} starts moving at {path.start_s:.2f} s (its path enters the room then)")
         obstacles.append(path)
     k_noise = prm["odom_noise"]
-    noise = OdometryNoise(**{key: val * k_noise for key, val in BASE_ODOMETRY_NOISE.items()}, seed=prm["seed"])
+    terms = {key: val * k_noise for key, val in BASE_ODOMETRY_NOISE.items()}
+    for key in BASE_ODOMETRY_NOISE:
+        if prm.get("odom_" + key) is not None:
+            terms[key] = prm["odom_" + key]
+    noise = OdometryNoise(**terms, seed=prm["seed"])
     return Scenario(
         name=str(prm["name"]),
         params=prm,

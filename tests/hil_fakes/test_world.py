@@ -113,6 +113,12 @@ def test_scenario_errors_name_the_key(tmp_path: Path) -> None:
         build_scenario({"robot_speed_mps": "fast"})
     with pytest.raises(ScenarioError, match="'closest_approach_m'"):
         build_scenario({"closest_approach_m": 0.3})
+    # a built scenario's params (unset optional terms included) build the same scenario again
+    sc = build_scenario({"crossing_deg": 30.0, "odom_scale_error": 0.03})
+    assert build_scenario(sc.params) == sc
+    assert sc.odometry_noise.scale_error == 0.03 and sc.odometry_noise.sigma_trans_frac == 0.01
+    with pytest.raises(ScenarioError, match="'odom_scale_error'"):
+        build_scenario({"odom_scale_error": 0.9})
     good = tmp_path / "mine.toml"
     good.write_text('crossing_deg = 30\nobstacle_speed_mps = 0.5\nobstacles = 2\n')
     prm = load_scenario_file(good)
