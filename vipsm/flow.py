@@ -35,12 +35,20 @@ class FlowConfig:
     alpha_w_px_per_rad: float = 30.0  # ... and with the angle turned
     alpha_max_px: float = 6.0
     alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
+    fb_check: bool = True  # drop pixels failing the forward-backward flow consistency check
+    fb_tol_px: float = 1.0
+    fb_tol_rel: float = 0.2
+    snap_to_depth: bool = True  # snap blob edges to the laser's depth edges when a foreground run matches
+    snap_jump_m: float = 0.20
+    snap_jump_rel: float = 0.05
+    column_share: float = 0.3  # a blob's column counts when this share of its usable cells move
+    trim_trailing: bool = True  # trim the uncovered background from a blob's trailing side
     fit_global: bool = True  # remove a fitted global shift + scale of the ego-motion flow (odometry errors)
     global_shift_max_px: float = 8.0
     global_scale_max: float = 0.5
     border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
-    min_texture: float = 20.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
-    min_blob_px: int = 120  # blobs smaller than this many pixels are dropped
+    min_texture: float = 6.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
+    min_blob_px: int = 250  # blobs smaller than this many pixels are dropped
     open_px: int = 6  # morphological opening of the moving mask (pixels; odd number of grid cells)
     close_px: int = 10  # closing to merge fragments of one body
     max_frame_gap_s: float = 0.5  # older previous frames are not used for flow
@@ -109,6 +117,32 @@ def _project(px, py, pz, fx, fy, cx, cy, pan, tilt):
         u = cx - fx * yl / f
         v = cy - fy * up / f
     return u, v, f
+
+
+def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: FlowConfig) -> tuple[float, float]:
+    """Snap a blob's column span to the laser's depth edges: the columns are split where the laser
+    depth jumps, and the foreground runs (nearer than both neighbours) that the blob covers for at
+    least half their width replace the span. Without such a run the span is kept."""
+    d = col_depth
+    n = d.size
+    jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
+    edges = np.concatenate(([0], np.flatnonzero(jump) + 1, [n]))
+    c0, c1 = u0 / st, u1 / st
+    lo, hi = None, None
+    for a, b in zip(edges[:-1], edges[1:]):
+        a, b = int(a), int(b)
+        near = float(np.median(d[a:b]))
+        left = float(d[a - 1]) if a > 0 else math.inf
+        right = float(d[b]) if b < n else math.inf
+        if not (left > near + cfg.snap_jump_m and right > near + cfg.snap_jump_m):
+            continue
+        overlap = min(b, c1) - max(a, c0)
+        if overlap >= 0.5 * (b - a):
+            lo = a if lo is None else min(lo, a)
+            hi = b if hi is None else max(hi, b)
+    if lo is None or hi is None:
+        return u0, u1
+    return float(lo * st), float(hi * st)
 
 
 def _remove_global_error(
@@ -269,6 +303,15 @@ class FlowDetector:
         tex = cv2.dilate(mag, np.ones((3, 3), np.uint8))[0:h:st, 0:w:st]
         thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
         usable = valid & (tex > cfg.min_texture)
+        if cfg.fb_check:
+            # forward-backward consistency: pixels whose backward flow does not come back (regions
+            # uncovered by a moving body, textureless patches) carry no flow information
+            fwd = self._dis.calc(ogrey, grey, None)
+            mx = (us + fl[..., 0]).astype(np.float32)
+            my = (vs + fl[..., 1]).astype(np.float32)
+            back = cv2.remap(fwd, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            fb_err = np.hypot(fl[..., 0] + back[..., 0], fl[..., 1] + back[..., 1])
+            usable &= fb_err < cfg.fb_tol_px + cfg.fb_tol_rel * np.hypot(fl[..., 0], fl[..., 1])
         if cfg.fit_global:
             ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
         res = np.hypot(ru, rv)
@@ -281,13 +324,40 @@ class FlowDetector:
             mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
         if k_close > 1:
             mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((k_close, k_close), np.uint8))
-        n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        col_depth = None
+        if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
+            col_depth = depth[depth.shape[0] // 2]  # laser depth per grid column (horizon row)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         spans: list[list[float]] = []
         for i in range(1, n):
             x0, y0, ww, hh, area = (int(v) for v in stats[i])
             if area * st * st < cfg.min_blob_px:
                 continue
-            spans.append([x0 * st, (x0 + ww) * st, y0 * st, (y0 + hh) * st])
+            # columns where the moving pixels are a real share of the usable ones (sparse fringes of
+            # a blob, e.g. from the morphological closing, do not count)
+            rows = slice(y0, y0 + hh)
+            mcol = np.count_nonzero(moving[rows, x0 : x0 + ww], axis=0)
+            ucol = np.count_nonzero(usable[rows, x0 : x0 + ww], axis=0)
+            dense = np.flatnonzero(mcol >= cfg.column_share * np.maximum(ucol, 1))
+            if dense.size == 0:
+                continue
+            c0, c1 = x0 + int(dense[0]), x0 + int(dense[-1]) + 1
+            u0, u1 = float(c0 * st), float(c1 * st)
+            if cfg.trim_trailing:
+                # The blob holds the body and the background it uncovered since the older frame, on
+                # the side its residual flow (newest -> older) points to: trim that side by the
+                # body's displacement.
+                sel = (labels == i) & moving
+                if np.count_nonzero(sel) >= 3:
+                    du = float(np.median(ru[sel]))
+                    if u1 - u0 - abs(du) >= 2 * st:
+                        if du > 0:
+                            u1 -= du
+                        else:
+                            u0 -= du
+            if cfg.snap_to_depth and col_depth is not None:
+                u0, u1 = _snap_to_depth(u0, u1, col_depth, st, cfg)
+            spans.append([u0, u1, y0 * st, (y0 + hh) * st])
         spans.sort()
         merged: list[list[float]] = []
         for sp in spans:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from vipsm.types import Frame, Intrinsics, Odometry, Pose2D, Scan
@@ -124,14 +125,17 @@ def odometry_at(pose: Pose2D, t_s: float, v: float = 0.0, w: float = 0.0) -> Odo
 
 
 def _texture(u: np.ndarray, v: np.ndarray, seed: int) -> np.ndarray:
-    """Smooth-ish deterministic texture in [0, 255] from surface coordinates (m)."""
+    """Deterministic multi-scale texture in about [60, 200] from surface coordinates (m)."""
     rng = np.random.default_rng(seed)
-    k = rng.uniform(6.0, 25.0, size=(6, 2))
-    ph = rng.uniform(0, 2 * math.pi, size=6)
     acc = np.zeros(np.broadcast(u, v).shape)
-    for i in range(6):
-        acc += np.sin(k[i, 0] * u + k[i, 1] * v + ph[i])
-    return 128.0 + 20.0 * acc
+    u = np.nan_to_num(u)
+    v = np.nan_to_num(v)
+    for _ in range(10):
+        k = rng.uniform(5.0, 30.0)
+        a = rng.uniform(0, 2 * math.pi)
+        ph = rng.uniform(0, 2 * math.pi)
+        acc += (12.0 / math.sqrt(k / 5.0)) * np.sin(k * (math.cos(a) * u + math.sin(a) * v) + ph)
+    return 128.0 + acc
 
 
 @dataclass
@@ -164,9 +168,10 @@ class Camera:
         cos_off = np.cos(np.arctan((cols - K.cx_px) / K.fx_px))
         # per pixel: elevation slope (up positive) = (cy - v) / fy / cos_off (rays through a column)
         slope = (K.cy_px - rows)[:, None] / K.fy_px * cos_off[None, :]
-        hx = camx + dist * np.cos(az)
-        hy = camy + dist * np.sin(az)
-        z_hit = self.z_m + slope * dist[None, :]
+        dfin = np.where(np.isfinite(dist), dist, 0.0)
+        hx = camx + dfin * np.cos(az)
+        hy = camy + dfin * np.sin(az)
+        z_hit = self.z_m + slope * dfin[None, :]
         img = np.full((self.height_px, self.width_px), 90.0)
         # surface coordinate along the surface for texture
         surf_u = np.where(ident >= 0, hx + hy, 0.0)
@@ -188,8 +193,11 @@ class Camera:
         floor_vis &= slope < 0
         fx_ = camx + floor_d * np.cos(az)[None, :]
         fy_ = camy + floor_d * np.sin(az)[None, :]
-        img = np.where(floor_vis & np.isfinite(floor_d), _texture(fx_, fy_, 11), img)
+        fade = np.clip(3.0 / np.maximum(floor_d, 1e-3), 0.0, 1.0)  # far floor: detail below a pixel
+        floor_tex = 128.0 + fade * (_texture(fx_, fy_, 11) - 128.0)
+        img = np.where(floor_vis & np.isfinite(floor_d), floor_tex, img)
         del seeds
+        img = cv2.GaussianBlur(img, (0, 0), 0.8)  # the lens' blur (and an anti-aliasing filter)
         return np.clip(img, 0, 255).astype(np.uint8)
 
     def frame(self, world: World, robot: Pose2D, t_s: float, pan_rad: float = 0.0, seq: int = 0) -> Frame:
