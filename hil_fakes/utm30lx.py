@@ -194,6 +194,8 @@ class Utm30lxConfig:
     missing_parameter_status: str = "0C"
     #: some older firmware summed the II SCSP line only up to '<-' (P.1.05 sums all of it) [PEER]
     ii_sum_before_arrow: bool = False
+    #: the sensor's ms counter runs this much fast (+) or slow (-) against the host clock
+    clock_drift_ppm: float = 0.0
 
     @property
     def scan_period_s(self) -> float:
@@ -275,7 +277,13 @@ class Utm30lxModel(DeviceModel):
         """The 24-bit counter at host time ``now_s``."""
         self._ensure_boot(now_s)
         assert self._boot_s is not None
-        return (self._clock_base_ms + int(math.floor((now_s - self._boot_s) * 1000.0 + 1e-6))) & _MASK24
+        return (self._clock_base_ms + self._elapsed_ms(now_s)) & _MASK24
+
+    def _elapsed_ms(self, now_s: float) -> int:
+        """Whole device milliseconds since boot (the counter runs at 1 + drift against the host)."""
+        assert self._boot_s is not None
+        rate = 1.0 + self.config.clock_drift_ppm * 1e-6
+        return int(math.floor((now_s - self._boot_s) * 1000.0 * rate + 1e-6))
 
     def host_time_of_device_ms(self, device_ms: int) -> float:
         """The host-clock time at which the counter showed ``device_ms`` (ground truth for tests)."""
@@ -283,7 +291,7 @@ class Utm30lxModel(DeviceModel):
             if self._boot_s is None:
                 raise RuntimeError("the fake has not started its clock yet")
             delta = (device_ms - self._clock_base_ms) & _MASK24
-            return self._boot_s + delta / 1000.0
+            return self._boot_s + delta / 1000.0 / (1.0 + self.config.clock_drift_ppm * 1e-6)
 
     def _scan_start_s(self, k: int) -> float:
         assert self._boot_s is not None
@@ -532,9 +540,7 @@ class Utm30lxModel(DeviceModel):
 
     def _reset_clock(self, now_s: float) -> None:
         """The counter restarts at 0 now; the mirror keeps its phase."""
-        assert self._boot_s is not None
-        elapsed_ms = int(math.floor((now_s - self._boot_s) * 1000.0))
-        self._clock_base_ms = -elapsed_ms
+        self._clock_base_ms = -self._elapsed_ms(now_s)
 
     def _cmd_rs(self, echo: bytes, cmd: str, params: str, tag: str, now_s: float) -> None:
         if self._no_params(echo, params, now_s):

@@ -62,7 +62,7 @@ from .errors import (
     ScipStatusError,
     ScipTimeoutError,
 )
-from .timebase import ClockOffset, ClockOffsetEstimator, TimestampUnwrapper
+from .timebase import ClockOffset, ClockOffsetEstimator, DriftTracker, TimestampUnwrapper
 
 Clock = Callable[[], float]
 
@@ -111,6 +111,11 @@ class ClientConfig:
     time_sync_rounds: int = 10
     #: device-step vs host-elapsed mismatch beyond which a timestamp jump counts as a reset, not a wrap
     unwrap_tolerance_ms: float = 2000.0
+    #: follow clock drift between TM syncs from the lower envelope of frame arrival latencies
+    track_drift: bool = True
+    #: window of that envelope, and the frames it needs
+    drift_window_s: float = 10.0
+    drift_min_frames: int = 20
     exclusive: bool = True
     #: irrelevant over CDC-ACM and TCP; kept for real RS-232 URG models
     baudrate: int = 115200
@@ -131,6 +136,8 @@ class ClientConfig:
                 raise ScipConfigError(f"{name} must be finite and > 0, got {value}")
         if self.silent_windows_before_reconnect < 1:
             raise ScipConfigError("silent_windows_before_reconnect must be >= 1")
+        if not (self.drift_window_s > 0 and math.isfinite(self.drift_window_s)) or self.drift_min_frames < 1:
+            raise ScipConfigError("drift_window_s must be finite and > 0, drift_min_frames >= 1")
         if self.max_reconnect_attempts < 0 or self.time_sync_rounds < 0 or self.buffer_capacity < 1:
             raise ScipConfigError("max_reconnect_attempts and time_sync_rounds >= 0, buffer_capacity >= 1")
         if not 0 <= self.cluster <= 99:
@@ -231,6 +238,7 @@ class Utm30lxClient:
         self._decoder = ScipDecoder()
         self._unwrapper = TimestampUnwrapper(self.config.unwrap_tolerance_ms)
         self._offset: ClockOffset | None = None
+        self._drift = DriftTracker(self.config.drift_window_s, self.config.drift_min_frames)
         self._info: SensorInfo | None = None
         self._state = ConnectionState.CLOSED
         self._state_lock = threading.Lock()
@@ -266,6 +274,11 @@ class Utm30lxClient:
     def clock_offset(self) -> ClockOffset | None:
         """host_s = device_ms / 1000 + offset_s (None until a TM sync succeeded in this clock epoch)."""
         return self._offset
+
+    @property
+    def drift_correction_s(self) -> float:
+        """What the drift tracker has added to the TM offset since the last sync or stream start."""
+        return self._drift.correction_s
 
     @property
     def last_error(self) -> BaseException | None:
@@ -381,6 +394,7 @@ class Utm30lxClient:
         # A new connection may be a power-cycled sensor: its clock is a new epoch.
         self._unwrapper.reset()
         self._offset = None
+        self._drift.reset(None)
         if cfg.time_sync_rounds:
             self._sync_time_locked(cfg.time_sync_rounds)
 
@@ -529,6 +543,7 @@ class Utm30lxClient:
         self._idle_command(build_simple("RS"), "RS")
         self._unwrapper.reset()
         self._offset = None
+        self._drift.reset(None)
 
     def sync_time(self, rounds: int = 10) -> ClockOffset:
         """TM0, ``rounds`` x TM1, TM2; the offset is the median of the round-trip midpoints.
@@ -557,6 +572,7 @@ class Utm30lxClient:
         finally:
             self._command(build_time_mode(2), "TM")
         self._offset = estimator.estimate(self._unwrapper.epoch)
+        self._drift.reset(self._offset)
         return self._offset
 
     def get_scan(self, intensity: bool = False, timeout_s: float | None = None) -> LaserScan:
@@ -594,6 +610,7 @@ class Utm30lxClient:
         parsed = parse_scan_echo(text[:2], request.rstrip(b"\n"))
         self._stream = _Stream(request, parsed, text.partition(";")[0][:-2], finite=count > 0)
         self._stream_finished = False
+        self._drift.reset(self._offset)  # the fixed latency depends on the step window
         try:
             with self._cmd_lock:
                 self._command(request, text[:2])
@@ -688,7 +705,7 @@ class Utm30lxClient:
         stream = self._stream
         c = self._counters
         if isinstance(ev, ScanFrame) and stream is not None and ev.echo.partition(";")[0][:-2] == stream.echo_prefix:
-            scan = self._to_scan(ev, now)
+            scan = self._to_scan(ev, now, streaming=True)
             self._buffer.put(scan)
             with c.lock:
                 c.frames += 1
@@ -760,7 +777,7 @@ class Utm30lxClient:
             self._bearings_cache[key] = cached
         return cached
 
-    def _to_scan(self, frame: ScanFrame, host_s: float) -> LaserScan:
+    def _to_scan(self, frame: ScanFrame, host_s: float, streaming: bool = False) -> LaserScan:
         params = self.info.params
         raw = frame.distances
         ranges = raw.astype(np.float64) * 0.001
@@ -774,12 +791,18 @@ class Utm30lxClient:
         beam_dt_s = params.step_dt_s * max(frame.request.cluster, 1)
         offset = self._offset
         if offset is not None and offset.epoch == stamp.epoch:
+            offset_s = offset.offset_s
+            if streaming and self.config.track_drift:
+                corrected = self._drift.update(stamp.unwrapped_ms, host_s)
+                if corrected is not None:
+                    offset_s = corrected
             # the counter is latched at step 0; the window's first beam comes start steps later
-            stamp_s = stamp.unwrapped_ms / 1000.0 + offset.offset_s + frame.request.start * params.step_dt_s
+            stamp_s = stamp.unwrapped_ms / 1000.0 + offset_s + frame.request.start * params.step_dt_s
             synced = True
         else:
             if offset is not None:
                 self._offset = None  # the device clock was reset: the old offset no longer holds
+                self._drift.reset(None)
             sweep_s = (frame.request.end - frame.request.start + 1) * params.step_dt_s
             stamp_s = host_s - sweep_s
             synced = False

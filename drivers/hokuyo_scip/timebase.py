@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import math
 import statistics
 from dataclasses import dataclass
 
@@ -124,3 +125,59 @@ class ClockOffsetEstimator:
             spread_s=max(self._offsets) - min(self._offsets),
             round_trip_s=statistics.median(self._rtts),
         )
+
+
+class DriftTracker:
+    """Keep the TM offset current while streaming, from frame arrival times (clock drift).
+
+    After a TM sync, ``latency = host_arrival - (device_ms / 1000 + offset_tm)`` of a stream frame is
+    the sweep plus the transfer plus scheduling noise, always >= its fixed part. Its minimum over a
+    window of ``window_s`` is that fixed part plus the drift accumulated since the sync. The first
+    full window sets the fixed part (the baseline); each later window's minimum minus the baseline
+    is the drift correction added to the TM offset (the lower envelope ignores late frames, the idea
+    of urg_stamped and urg_node2's synchronisation). Call :meth:`reset` at every sync and stream
+    start (the fixed part depends on the step window).
+    """
+
+    def __init__(self, window_s: float = 10.0, min_frames: int = 20) -> None:
+        if window_s <= 0 or min_frames < 1:
+            raise ScipConfigError("window_s must be > 0 and min_frames >= 1")
+        self.window_s = window_s
+        self.min_frames = min_frames
+        self._base: ClockOffset | None = None
+        self._baseline_s: float | None = None
+        self._window_start: float | None = None
+        self._window_min = math.inf
+        self._window_count = 0
+        self.correction_s = 0.0
+        self.windows = 0
+
+    def reset(self, base: ClockOffset | None) -> None:
+        self._base = base
+        self._baseline_s = None
+        self._window_start = None
+        self._window_min = math.inf
+        self._window_count = 0
+        self.correction_s = 0.0
+        self.windows = 0
+
+    def update(self, device_ms: int, host_arrival_s: float) -> float | None:
+        """Feed one stream frame; returns the corrected offset_s (None without a TM offset)."""
+        base = self._base
+        if base is None:
+            return None
+        latency = host_arrival_s - (device_ms / 1000.0 + base.offset_s)
+        if self._window_start is None:
+            self._window_start = host_arrival_s
+        self._window_min = min(self._window_min, latency)
+        self._window_count += 1
+        if host_arrival_s - self._window_start >= self.window_s and self._window_count >= self.min_frames:
+            if self._baseline_s is None:
+                self._baseline_s = self._window_min
+            else:
+                self.correction_s = self._window_min - self._baseline_s
+            self.windows += 1
+            self._window_start = host_arrival_s
+            self._window_min = math.inf
+            self._window_count = 0
+        return base.offset_s + self.correction_s

@@ -260,3 +260,28 @@ def test_stamp_is_the_time_of_the_first_beam_of_the_window(fake: DeviceServer) -
     assert scan.stamp_s - step0_s == pytest.approx(720 * 0.025 / 1440, abs=1e-9)
     truth = model_of(fake).host_time_of_device_ms(scan.device_stamp_raw_ms)
     assert abs(step0_s - truth) < 0.05
+
+
+def test_clock_drift_is_followed_while_streaming(tmp_path: Path) -> None:
+    # 1 % drift, exaggerated so 4 s of streaming separate tracked (few ms) from untracked (~40 ms) stamps
+    model = Utm30lxModel(Utm30lxConfig(clock_drift_ppm=10_000.0))
+    server = start_fake("pty", tmp_path, model)
+    try:
+        errors = {}
+        for track in (True, False):
+            cfg = fast_config(track_drift=track, drift_window_s=0.5, drift_min_frames=5)
+            with Utm30lxClient(server.address, cfg) as c:
+                c.start_stream()
+                end = time.monotonic() + 4.0
+                last = c.next_scan(timeout_s=5.0)
+                while time.monotonic() < end:
+                    last = c.next_scan(timeout_s=5.0)
+                c.stop_stream()
+                truth = model.host_time_of_device_ms(last.device_stamp_raw_ms)
+                errors[track] = abs(last.stamp_s - truth)
+                if track:
+                    assert c.drift_correction_s < -0.02  # the device clock runs fast: the offset shrinks
+        assert errors[True] < 0.015, errors
+        assert errors[False] > 0.025, errors
+    finally:
+        server.stop()

@@ -58,3 +58,22 @@ def test_offset_is_the_median_of_midpoints() -> None:
         est.add(1.0, 0.5, 0)
     with pytest.raises(ScipConfigError):
         ClockOffsetEstimator().estimate(0)
+
+
+def test_drift_tracker_follows_the_lower_envelope() -> None:
+    from drivers.hokuyo_scip.timebase import ClockOffset, DriftTracker
+
+    tracker = DriftTracker(window_s=1.0, min_frames=5)
+    assert tracker.update(0, 0.0) is None  # no TM offset yet
+    tracker.reset(ClockOffset(offset_s=100.0, epoch=0, samples=10, spread_s=0.0, round_trip_s=0.001))
+    drift = 0.001  # the device clock runs 1000 ppm slow: host - device grows 1 ms per s
+    out = None
+    for k in range(400):  # 10 s of 40 Hz frames, latency 20 ms + noise that is never negative
+        host = 100.0 + k * 0.025 + 0.020 + (0.004 if k % 3 else 0.0)
+        device_ms = round((host - 0.020 - (0.004 if k % 3 else 0.0) - 100.0) * (1 - drift) * 1000)
+        out = tracker.update(device_ms, host)
+    assert out is not None and tracker.windows >= 8
+    # after ~10 s the offset moved by ~10 ms (minus the first window, which is the baseline)
+    assert tracker.correction_s == pytest.approx(0.0095, abs=0.002)
+    tracker.reset(None)
+    assert tracker.correction_s == 0.0 and tracker.update(0, 1.0) is None
