@@ -111,3 +111,10 @@ def test_short_scenario_2_vipsm_beats_plain_psm() -> None:
     assert v["obstacle_detected_fraction"] is not None and v["obstacle_detected_fraction"] >= 0.9
     assert v["obstacle_err_mean_m"] < p["obstacle_err_mean_m"], (v, p)
     assert v["obstacle_err_mean_m"] <= 0.2
+
+
+def test_bench_prints_world_figures() -> None:
+    figures = cmd_eval.bench(argparse.Namespace())
+    assert set(figures) == {"world_sweep_ms_median", "world_render_320x240_ms_median", "world_eval_cycle_ms_median"}
+    assert all(v > 0 for v in figures.values())
+    assert figures["world_eval_cycle_ms_median"] >= figures["world_render_320x240_ms_median"]
