@@ -98,7 +98,8 @@ def add_scenario_args(parser: argparse.ArgumentParser, *, with_duration: bool = 
             type=spec.kind,
             default=None,
             metavar="N" if spec.kind is int else "X",
-            help=f"{spec.help}{unit}; default {spec.default}",
+            help=f"{spec.help}{unit}; default "
+            + ("45 (scenario 1), 90 (scenario 2 and files)" if key == "crossing_deg" else f"{spec.default}"),
         )
     g.add_argument("--scenario-file", metavar="FILE.toml", default=None, help="scenario parameters from TOML")
 
@@ -407,6 +408,7 @@ def _canvas(scale: float) -> np.ndarray:
 
 
 def _to_px(x: np.ndarray | float, y: np.ndarray | float, scale: float, shape: tuple[int, ...]) -> tuple[Any, Any]:
+    """World metres to pixel coordinates of a canvas (x right, y up; the room's open end at the left)."""
     from hil_fakes.world.scenarios import ROOM_WIDTH_M
 
     u = _MARGIN + (np.asarray(x) + 1.0) * scale
