@@ -490,22 +490,23 @@ def write_plots(log: RunLog, out_dir: Path, mount: RobotMount | None = None) -> 
     p8 = out_dir / f"fig8_map_{sc.name}.png"
     cv2.imwrite(str(p8), fig8)
 
-    img = _canvas(_SCALE)
-    _draw_walls(img, sc, _SCALE)
+    fig9_scale = 100.0
+    img = _canvas(fig9_scale)
+    _draw_walls(img, sc, fig9_scale)
     tp = np.asarray(log.true_poses)
-    _dots(img, tp[:, 0], tp[:, 1], (0, 0, 0), _SCALE)
+    _dots(img, tp[:, 0], tp[:, 1], (0, 0, 0), fig9_scale)
+    for i in range(len(sc.obstacles)):
+        tr = np.asarray([obs[i] for obs in log.true_obstacles])
+        u, v = _to_px(tr[:, 0], tr[:, 1], fig9_scale, img.shape)
+        pts = np.stack([u, v], axis=1).astype(np.int32)
+        cv2.polylines(img, [pts], False, (0, 170, 0), 3, cv2.LINE_AA)
     colours = {"vipsm": (200, 80, 0), "plain_psm": (0, 0, 230)}
     for name, col in colours.items():
         m = log.methods[name]
         pts = [(x, y) for k, obs in enumerate(m.obstacles) if any(log.in_view[k]) for x, y in obs]
         if pts:
             a = np.asarray(pts)
-            _dots(img, a[:, 0], a[:, 1], col, _SCALE, 2)
-    for i in range(len(sc.obstacles)):
-        tr = np.asarray([obs[i] for obs in log.true_obstacles])
-        u, v = _to_px(tr[:, 0], tr[:, 1], _SCALE, img.shape)
-        pts = np.stack([u, v], axis=1).astype(np.int32)
-        cv2.polylines(img, [pts], False, (0, 170, 0), 2, cv2.LINE_AA)
+            _dots(img, a[:, 0], a[:, 1], col, fig9_scale, 1)
     legend = [("true obstacle path", (0, 170, 0)), ("VIPSM estimates (in view)", colours["vipsm"]),
               ("plain PSM estimates (in view)", colours["plain_psm"]), ("robot path", (0, 0, 0))]
     for j, (text, col) in enumerate(legend):
