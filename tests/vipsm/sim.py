@@ -128,8 +128,8 @@ def _texture(u: np.ndarray, v: np.ndarray, seed: int) -> np.ndarray:
     """Deterministic multi-scale texture in about [60, 200] from surface coordinates (m)."""
     rng = np.random.default_rng(seed)
     acc = np.zeros(np.broadcast(u, v).shape)
-    u = np.nan_to_num(u)
-    v = np.nan_to_num(v)
+    u = np.nan_to_num(u, nan=0.0, posinf=0.0, neginf=0.0)
+    v = np.nan_to_num(v, nan=0.0, posinf=0.0, neginf=0.0)
     for _ in range(10):
         k = rng.uniform(5.0, 30.0)
         a = rng.uniform(0, 2 * math.pi)
@@ -191,8 +191,9 @@ class Camera:
             floor_d = np.where(slope < 0, self.z_m / -slope, np.inf)
         floor_vis = floor_d < np.where(on_surface, dist[None, :], np.inf)
         floor_vis &= slope < 0
-        fx_ = camx + floor_d * np.cos(az)[None, :]
-        fy_ = camy + floor_d * np.sin(az)[None, :]
+        fd = np.where(np.isfinite(floor_d), floor_d, 0.0)
+        fx_ = camx + fd * np.cos(az)[None, :]
+        fy_ = camy + fd * np.sin(az)[None, :]
         fade = np.clip(3.0 / np.maximum(floor_d, 1e-3), 0.0, 1.0)  # far floor: detail below a pixel
         floor_tex = 128.0 + fade * (_texture(fx_, fy_, 11) - 128.0)
         img = np.where(floor_vis & np.isfinite(floor_d), floor_tex, img)

@@ -1,0 +1,191 @@
+"""The whole estimator on simulated sequences: pose, obstacles, velocity, flags, determinism."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from vipsm.estimator import Estimator, EstimatorConfig
+from vipsm.geometry import compose
+from vipsm.restore import RestoreConfig
+from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Pose2D, Scan
+
+from .sim import UTM_BEARINGS, Camera, Circle, World, box_room
+
+LASER = Pose2D(0.16, 0.0, 0.0)
+CAM = Camera(x_m=0.10, z_m=0.6, hfov_rad=math.radians(54.0))
+CFG = EstimatorConfig(laser_x_m=LASER.x_m, camera_x_m=CAM.x_m, camera_z_m=CAM.z_m)
+
+
+def _sequence(world: World, cycles: int, v: float = 0.2, odo_scale: float = 1.02, frames: bool = True, seed: int = 0):
+    """(scan, odometry, frame, truth) per 0.1 s cycle; the robot drives straight along +x."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(cycles):
+        t = 0.1 * k
+        truth = Pose2D(v * t, 0.0, 0.0)
+        scan = world.scan(compose(truth, LASER), t_s=t, noise_m=0.01, rng=rng, stamp_s=t)
+        drift = 0.004 * v * t
+        odo = Odometry(odo_scale * v * t, 0.0, drift, v, 0.0, t)
+        frame = None
+        if frames:
+            tf = t - 0.04 if t >= 0.04 else t
+            frame = Frame(CAM.render(world, Pose2D(v * tf, 0.0, 0.0), tf), tf, CAM.intrinsics, 0.0, 0.0, k)
+        out.append((scan, odo, frame, truth))
+    return out
+
+
+def _run(est: Estimator, seq) -> list[Estimate]:
+    return [est.step(scan, odo, frame) for scan, odo, frame, _ in seq]
+
+
+def _crossing_world() -> World:
+    world = box_room(9.0, 6.0, x0=-1.0, y0=-3.0)
+    world.circles = [Circle(2.6, 1.6, 0.4, vx_mps=0.0, vy_mps=-0.35)]
+    return world
+
+
+@pytest.fixture(scope="module")
+def crossing_runs():
+    world = _crossing_world()
+    seq = _sequence(world, 70)
+    vipsm = _run(Estimator(CFG), seq)
+    plain = _run(Estimator(CFG, plain_psm=True), seq)
+    return world, seq, vipsm, plain
+
+
+def test_vipsm_locates_and_tracks_the_crossing_body(crossing_runs) -> None:
+    world, seq, est, _ = crossing_runs
+    body = world.circles[0]
+    errs, verrs, ids = [], [], set()
+    for e in est[10:]:
+        if not e.obstacles:
+            continue
+        cx, cy = body.at(e.stamp_s)
+        o = min(e.obstacles, key=lambda o: math.hypot(o.x_m - cx, o.y_m - cy))
+        errs.append(math.hypot(o.x_m - cx, o.y_m - cy))
+        ids.add(o.track_id)
+        if o.age_cycles >= 5:
+            verrs.append(math.hypot(o.vx_mps - body.vx_mps, o.vy_mps - body.vy_mps))
+        assert o.scan_index_start < o.scan_index_stop or o.scan_index_start == -1
+        assert o.radius_m == pytest.approx(0.4, abs=0.1)
+    assert len(errs) >= 0.9 * len(est[10:])
+    assert np.mean(errs) < 0.05 and max(errs) < 0.15
+    assert np.mean(verrs) < 0.05
+    assert len(ids) == 1  # one identity for the body
+
+
+def test_vipsm_pose_beats_plain_psm_next_to_a_large_moving_body(crossing_runs) -> None:
+    _, seq, vipsm, plain = crossing_runs
+    truth = seq[-1][3]
+    ev = math.hypot(vipsm[-1].pose.x_m - truth.x_m, vipsm[-1].pose.y_m - truth.y_m)
+    ep = math.hypot(plain[-1].pose.x_m - truth.x_m, plain[-1].pose.y_m - truth.y_m)
+    odo = seq[-1][1]
+    eo = math.hypot(odo.x_m - truth.x_m, odo.y_m - truth.y_m)
+    assert ev < 0.03 and ev < eo  # the odometry is 2 % long
+    assert abs(math.degrees(vipsm[-1].pose.theta_rad)) < 0.3
+    assert all(EstimateFlag.PLAIN_PSM in e.flags for e in plain)
+    assert any(e.restored_indices for e in vipsm) and all(e.restored_indices == () for e in plain)
+    assert ev <= ep + 0.005
+
+
+def test_first_scan_no_frame_stale_frame_flags() -> None:
+    world = box_room(8.0, 6.0)
+    seq = _sequence(world, 3, frames=False)
+    est = Estimator(CFG)
+    e0 = est.step(seq[0][0], seq[0][1])
+    assert EstimateFlag.FIRST_SCAN in e0.flags and EstimateFlag.NO_FRAME in e0.flags
+    assert e0.pose == seq[0][1].pose and e0.quality.beams_used == 0
+    img = CAM.render(world, Pose2D(0, 0, 0), 0.0)
+    stale = Frame(img, seq[1][0].stamp_s - 1.0, CAM.intrinsics)
+    e1 = est.step(seq[1][0], seq[1][1], stale)
+    assert EstimateFlag.STALE_FRAME in e1.flags and EstimateFlag.ODOMETRY_FALLBACK not in e1.flags
+    assert e1.quality.beams_used > 500 and e1.quality.iterations > 0
+    assert e1.covariance.shape == (3, 3) and np.all(np.linalg.eigvalsh(e1.covariance) > 0)
+
+
+@pytest.mark.parametrize("bad", ["all-invalid", "empty"])
+def test_unusable_scan_falls_back_to_odometry(bad: str) -> None:
+    world = box_room(8.0, 6.0)
+    seq = _sequence(world, 4, frames=False)
+    est = Estimator(CFG)
+    est.step(seq[0][0], seq[0][1])
+    est.step(seq[1][0], seq[1][1])
+    scan = seq[2][0]
+    if bad == "all-invalid":
+        scan = Scan(np.full(scan.ranges_m.size, np.nan), scan.bearings_rad, scan.stamp_s)
+    else:
+        scan = Scan(np.zeros(0), np.zeros(0), scan.stamp_s)
+    e = est.step(scan, seq[2][1])
+    assert EstimateFlag.ODOMETRY_FALLBACK in e.flags
+    prev = est.last_debug
+    assert prev is not None and prev.match is not None and prev.match.refused
+    # the pose follows the odometry increment from the last estimate, then matching resumes
+    e3 = est.step(seq[3][0], seq[3][1])
+    assert EstimateFlag.ODOMETRY_FALLBACK not in e3.flags
+    assert abs(e3.pose.x_m - seq[3][3].x_m) < 0.02
+
+
+def test_obstacle_covering_most_of_the_view_is_refused_and_flagged() -> None:
+    # only a short wall ahead returns anything, and a big body in front of it moves across
+    world = World(np.array([(3.0, -1.5, 3.0, 1.5)], dtype=float), [Circle(1.6, 0.5, 0.6, vy_mps=-0.4)])
+    seq = _sequence(world, 12, v=0.0, odo_scale=1.0)
+    est = Estimator(CFG)
+    es = _run(est, seq)
+    flagged = [e for e in es if EstimateFlag.OBSTACLE_TOO_LARGE in e.flags]
+    assert flagged, [e.flags for e in es]
+    for e in flagged:
+        assert EstimateFlag.ODOMETRY_FALLBACK in e.flags
+        assert e.restored_indices == ()
+
+
+def test_bridge_invalid_flag_when_the_body_is_in_front_of_a_step() -> None:
+    walls = np.array(
+        [(3.0, -4.0, 3.0, 0.0), (3.0, 0.0, 5.0, 0.0), (5.0, 0.0, 5.0, 4.0), (-1, -4, 5, -4), (-1, 4, 5, 4)], dtype=float
+    )
+    world = World(walls, [Circle(1.8, 0.6, 0.3, vy_mps=-0.3)])
+    seq = _sequence(world, 14, v=0.1, odo_scale=1.0)
+    es = _run(Estimator(dataclasses.replace(CFG, restore=RestoreConfig(tight_cut=True))), seq)
+    assert any(EstimateFlag.BRIDGE_INVALID in e.flags for e in es)
+
+
+def test_deterministic_for_the_same_inputs() -> None:
+    world = _crossing_world()
+    seq = _sequence(world, 20)
+    a = _run(Estimator(CFG), seq)
+    b = _run(Estimator(CFG), seq)
+    for x, y in zip(a, b):
+        assert x.pose == y.pose and x.flags == y.flags and x.obstacles == y.obstacles
+        assert np.array_equal(x.covariance, y.covariance) and x.restored_indices == y.restored_indices
+
+
+def test_static_scene_with_a_laser_offset_and_scan_from_a_rotated_mount() -> None:
+    mount = Pose2D(0.2, 0.05, math.radians(5.0))
+    cfg = dataclasses.replace(CFG, laser_x_m=mount.x_m, laser_y_m=mount.y_m, laser_theta_rad=mount.theta_rad)
+    world = box_room(8.0, 6.0)
+    est = Estimator(cfg)
+    rng = np.random.default_rng(3)
+    for k in range(30):
+        t = 0.1 * k
+        truth = Pose2D(0.2 * t, 0.0, 0.2 * t)  # driving a curve
+        scan = world.scan(compose(truth, mount), t_s=t, noise_m=0.01, rng=rng, stamp_s=t)
+        odo = Odometry(truth.x_m * 1.03, truth.y_m, truth.theta_rad * 1.05, 0.2, 0.2, t)
+        e = est.step(scan, odo)
+    assert math.hypot(e.pose.x_m - truth.x_m, e.pose.y_m - truth.y_m) < 0.02
+    assert abs(math.degrees(e.pose.theta_rad - truth.theta_rad)) < 0.2
+    assert e.obstacles == ()
+
+
+def test_bearings_need_not_be_the_utm_table() -> None:
+    world = box_room(8.0, 6.0)
+    est = Estimator(CFG)
+    b = UTM_BEARINGS[::2].copy()  # a 0.5 deg scanner
+    for k in range(5):
+        t = 0.1 * k
+        truth = Pose2D(0.2 * t, 0.0, 0.0)
+        scan = world.scan(compose(truth, LASER), bearings=b, t_s=t, stamp_s=t)
+        e = est.step(scan, Odometry(0.2 * t, 0.0, 0.0, 0.2, 0.0, t))
+    assert EstimateFlag.ODOMETRY_FALLBACK not in e.flags and e.quality.beams_used > 250

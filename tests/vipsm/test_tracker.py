@@ -1,0 +1,82 @@
+"""Obstacle centre from front-surface points, constant-velocity tracking with identities."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vipsm.tracker import Detection, Tracker, TrackerConfig, fit_circle, locate_body
+
+
+def _front_points(cx: float, cy: float, r: float, sensor=(0.0, 0.0), n: int = 60, noise: float = 0.0, seed: int = 0):
+    """Points of the visible half of a circle as a laser at ``sensor`` sees it."""
+    rng = np.random.default_rng(seed)
+    toward = math.atan2(sensor[1] - cy, sensor[0] - cx)
+    half = math.acos(r / math.hypot(cx - sensor[0], cy - sensor[1]))
+    a = np.linspace(toward - 0.95 * half, toward + 0.95 * half, n)
+    pts = np.stack([cx + r * np.cos(a), cy + r * np.sin(a)], axis=1)
+    return pts + rng.normal(0.0, noise, pts.shape)
+
+
+def test_circle_fit_exact() -> None:
+    fit = fit_circle(_front_points(2.0, 1.0, 0.4))
+    assert fit is not None
+    assert fit == pytest.approx((2.0, 1.0, 0.4), abs=1e-9)
+
+
+@pytest.mark.parametrize("dist", [1.0, 2.5, 5.0])
+def test_centre_from_front_surface_is_not_biased_toward_the_sensor(dist: float) -> None:
+    pts = _front_points(dist, 0.3, 0.4, noise=0.01, seed=int(dist * 10))
+    cx, cy, r, fitted = locate_body(pts, (0.0, 0.0), None, TrackerConfig())
+    assert math.hypot(cx - dist, cy - 0.3) < 0.03
+    centroid = pts.mean(axis=0)
+    assert math.hypot(centroid[0] - dist, centroid[1] - 0.3) > 0.1  # the naive centroid is biased
+    if fitted:
+        assert r == pytest.approx(0.4, abs=0.05)
+
+
+def test_short_arc_uses_the_radius_hint_along_the_viewing_ray() -> None:
+    pts = _front_points(3.0, 0.0, 0.4, n=8)[3:6]  # three points: no fit
+    cx, cy, r, fitted = locate_body(pts, (0.0, 0.0), 0.4, TrackerConfig())
+    assert not fitted and r == 0.4
+    assert math.hypot(cx - 3.0, cy) < 0.02
+
+
+def test_constant_velocity_tracking_and_identities() -> None:
+    tr = Tracker(TrackerConfig())
+    v1 = (0.15, -0.10)
+    v2 = (-0.3, 0.0)
+    rng = np.random.default_rng(0)
+    ids = set()
+    verr: dict[int, list[float]] = {1: [], 2: []}
+    for k in range(60):
+        t = 0.1 * k
+        a = (1.0 + v1[0] * t + rng.normal(0, 0.005), 2.0 + v1[1] * t + rng.normal(0, 0.005))
+        b = (4.0 + v2[0] * t + rng.normal(0, 0.005), -1.0 + rng.normal(0, 0.005))
+        dets = [Detection(b[0], b[1], 0.3, True, 0, 1, 0.0, 0.1), Detection(a[0], a[1], 0.4, True, 2, 3, 0.2, 0.3)]
+        out = tr.step(t, dets)
+        assert len(out) == 2
+        ids.update(trk.track_id for trk, _ in out)
+        if k >= 20:
+            for trk, _ in out:
+                v = v2 if trk.track_id == 1 else v1
+                verr[trk.track_id].append(float(np.hypot(trk.state[2] - v[0], trk.state[3] - v[1])))
+    assert ids == {1, 2}  # two tracks, identities kept
+    by_id = {t.track_id: t for t in tr.tracks}
+    assert np.mean(verr[1]) < 0.05 and np.mean(verr[2]) < 0.05
+    assert by_id[2].radius_m == pytest.approx(0.4) and by_id[1].radius_m == pytest.approx(0.3)
+
+
+def test_tracks_coast_then_drop() -> None:
+    cfg = TrackerConfig(max_missed=3)
+    tr = Tracker(cfg)
+    for k in range(5):
+        tr.step(0.1 * k, [Detection(1.0 + 0.1 * k, 0.0, 0.3, True, 0, 1, 0.0, 0.1)])
+    for k in range(5, 8):
+        out = tr.step(0.1 * k, [])
+        assert len(out) == 1 and out[0][1] is None
+    x_pred = tr.tracks[0].state[0]
+    assert x_pred == pytest.approx(1.0 + 0.1 * 7, abs=0.1)  # coasted at ~1 m/s
+    assert tr.step(0.8, []) == [] and tr.tracks == []
