@@ -68,6 +68,25 @@ def test_obstacle_path_crosses_the_robot_path_at_the_asked_angle(crossing_deg: f
         assert r <= x <= ROOM_LENGTH_M - r and -HALF_W + r <= y <= HALF_W - r
 
 
+def test_no_obstacle_comes_closer_than_asked_over_the_robustness_grid() -> None:
+    built = 0
+    for angle in range(0, 181, 15):
+        for speed in (0.15, 0.5, 1.0):
+            for n in (1, 2):
+                try:
+                    sc = build_scenario({"crossing_deg": angle, "obstacle_speed_mps": speed, "obstacles": n})
+                except ScenarioError as exc:  # a typed refusal naming the key, never a bad world
+                    assert exc.key in ("obstacles", "closest_approach_time_s")
+                    continue
+                built += 1
+                t = np.linspace(0.0, sc.duration_s, 1501)
+                rx = np.array([robot_x_at(tt, sc.robot_start[0], sc.robot_speed_mps) for tt in t])
+                for ob in sc.obstacles:
+                    p = ob.positions(t)
+                    assert np.min(np.hypot(p[:, 0] - rx, p[:, 1])) >= sc.params["closest_approach_m"] - 1e-6
+    assert built >= 70
+
+
 def test_paper_scenarios_match_the_paper_and_fill_the_scan() -> None:
     for which, angle in (("1", 45.0), ("2", 90.0)):
         sc = paper_scenario(which)
