@@ -106,6 +106,14 @@ def scan_message(scan: Scan, wall_s: float) -> dict[str, Any]:
     return msg
 
 
+def image_message(fs: FrameSample, wall_s: float) -> dict[str, Any]:
+    f = fs.frame
+    return {
+        "timestamp": stamp(wall_s), "frame_id": "camera", "format": "jpeg", "data": b64(fs.jpeg),
+        "seq": f.seq, "pan_rad": f.pan_rad, "tilt_rad": f.tilt_rad, "zoom_pos": fs.zoom_pos,
+    }
+
+
 def pose_message(x: float, y: float, th: float, wall_s: float, frame_id: str) -> dict[str, Any]:
     return {
         "timestamp": stamp(wall_s),
@@ -279,7 +287,6 @@ class ControlLoop:
         self.last_estimate: Estimate | None = None
         self.last_odom_sample: OdomSample | None = None
         self.mission_state = "hold"
-        self._last_frame_seq_logged: int | None = None
         self._last_scan_seq_used: int | None = None
         self._states: dict[str, str] = {}
         self._ready_sent = False
@@ -352,6 +359,9 @@ class ControlLoop:
         if frame_sample is not None:
             self.stats.frames_in += 1
             self.last_frame = frame_sample
+            if self.log is not None and self.config.log.frames:
+                fs, fw = frame_sample, self.wall(frame_sample.frame.stamp_s)
+                self.log.log("/camera/image", fw, lambda fs=fs, fw=fw: image_message(fs, fw))
 
         scanner_state = self.scanner.state() if self.scanner is not None else "absent"
         base_state = self.base.state() if self.base is not None else "absent"
@@ -439,27 +449,7 @@ class ControlLoop:
 
     def _log_estimate(self, est: Estimate, scan: Scan, odom: Odometry, frame: Frame | None, wall: float) -> None:
         assert self.log is not None
-        frame_seq = None
-        if frame is not None and self.last_frame is not None:
-            frame_seq = frame.seq
-            if self.config.log.frames and frame_seq != self._last_frame_seq_logged:
-                fs = self.last_frame
-                fw = self.wall(fs.frame.stamp_s)
-                self.log.log(
-                    "/camera/image",
-                    fw,
-                    lambda fs=fs, fw=fw: {
-                        "timestamp": stamp(fw),
-                        "frame_id": "camera",
-                        "format": "jpeg",
-                        "data": b64(fs.jpeg),
-                        "seq": fs.frame.seq,
-                        "pan_rad": fs.frame.pan_rad,
-                        "tilt_rad": fs.frame.tilt_rad,
-                        "zoom_pos": fs.zoom_pos,
-                    },
-                )
-                self._last_frame_seq_logged = frame_seq
+        frame_seq = frame.seq if frame is not None else None
         self.log.log("/pose", wall, pose_message(est.pose.x_m, est.pose.y_m, est.pose.theta_rad, wall, "odom"))
         self.log.log("/obstacles", wall, lambda: obstacles_message(est.obstacles, wall))
         cycle = self.cycle

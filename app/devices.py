@@ -33,7 +33,7 @@ from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
 from .errors import AppError
 from .fieldlog import FieldLog
-from .replay import decode_jpeg
+from .replay import decode_jpeg, deterministic_opencv
 from .sdnotify import SystemdNotifier
 from .status import StatusServer
 
@@ -385,6 +385,7 @@ def build_loop(
     wait_for_devices_s: float = 10.0,
 ) -> ControlLoop:
     """Devices, estimator, field log, status server and systemd notifier, wired into one loop."""
+    deterministic_opencv()
     d = config.devices
     scanner = ScannerAdapter(d.scanner_url, d.scanner_intensity, d.reconnect_max_s) if d.scanner_url else None
     base = BaseAdapter(d.robot_url, d.robot_baud, d.reconnect_max_s) if d.robot_url else None

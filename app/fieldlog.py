@@ -436,7 +436,12 @@ def read_log(path: str | Path, result: LogReadResult | None = None) -> Iterator[
         raise LogFormatError(f"cannot open {p}: {exc}") from exc
     with f:
         head = f.read(8)
-        if head != b"\x89MCAP0\r\n":
+        magic = b"\x89MCAP0\r\n"
+        if head != magic:
+            if magic.startswith(head):  # empty or cut inside the magic: a log that was just started
+                result.truncated = True
+                result.reason = f"only {len(head)} bytes"
+                return
             raise LogFormatError(f"{p} is not an MCAP file")
         f.seek(0)
         channels: dict[int, str] = {}

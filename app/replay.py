@@ -24,6 +24,15 @@ from .errors import LogFormatError
 from .fieldlog import LogReadResult, read_log
 
 
+def deterministic_opencv() -> None:
+    """OpenCV single-threaded: its parallel optical flow combines per-thread partial results in
+    scheduling order, so under CPU contention two runs on the same inputs can differ in the last
+    bits. The daemon and replay both call this, so a replay reproduces live estimates exactly."""
+    import cv2
+
+    cv2.setNumThreads(1)
+
+
 def decode_jpeg(jpeg: bytes) -> np.ndarray:
     """The one decoder used live and in replay (grey, as the estimator's optical flow wants)."""
     import cv2
@@ -146,6 +155,7 @@ def run_replay(
 ) -> tuple[list[tuple[ReplayCycle, Estimate]], LogReadResult]:
     """Runs the estimator over the log's cycles: with ``config``, or else the recorded one."""
     read = LogReadResult()
+    deterministic_opencv()
     config = config or recorded_estimator_config(path) or EstimatorConfig()
     est = Estimator(config, plain_psm=plain_psm)
     out: list[tuple[ReplayCycle, Estimate]] = []

@@ -133,3 +133,11 @@ def test_numpy_values_nan_and_bad_messages_do_not_stop_the_writer(tmp_path: Path
     msgs = [m.data for m in read_log(log.path)]
     assert msgs == [{"n": 3, "x": 0.5, "cov": [[1.0, 0.0], [0.0, 1.0]], "r": None}, {"after": True}]
     assert log.stats.bad_messages == 2 and log.stats.error is None
+
+
+def test_empty_or_header_cut_file_is_truncated_not_foreign(tmp_path: Path) -> None:
+    for n in (0, 5):
+        p = tmp_path / f"cut{n}.mcap"
+        p.write_bytes(b"\x89MCAP0\r\n"[:n])
+        result = LogReadResult()
+        assert list(read_log(p, result)) == [] and result.truncated
