@@ -251,6 +251,9 @@ class PioneerConfig:
     start_open: bool = False
     #: keep the session open when the client goes away (a real robot does not notice a cable pull)
     keep_session_on_disconnect: bool = True
+    #: model a controller that does not follow HOSTBAUD: after it, the line is unreadable (nothing
+    #: is emitted, input is ignored) for this long, as when host and controller rates differ
+    hostbaud_mute_s: float = 0.0
 
     @property
     def dist_conv_mm(self) -> float:
@@ -325,6 +328,12 @@ class FakePioneer(DeviceModel):
         self._sip_index = 0
         self._now_s = 0.0
         self.e_stopped = False
+        self._mute_until_s = -math.inf
+
+    def emit(self, data: bytes) -> None:
+        if self._now_s < self._mute_until_s:
+            return
+        super().emit(data)
 
     # -- faults and test accessors -------------------------------------------------------------
 
@@ -379,6 +388,8 @@ class FakePioneer(DeviceModel):
     def on_bytes(self, data: bytes, now_s: float) -> None:
         with self._lock:
             self._now_s = now_s
+            if now_s < self._mute_until_s:
+                return
             for body in self._rx.feed(data):
                 self._on_command(body, now_s)
             self.stats.bad_checksum = self._rx.bad_checksum
@@ -522,7 +533,10 @@ class FakePioneer(DeviceModel):
         elif cmd == SONAR and arg is not None:
             self.sonar_on = arg != 0
         elif cmd == HOSTBAUD and arg is not None:
-            self.host_baud = _BAUDS.get(arg, self.host_baud)
+            if self.config.hostbaud_mute_s > 0:
+                self._mute_until_s = now_s + self.config.hostbaud_mute_s
+            else:
+                self.host_baud = _BAUDS.get(arg, self.host_baud)
         elif cmd == RESET:
             self.send_reset_packet()
         elif cmd == BATTERYINFO or cmd in _KNOWN_OTHERS:

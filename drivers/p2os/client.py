@@ -651,6 +651,7 @@ class ArcosClient:
             raise ArcosDisconnectedError(f"cannot restore {current} baud: {exc}") from exc
         self._decoder.clear()
         self._write_direct(port, codec.pulse_command())
+        self._last_sip_s = time.monotonic()  # the silence timeout starts again on the restored line
 
     # -- reader thread ----------------------------------------------------------------------------
 
