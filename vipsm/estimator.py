@@ -69,7 +69,8 @@ class EstimatorConfig:
     track_mask_margin_m: float = 0.15  # added to a track's radius for its predicted interval
     max_correction_m: float = 0.5  # a match further than this from the odometry prediction is refused
     max_correction_rad: float = math.radians(20.0)
-    weak_info: float = 0.10  # normalised translation information below which odometry is kept
+    weak_info: float = 0.08  # normalised translation information below which odometry is blended in
+    weak_info_min: float = 0.03  # ... and below which the odometry's translation is kept entirely
     odom_sigma_per_m: float = 0.05  # covariance growth on odometry fallback
     odom_sigma_rad_per_rad: float = 0.05
 
@@ -167,12 +168,16 @@ class Estimator:
             return res.pose
         lam, vec = np.linalg.eigh(info)
         dx, dy = res.dx_m - guess.x_m, res.dy_m - guess.y_m
+        lo, hi = self.config.weak_info_min, self.config.weak_info
         for k in range(2):
-            if lam[k] < self.config.weak_info:
+            if lam[k] < hi:
+                # below weak_info_min the scan's correction along v is dropped; up to weak_info it is
+                # blended in linearly
+                keep = min(max((lam[k] - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
                 v = vec[:, k]
                 along = dx * v[0] + dy * v[1]
-                dx -= along * v[0]
-                dy -= along * v[1]
+                dx -= (1.0 - keep) * along * v[0]
+                dy -= (1.0 - keep) * along * v[1]
         return Pose2D(guess.x_m + dx, guess.y_m + dy, res.dtheta_rad)
 
     # ------------------------------------------------------------------ step
