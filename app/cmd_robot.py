@@ -222,10 +222,36 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         tracker.update(s, k * 0.1)
     t3 = time.perf_counter()
     n = len(sips)
-    return {
+    out: dict[str, Any] = {
         "sips": n,
         "sip_bytes": len(frames[0]),
         "decode_us_per_sip": (t1 - t0) / n * 1e6,
         "odometry_us_per_sip": (t3 - t2) / n * 1e6,
         "cpu_share_at_10hz_percent": ((t1 - t0) + (t3 - t2)) / n * 10 * 100,
     }
+    out.update(_bench_connect())
+    return out
+
+
+def _bench_connect(rounds: int = 3) -> dict[str, Any]:
+    """Handshake + OPEN + CONFIG + first SIP against the in-process fake, median of ``rounds``."""
+    from hil_fakes.pioneer import FakePioneer, serve
+
+    result: dict[str, Any] = {}
+    for kind in ("pty", "tcp"):
+        times = []
+        model = FakePioneer()
+        server = serve(model, tcp="127.0.0.1:0") if kind == "tcp" else serve(model, pty=True)
+        try:
+            for _ in range(rounds):
+                client = ArcosClient(ArcosClientConfig(url=server.address, enable_motors=False, reconnect=False))
+                t0 = time.perf_counter()
+                client.connect()
+                client.get_sample(5.0)
+                times.append(time.perf_counter() - t0)
+                client.close()
+        finally:
+            server.stop()
+        times.sort()
+        result[f"connect_to_first_sample_s_{kind}"] = times[len(times) // 2]
+    return result

@@ -218,8 +218,12 @@ class ArcosClient:
 
     def connect(self) -> RobotInfo:
         """Open the port, run the handshake, OPEN, read CONFIG, ENABLE; start the reader thread."""
-        if self._state not in (ConnectionState.IDLE, ConnectionState.CLOSED):
+        if self._state not in (ConnectionState.IDLE, ConnectionState.CLOSED, ConnectionState.LOST):
             raise ArcosConfigError(f"connect() in state {self._state.value}")
+        if self._thread is not None:  # a reader that ended after a loss
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        self.samples.set_error(None)
         self._stop.clear()
         self._state = ConnectionState.CONNECTING
         try:

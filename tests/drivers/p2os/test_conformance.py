@@ -441,6 +441,8 @@ def test_no_reconnect_surfaces_the_error(make_rig: Callable[..., Rig]) -> None:
     with pytest.raises(ArcosDisconnectedError):
         c.get_sample(1.0)
     assert c.last_error is not None
+    c.connect()  # the caller may try again explicitly
+    assert c.get_sample(5.0).rebaselined
 
 
 def test_hostbaud_switch_on_a_tty(transport: str, make_rig: Callable[..., Rig]) -> None:
