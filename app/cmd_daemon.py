@@ -44,6 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--log", metavar="FILE", default=None, help="field log path (default: sim-<time>.mcap)")
     p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
     p.add_argument("--no-progress", action="store_true", help="no progress line")
+    p.add_argument(
+        "--mission",
+        choices=("cruise", "hold"),
+        default="cruise",
+        help="cruise: straight ahead at the scenario's robot speed (the paper); hold: stand still (soak runs)",
+    )
     p.set_defaults(func=cmd_sim)
 
     p = sub.add_parser("replay", help="run the estimator on a field log as fast as possible")

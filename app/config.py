@@ -37,6 +37,9 @@ class DevicesConfig:
     scanner_intensity: bool = _f(False, "stream ME (ranges + intensities) instead of MD")
     robot_url: str = _f("/dev/pioneer", "Pioneer 3-DX: tty or socket://host:8101 (simulator); empty = none")
     robot_baud: int = _f(9600, "ARCOS serial rate", choices=(9600, 19200, 38400, 57600, 115200))
+    robot_command_timeout_s: float = _f(
+        1.0, "the base driver commands zero velocity when the loop sends nothing this long (a stalled loop)", min=0.2
+    )
     camera_url: str = _f("/dev/ptzcam", "SNC-RZ50 VISCA: tty or socket://host:port; empty = no PTZ control")
     camera_baud: int = _f(9600, "VISCA serial rate", choices=(9600, 38400))
     camera_http_url: str = _f(
@@ -55,7 +58,6 @@ class LoopConfig:
     max_scan_age_s: float = _f(0.25, "a newer scan than this is required; older = scanner stalled", min=0.01)
     max_frame_age_s: float = _f(0.3, "frames older than this are not used (plain PSM for the cycle)", min=0.01)
     max_odometry_age_s: float = _f(0.35, "odometry older than this = base lost", min=0.01)
-    stop_after_missed_s: float = _f(0.3, "no healthy cycle for this long: command the base to stop", min=0.05)
 
 
 @dataclass(frozen=True)
@@ -78,7 +80,6 @@ class LogConfig:
     flush_s: float = _f(0.5, "close a chunk at least this often (bounds the loss on power cut)", min=0.05, max=1.0)
     queue_size: int = _f(512, "messages buffered for the writer thread; more are dropped and counted", min=8)
     frames: bool = _f(True, "record camera frames (JPEG)")
-    raw_bytes: bool = _f(False, "record the raw device byte streams for byte-exact replay through the codecs")
 
 
 @dataclass(frozen=True)

@@ -191,9 +191,9 @@ class ScannerAdapter:
 
 
 class BaseAdapter:
-    def __init__(self, url: str, baudrate: int, max_backoff_s: float) -> None:
+    def __init__(self, url: str, baudrate: int, command_timeout_s: float, max_backoff_s: float) -> None:
         def open_fn() -> ArcosClient:
-            client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate))
+            client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate, command_timeout_s=command_timeout_s))
             client.connect()
             return client
 
@@ -388,7 +388,7 @@ def build_loop(
     deterministic_opencv()
     d = config.devices
     scanner = ScannerAdapter(d.scanner_url, d.scanner_intensity, d.reconnect_max_s) if d.scanner_url else None
-    base = BaseAdapter(d.robot_url, d.robot_baud, d.reconnect_max_s) if d.robot_url else None
+    base = BaseAdapter(d.robot_url, d.robot_baud, d.robot_command_timeout_s, d.reconnect_max_s) if d.robot_url else None
     camera = CameraAdapter(config) if d.camera_http_url else None
     path = log_path if log_path is not None else config.log.path
     field_log = None

@@ -13,7 +13,6 @@ Channels (topic: schema):
 ``/truth``                   ``vipsm.GroundTruth``      simulated runs only: the world's true robot/obstacles
 ``/vipsm/cycle``             ``vipsm.Cycle``            the estimator's exact inputs and outputs (for replay)
 ``/vipsm/config``            ``vipsm.Config``           the whole configuration, once at start (for replay)
-``/raw/<device>``            ``vipsm.RawBytes``         optional: the device byte streams, both directions
 ===========================  =========================  =====================================================
 
 The control loop only enqueues (``log``); a bounded queue drops and counts what the writer cannot
@@ -130,14 +129,6 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     "vipsm.GroundTruth": {"type": "object", "description": "the simulated world's truth at the cycle's time"},
     "vipsm.Cycle": {"type": "object", "description": "the estimator's exact inputs and outputs for one cycle"},
     "vipsm.Config": {"type": "object", "description": "the daemon's whole configuration at start"},
-    "vipsm.RawBytes": {
-        "type": "object",
-        "properties": {
-            "stamp_s": {"type": "number"},
-            "direction": {"type": "string", "enum": ["rx", "tx"]},
-            "data": {"type": "string", "contentEncoding": "base64"},
-        },
-    },
 }
 
 TOPIC_SCHEMAS: dict[str, str] = {
@@ -152,7 +143,6 @@ TOPIC_SCHEMAS: dict[str, str] = {
     "/vipsm/cycle": "vipsm.Cycle",
     "/vipsm/config": "vipsm.Config",
 }
-RAW_PREFIX = "/raw/"
 
 LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "error": 4, "fatal": 5}
 
@@ -160,8 +150,6 @@ LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "error": 4, "fatal": 5}
 def schema_for(topic: str) -> str:
     if topic in TOPIC_SCHEMAS:
         return TOPIC_SCHEMAS[topic]
-    if topic.startswith(RAW_PREFIX):
-        return "vipsm.RawBytes"
     raise LogFormatError(f"no schema for topic {topic!r}")
 
 

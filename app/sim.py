@@ -169,7 +169,7 @@ class SimScorer:
         return out
 
 
-def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float) -> Config:
+def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float, mode: str = "cruise") -> Config:
     d = dataclasses.replace(
         config.devices,
         scanner_url=addresses["scanner"],
@@ -177,7 +177,7 @@ def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float) -> 
         camera_url=addresses["camera"],
         camera_http_url=addresses["camera_http"],
     )
-    mission = dataclasses.replace(config.mission, mode="cruise", cruise_speed_mps=speed_mps)
+    mission = dataclasses.replace(config.mission, mode=mode, cruise_speed_mps=speed_mps)
     estimator = _replace_fields(config.estimator, mount_values(RobotMount()))
     return dataclasses.replace(config, devices=d, mission=mission, estimator=estimator)
 
@@ -213,7 +213,7 @@ def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
         addresses = json.loads(first)
         truth = TruthStream(child.stdout)
         scorer = SimScorer(truth)
-        cfg = _sim_config(config, addresses, float(scenario.robot_speed_mps))
+        cfg = _sim_config(config, addresses, float(scenario.robot_speed_mps), getattr(args, "mission", "cruise"))
         log_path = args.log if args.log is not None else (cfg.log.path if args.config else SIM_LOG_PATTERN)
         loop = build_loop(cfg, log_path=log_path, truth=scorer.truth_for_log)
         loop.on_estimate = scorer.on_estimate
