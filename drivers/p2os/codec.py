@@ -25,7 +25,7 @@ import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from .errors import ArcosConfigError, ArcosProtocolError
+from .errors import ArcosChecksumError, ArcosConfigError, ArcosProtocolError
 
 HEADER = b"\xfa\xfb"
 #: smallest and largest legal count byte (payload with at least the type byte, plus 2 checksum bytes)
@@ -597,6 +597,26 @@ def decode_payload(payload: bytes) -> Event:
     if ptype in RESET_TYPES:
         return ResetPacket(packet_type=ptype)
     return UnknownPacket(packet_type=ptype, payload=bytes(payload))
+
+
+def decode_frame(wire: bytes) -> Event:
+    """Strictly decode exactly one complete frame (e.g. one recorded for replay).
+
+    Raises :class:`ArcosChecksumError` on a checksum mismatch and :class:`ArcosProtocolError` on a
+    bad header, count or length, or a malformed payload.
+    """
+    wire = bytes(wire)
+    if len(wire) < MIN_COUNT + 3 or wire[:2] != HEADER:
+        raise ArcosProtocolError("not an ARCOS frame (needs FA FB, a count and at least 1+2 bytes)", raw=wire)
+    count = wire[2]
+    if count < MIN_COUNT or len(wire) != count + 3:
+        raise ArcosProtocolError(f"count byte {count} does not match a frame of {len(wire)} bytes", raw=wire)
+    payload = wire[3:-2]
+    sent = (wire[-2] << 8) | wire[-1]
+    calc = checksum(payload)
+    if sent != calc:
+        raise ArcosChecksumError(f"checksum {sent:#06x} != computed {calc:#06x}", code=f"{sent:04X}", raw=wire)
+    return decode_payload(payload)
 
 
 # --------------------------------------------------------------------------------------------

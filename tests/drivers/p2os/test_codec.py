@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivers.errors import ProtocolError
+from drivers.errors import ChecksumError, ProtocolError
 from drivers.p2os import codec
 from drivers.p2os.codec import (
     ArcosDecoder,
@@ -23,7 +23,7 @@ from drivers.p2os.codec import (
     Sip,
     SyncEcho,
 )
-from drivers.p2os.errors import ArcosConfigError, ArcosError
+from drivers.p2os.errors import ArcosChecksumError, ArcosConfigError, ArcosError, ArcosProtocolError
 
 H = bytes.fromhex
 
@@ -366,3 +366,24 @@ def test_deframer_finds_frames_after_junk_with_headers_once_expired(
     found = [i.payload for i in items if isinstance(i, RawFrame)]
     it = iter(found)
     assert all(any(p == f for f in it) for p in expected)
+
+
+def test_strict_decode_frame_raises_typed_errors() -> None:
+    assert codec.decode_frame(SYNC2_REPLY) == RobotIdentity("AMRISim", "Pioneer", "p3dx", True)
+    bad = bytearray(SYNC2_REPLY)
+    bad[-1] ^= 0x01
+    with pytest.raises(ArcosChecksumError) as info:
+        codec.decode_frame(bytes(bad))
+    assert info.value.raw == bytes(bad) and isinstance(info.value, ChecksumError)
+    for wire in (SYNC2_REPLY[:-1], b"\xfa\xfa\x03\x00\x00\x00", b"\xfa\xfb\x02\x00\x00"):
+        with pytest.raises(ArcosProtocolError):
+            codec.decode_frame(wire)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=80))
+def test_strict_decode_frame_raises_only_typed_errors(wire: bytes) -> None:
+    try:
+        codec.decode_frame(wire)
+    except ArcosError:
+        pass
