@@ -323,6 +323,7 @@ class FakePioneer(DeviceModel):
         self._next_sip_s: float | None = None
         self._sonar_next = 0
         self._misorder_left = 0
+        self._misorder_skip = 0
         self._junk_every = 0
         self._junk_data = b""
         self._sip_index = 0
@@ -352,9 +353,11 @@ class FakePioneer(DeviceModel):
         with self._lock:
             self._open_session(self._now_s)
 
-    def misorder_sync(self, count: int = 1) -> None:
-        """The next ``count`` SYNC replies carry the wrong id (the step after the one asked for)."""
+    def misorder_sync(self, count: int = 1, skip: int = 0) -> None:
+        """After ``skip`` correct SYNC replies, the next ``count`` carry the wrong id (the step after the
+        one asked for; for SYNC2 that is a late-looking echo 0)."""
         with self._lock:
+            self._misorder_skip = skip
             self._misorder_left += count
 
     def junk_before_sips(self, every: int, data: bytes = b"\x00\xfa\x13\xfa\xfb\x05junk") -> None:
@@ -448,7 +451,9 @@ class FakePioneer(DeviceModel):
 
     def _sync_reply(self, step: int) -> None:
         reply_id = step
-        if self._misorder_left > 0:
+        if self._misorder_skip > 0:
+            self._misorder_skip -= 1
+        elif self._misorder_left > 0:
             self._misorder_left -= 1
             reply_id = (step + 1) % 3
         if reply_id == 2:

@@ -153,6 +153,14 @@ def test_out_of_order_sync_echo_restarts_the_handshake(make_rig: Callable[..., R
     assert c.stats.sync_restarts >= 1
 
 
+def test_a_late_duplicate_echo_is_ignored(make_rig: Callable[..., Rig]) -> None:
+    rig = make_rig()
+    rig.fake.misorder_sync(1, skip=2)  # the SYNC2 reply comes back as an echo 0
+    c = rig.client(sync_step_timeout_s=0.3)
+    assert c.connect().subclass == "p3dx"
+    assert c.stats.sync_duplicates == 1 and c.stats.sync_restarts == 1
+
+
 def test_a_silent_port_gives_a_typed_timeout(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig()
     rig.server.faults.stall(30.0)
