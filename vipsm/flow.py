@@ -125,24 +125,21 @@ def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: Fl
     least half their width replace the span. Without such a run the span is kept."""
     d = col_depth
     n = d.size
-    jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
-    edges = np.concatenate(([0], np.flatnonzero(jump) + 1, [n]))
-    c0, c1 = u0 / st, u1 / st
-    lo, hi = None, None
-    for a, b in zip(edges[:-1], edges[1:]):
-        a, b = int(a), int(b)
-        near = float(np.median(d[a:b]))
-        left = float(d[a - 1]) if a > 0 else math.inf
-        right = float(d[b]) if b < n else math.inf
-        if not (left > near + cfg.snap_jump_m and right > near + cfg.snap_jump_m):
-            continue
-        overlap = min(b, c1) - max(a, c0)
-        if overlap >= 0.5 * (b - a):
-            lo = a if lo is None else min(lo, a)
-            hi = b if hi is None else max(hi, b)
-    if lo is None or hi is None:
+    if n < 2:
         return u0, u1
-    return float(lo * st), float(hi * st)
+    jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
+    starts = np.concatenate(([0], np.flatnonzero(jump) + 1))
+    stops = np.concatenate((starts[1:], [n]))
+    near = np.add.reduceat(d, starts) / (stops - starts)  # mean depth of each run
+    left = np.concatenate(([np.inf], d[starts[1:] - 1]))
+    right = np.concatenate((d[stops[:-1]], [np.inf]))
+    fg = (left > near + cfg.snap_jump_m) & (right > near + cfg.snap_jump_m)
+    c0, c1 = u0 / st, u1 / st
+    overlap = np.minimum(stops, c1) - np.maximum(starts, c0)
+    hit = fg & (overlap >= 0.5 * (stops - starts))
+    if not hit.any():
+        return u0, u1
+    return float(starts[hit].min() * st), float(stops[hit].max() * st)
 
 
 def _remove_global_error(

@@ -469,7 +469,9 @@ def _orientation_search(
     ref_pad[w : w + n] = np.where(ref_ok, ref.ranges_m, big)
     new_r = np.where(new_ok, proj.ranges_m, -big).astype(np.float32)
     # g[k, i] = |ref_r[i + k - w] - new_r[i]|: shift d = k - w compares new_r[i] with ref_r[i + d]
-    g = np.subtract(np.lib.stride_tricks.sliding_window_view(ref_pad, n), new_r)
+    stride = ref_pad.strides[0]
+    win = np.lib.stride_tricks.as_strided(ref_pad, shape=(2 * w + 1, n), strides=(stride, stride), writeable=False)
+    g = np.subtract(win, new_r)
     np.abs(g, out=g)
     valid = g < me
     cnt = np.count_nonzero(valid, axis=1)
