@@ -15,7 +15,7 @@ What it does, as the recorded firmware P.1.05 did:
   from the scan's own start time and both its characters and its sum are built from that value.
 * MD/ME: acknowledgement (echo, ``00P``, empty line), then one frame per scan (respecting the
   interval) whose echo carries the remaining count; ``count`` N stops after N frames (laser off),
-  ``00`` streams until QT. GD/GE answer with the next completed scan; status ``10`` when the laser
+  ``00`` streams until QT. GD/GE answer with the first scan that starts after the request; status ``10`` when the laser
   is off. TM0/TM1/TM2 with the SCIP statuses; in time-adjust mode every other command is refused
   (``0E``, as urg_library expects of a sensor stuck there).
 * Ranges come from a pluggable :class:`RangeSource` (default :class:`FixedRoom`); NaN and values
@@ -666,10 +666,10 @@ class Utm30lxModel(DeviceModel):
         if not self._laser_on:
             self._reply(echo, "10", now_s)
             return
-        # The reply carries the next scan completed after the request (about one revolution later).
-        self._singles.append(
-            _PendingSingle(echo, cmd, int(params[0:4]), int(params[4:8]), int(params[8:10]), self._next_scan)
-        )
+        # The reply carries the first scan that starts after the request (so a scan taken with the laser
+        # just switched on, or after RS restarted the clock): it goes out 19-44 ms later.
+        first = self._scan_index_after(now_s)
+        self._singles.append(_PendingSingle(echo, cmd, int(params[0:4]), int(params[4:8]), int(params[8:10]), first))
 
     # ---------------------------------------------------------------- scanning
 

@@ -113,8 +113,15 @@ def test_short_stall_resumes_without_reconnect(streaming: Utm30lxClient, fake: D
     assert streaming.stats.reconnects == 0
 
 
-def test_long_stall_reconnects_and_resumes(streaming: Utm30lxClient, fake: DeviceServer) -> None:
-    fake.faults.stall(1.5)
+def test_long_stall_reconnects_and_resumes(fake: DeviceServer) -> None:
+    with Utm30lxClient(fake.address, fast_config(frame_timeout_s=0.1, reply_timeout_s=0.5)) as streaming:
+        streaming.start_stream()
+        streaming.next_scan(timeout_s=5.0)
+        _long_stall(streaming, fake)
+
+
+def _long_stall(streaming: Utm30lxClient, fake: DeviceServer) -> None:
+    fake.faults.stall(0.8)  # beyond 4 windows of 0.1 s
     assert wait_until(lambda: streaming.stats.reconnects >= 1, 20.0), streaming.stats
     assert streaming.stats.silent_windows >= 4
     resumes(streaming, fake)
