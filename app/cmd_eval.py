@@ -327,7 +327,8 @@ def run_scenario(
             frame = Frame(img, t_frame, intr, pan_rad=0.0, tilt_rad=0.0, seq=k)
         truth = world.truth(t)
         truth_frame = world.truth(max(t_frame, 0.0))
-        truth_prev = world.truth(max(t - CYCLE_S, 0.0))
+        t_prev = max(t - CYCLE_S, 0.0)
+        moving_prev = [bool(np.hypot(*o.velocities(t_prev))) > 0 for o in scenario.obstacles]
         t_world += time.perf_counter() - w0
 
         # which true obstacles are in view this cycle
@@ -340,7 +341,7 @@ def run_scenario(
             fo = truth_frame.obstacles[i]
             views.append(
                 ob.moving
-                and truth_prev.obstacles[i].moving
+                and moving_prev[i]
                 and frame is not None
                 and obstacle_in_camera(cam_x, cam_y, truth_frame.theta_rad, hfov, fo.x_m, fo.y_m, fo.radius_m)
                 and int(beams[i]) >= MIN_BEAMS_IN_VIEW

@@ -1,7 +1,7 @@
 """The simulated world with one clock: the robot plant, scripted obstacles, the sensors, the truth.
 
 All queries are thread-safe (one re-entrant lock) and advance the world lazily to the queried time
-in fixed integration steps; a pose history (``history_s``, default 5 s) serves queries in the past
+in fixed integration steps (10 ms); a pose history (``history_s``, default 5 s) serves queries in the past
 by interpolation, so several fake threads may ask for slightly different times in any order.
 
 Times: ``start_s`` is the caller's clock value at which the scenario's time 0 happens (the daemon's
@@ -76,7 +76,7 @@ class World:
         laser: LaserModel | None = None,
         camera: CameraModel | None = None,
         start_s: float = 0.0,
-        step_s: float = 0.005,
+        step_s: float = 0.01,
         history_s: float = 5.0,
     ) -> None:
         self.scenario = scenario
