@@ -19,6 +19,7 @@ hands them out through a :class:`~drivers.common.LatestBuffer`. The same thread 
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import enum
 import math
@@ -136,7 +137,8 @@ class ClientStats:
     controller_resets: int = 0
     baud_fallbacks: int = 0
     unexpected_packets: int = 0
-    errors: list[str] = field(default_factory=list)
+    #: the most recent errors met by the reader (bounded, newest last)
+    errors: collections.deque[str] = field(default_factory=lambda: collections.deque(maxlen=32))
 
 
 @dataclass(frozen=True)
