@@ -328,7 +328,7 @@ def run_scenario(
         truth = world.truth(t)
         truth_frame = world.truth(max(t_frame, 0.0))
         t_prev = max(t - CYCLE_S, 0.0)
-        moving_prev = [bool(np.hypot(*o.velocities(t_prev))) > 0 for o in scenario.obstacles]
+        moving_prev = [float(np.hypot(*o.velocities(t_prev))) > 0.0 for o in scenario.obstacles]
         t_world += time.perf_counter() - w0
 
         # which true obstacles are in view this cycle
