@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import struct
 import threading
 from dataclasses import dataclass, field
@@ -795,6 +796,14 @@ def run_from_args(args: argparse.Namespace) -> int:
     if args.junk_every:
         model.junk_before_sips(args.junk_every)
     server = serve(model, tcp=args.tcp, pty=args.pty, link=args.link)
-    print(server.address, flush=True)
-    wait_forever([server])
+
+    def on_sigterm(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    try:
+        print(server.address, flush=True)
+        wait_forever([server])  # stops the server (and removes a --link) on Ctrl-C or SIGTERM
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return 0

@@ -77,6 +77,15 @@ def test_drive_moves_stops_and_prints_final_odometry(fake_url: str, capsys: pyte
     assert abs(out["final"]["y_m"]) < 1e-3
 
 
+def test_fake_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
+    link = tmp_path / "pioneer"
+    proc, address = _start_fake("--pty", "--link", str(link))
+    assert os.path.islink(link)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=10) == 0
+    assert not os.path.lexists(link)  # the stable link is removed with the fake
+
+
 def test_drive_refuses_unsafe_speeds(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["drive", "--robot", "socket://127.0.0.1:9", "--v", "2.0", "--seconds", "1"]) == 2
     assert "refusing" in capsys.readouterr().err
