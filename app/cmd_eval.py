@@ -445,7 +445,10 @@ def write_plots(log: RunLog, out_dir: Path, mount: RobotMount | None = None) -> 
         t_a, t_b = times[view_any][0], times[view_any][-1]
     else:
         t_a, t_b = times[0], times[-1]
-    snap_t = [t_a + (t_b - t_a) * f for f in (0.25, 0.5, 0.75, 1.0)]
+    if sc.name in {v["name"] for v in PAPER_SCENARIOS.values()}:
+        snap_t = [6.0, 8.0, 10.0, 12.0]  # the paper's Fig. 8 times
+    else:
+        snap_t = [t_a + (t_b - t_a) * f for f in (0.25, 0.5, 0.75, 1.0)]
     scale = _SCALE * 0.6
     panels_rows = []
     assert log.bearings_rad is not None
