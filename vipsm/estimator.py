@@ -35,7 +35,15 @@ import numpy as np
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, inverse, wrap_angle
 from .psm import PreparedScan, PsmConfig, PsmResult, match_prepared, prepare_scan
-from .restore import BearingInterval, Restoration, RestoreConfig, restore
+from .restore import (
+    BearingInterval,
+    ObstacleSegment,
+    Restoration,
+    RestoreConfig,
+    _compact_foreground,
+    _segments_raw,
+    restore,
+)
 from .tracker import Detection, Tracker, TrackerConfig, locate_body
 from .types import Estimate, EstimateFlag, Frame, MatchQuality, Obstacle, Odometry, Pose2D, Scan
 
@@ -68,6 +76,9 @@ class EstimatorConfig:
     track_mask_s: float = 1.0  # tracks confirmed by the camera within this long are masked too
     track_sustain_speed_mps: float = 0.05  # ... and moving tracks the laser keeps detecting, indefinitely
     track_mask_margin_m: float = 0.15  # added to a track's radius for its predicted interval
+    laser_motion_cue: bool = True  # also detect bodies that moved in front of the keyframe's surfaces
+    laser_motion_min_m: float = 0.05  # ... by at least this much
+    laser_motion_min_share: float = 0.6  # ... over this share of a body-sized foreground segment
     max_correction_m: float = 0.5  # a match further than this from the odometry prediction is refused
     max_correction_rad: float = math.radians(20.0)
     weak_info: float = 0.08  # normalised translation information below which odometry is blended in
@@ -112,6 +123,7 @@ class Estimator:
         self._flow = FlowDetector(self.config.flow, self.config.camera_mount)
         self._tracker = Tracker(self.config.tracker)
         self._kf: _Keyframe | None = None
+        self._older_kf: _Keyframe | None = None  # the keyframe before the current one
         self._last_pose: Pose2D | None = None
         self._last_odo: Pose2D | None = None
         self._last_cov = np.zeros((3, 3))
@@ -181,6 +193,47 @@ class Estimator:
                 dy -= (1.0 - keep) * along * v[1]
         return Pose2D(guess.x_m + dx, guess.y_m + dy, res.dtheta_rad)
 
+    def _laser_motion_segments(self, scan: Scan, kf: PreparedScan, rel_laser: Pose2D) -> list[tuple[int, int]]:
+        """Body-sized foreground segments of this scan that stand clearly in front of the surface
+        the keyframe saw in the same direction (after matching): something moved into view there.
+        A static scene cannot produce this (a new viewpoint only reveals surfaces *behind* what the
+        keyframe saw), so it catches bodies the camera misses, e.g. one approaching head-on."""
+        cfg = self.config
+        r = scan.ranges_m
+        b = scan.bearings_rad
+        n = r.size
+        if n < 3 or kf.ranges_m.size < 3:
+            return []
+        valid = np.isfinite(r) & (r >= cfg.psm.min_range_m) & (r <= cfg.psm.max_range_m)
+        c, s = math.cos(rel_laser.theta_rad), math.sin(rel_laser.theta_rad)
+        rr = np.where(valid, r, 0.0)
+        x = rel_laser.x_m + c * rr * np.cos(b) - s * rr * np.sin(b)
+        y = rel_laser.y_m + s * rr * np.cos(b) + c * rr * np.sin(b)
+        phi = np.arctan2(y, x)
+        rho = np.hypot(x, y)
+        kb = kf.bearings_rad
+        j = np.clip(np.searchsorted(kb, phi), 1, kb.size - 1)
+        j -= (np.abs(kb[j - 1] - phi) < np.abs(kb[j] - phi)).astype(np.intp)
+        inside = (phi >= kb[0]) & (phi <= kb[-1])
+        kr = np.where(kf.good, kf.ranges_m, np.nan)[j]
+        with np.errstate(invalid="ignore"):
+            evidence = valid & inside & np.isfinite(kr) & (rho < kr - cfg.laser_motion_min_m)
+        if np.count_nonzero(evidence) < cfg.restore.min_obstacle_beams:
+            return []
+        dphi = float(abs(b[-1] - b[0]) / max(n - 1, 1))
+        seg = _segments_raw(r, valid, dphi, cfg.restore.seg_jump_m, cfg.restore.seg_jump_range_factor)
+        out = []
+        for sid in np.unique(seg[evidence]):
+            if sid == 0:
+                continue
+            beams = np.flatnonzero(seg == sid)
+            if np.count_nonzero(evidence[beams]) < cfg.laser_motion_min_share * beams.size:
+                continue
+            if not _compact_foreground(r, b, seg, int(sid), cfg.restore):
+                continue
+            out.append((int(beams[0]), int(beams[-1]) + 1))
+        return out
+
     # ------------------------------------------------------------------ step
     def step(self, scan: Scan, odometry: Odometry, frame: Frame | None = None) -> Estimate:
         cfg = self.config
@@ -230,6 +283,7 @@ class Estimator:
         # 3. matching ---------------------------------------------------------------------
         res: PsmResult | None = None
         kf_replaced = False
+        kf_used: _Keyframe | None = None
         if first or self._kf is None:
             flags |= EstimateFlag.FIRST_SCAN
             pose = odo
@@ -240,6 +294,7 @@ class Estimator:
                 kf_replaced = True
         else:
             kf = self._kf
+            kf_used = kf
             refused = False
             if rest.too_large and not self.plain_psm:
                 refused = True
@@ -277,6 +332,7 @@ class Estimator:
                 )
                 since_kf = between(kf.pose, pose)
                 if math.hypot(since_kf.x_m, since_kf.y_m) > cfg.keyframe_stale_dist_m and not rest.too_large:
+                    self._older_kf = self._kf
                     self._kf = _Keyframe(cur, pose, cov, n_good_w)
                     kf_replaced = True
             else:
@@ -293,16 +349,31 @@ class Estimator:
                     or abs(since_kf.theta_rad) > cfg.keyframe_angle_rad
                     or res.beams_used < cfg.keyframe_min_overlap * max(kf.n_good_weighted, 1)
                 ):
+                    self._older_kf = self._kf
                     self._kf = _Keyframe(cur, pose, cov, n_good_w)
                     kf_replaced = True
 
         # 4. obstacles --------------------------------------------------------------------
+        segments = list(rest.obstacles)
+        if cfg.laser_motion_cue and kf_used is not None and not (flags & EstimateFlag.ODOMETRY_FALLBACK):
+            found: list[tuple[int, int]] = []
+            # against the keyframe and the one before it (a longer time base shows slower motion)
+            for ref_kf in (kf_used, self._older_kf):
+                if ref_kf is None:
+                    continue
+                rel_laser = compose(compose(inverse(cfg.laser_mount), between(ref_kf.pose, pose)), cfg.laser_mount)
+                found += self._laser_motion_segments(scan, ref_kf.prep, rel_laser)
+            for a, b in sorted(set(found)):
+                if not any(a < o.stop and o.start < b for o in segments):
+                    bb = scan.bearings_rad
+                    iv = BearingInterval(float(bb[a]), float(bb[b - 1]), source="laser")
+                    segments.append(ObstacleSegment(a, b, iv))
         laser_world = compose(pose, cfg.laser_mount)
         c, s = math.cos(laser_world.theta_rad), math.sin(laser_world.theta_rad)
         detections: list[Detection] = []
         det_sources: list[BearingInterval] = []
         pts_out: list[np.ndarray] = []
-        for ob in rest.obstacles:
+        for ob in segments:
             rr = scan.ranges_m[ob.start : ob.stop]
             bb = scan.bearings_rad[ob.start : ob.stop]
             ok = np.isfinite(rr) & (rr >= cfg.psm.min_range_m)
@@ -328,7 +399,7 @@ class Estimator:
         for t, det in tracked:
             if det is not None:
                 k = detections.index(det)
-                if det_sources[k].source == "camera":
+                if det_sources[k].source in ("camera", "laser"):
                     t.camera_stamp_s = scan.stamp_s
             if det is None and (t.missed > cfg.tracker.report_missed or t.hits < 2):
                 continue
