@@ -51,11 +51,15 @@ class ObstaclePath:
             raise ValueError("ObstaclePath needs at least one waypoint")
         if self.radius_m <= 0 or self.speed_mps < 0:
             raise ValueError("ObstaclePath: radius_m must be > 0 and speed_mps >= 0")
-
-    def _cumulative(self) -> tuple[np.ndarray, np.ndarray]:
         pts = np.asarray(self.waypoints, dtype=float).reshape(-1, 2)
         seg = np.hypot(*np.diff(pts, axis=0).T) if len(pts) > 1 else np.zeros(0)
-        return pts, np.concatenate([[0.0], np.cumsum(seg)])
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        pts.setflags(write=False)
+        cum.setflags(write=False)
+        object.__setattr__(self, "_pts_cum", (pts, cum))  # cache (not a field: eq/hash/repr unaffected)
+
+    def _cumulative(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._pts_cum  # type: ignore[attr-defined, no-any-return]
 
     @property
     def length_m(self) -> float:
@@ -117,7 +121,7 @@ def cast_walls(
     ex, ey = x1 - x0, y1 - y0
     px, py = x0 - ox, y0 - oy
     denom = dx * ey - dy * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = 1.0 / denom
         t = (px * ey - py * ex) * inv
         u = (px * dy - py * dx) * inv
