@@ -804,6 +804,9 @@ def run_from_args(args: argparse.Namespace) -> int:
     try:
         print(server.address, flush=True)
         wait_forever([server])  # stops the server (and removes a --link) on Ctrl-C or SIGTERM
+    except KeyboardInterrupt:
+        pass  # the signal came before wait_forever was listening
     finally:
         signal.signal(signal.SIGTERM, previous)
+        server.stop()  # idempotent; covers the early-signal case
     return 0
