@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
@@ -241,6 +242,10 @@ class Estimator:
         if self.plain_psm:
             flags |= EstimateFlag.PLAIN_PSM
         odo = odometry.pose
+        b = scan.bearings_rad
+        scan_ok = bool(b.size < 2 or (np.all(np.isfinite(b)) and np.all(np.diff(b) > 0)))
+        if not scan_ok:  # bearings must be finite and ascending: match nothing, fall back
+            scan = Scan(np.full(b.size, np.nan), np.linspace(-1.0, 1.0, b.size), scan.stamp_s, scan.seq)
         first = self._last_pose is None
         if self._last_pose is None or self._last_odo is None:
             predicted = odo
@@ -263,7 +268,13 @@ class Estimator:
             depth_pts = np.stack(
                 [rel_sf.x_m + cs * pts[:, 0] - sn * pts[:, 1], rel_sf.y_m + sn * pts[:, 0] + cs * pts[:, 1]], axis=1
             )
-            fres = self._flow.detect(frame, pose_f, depth_pts, odometry.v_mps, odometry.w_radps)
+            try:
+                fres = self._flow.detect(frame, pose_f, depth_pts, odometry.v_mps, odometry.w_radps)
+            except (cv2.error, ValueError) as exc:  # e.g. an image of the wrong dtype or shape
+                del exc
+                fres = None
+                flags |= EstimateFlag.FRAME_ERROR
+                self._flow.reset()
             if fres is not None:
                 camera_ivs = [interval_to_laser(iv, rel_sf, cfg.laser_mount) for iv in fres.intervals]
         intervals = camera_ivs + self._track_intervals(scan.stamp_s, predicted, camera_ivs)
@@ -285,11 +296,16 @@ class Estimator:
         kf_replaced = False
         kf_used: _Keyframe | None = None
         if first or self._kf is None:
-            flags |= EstimateFlag.FIRST_SCAN
-            pose = odo
-            cov = np.zeros((3, 3))
+            if first:
+                flags |= EstimateFlag.FIRST_SCAN
+                pose = odo
+                cov = np.zeros((3, 3))
+            else:  # no usable keyframe yet (the earlier scans were unusable): dead-reckon
+                flags |= EstimateFlag.ODOMETRY_FALLBACK
+                pose = predicted
+                cov = self._last_cov.copy()
             quality = MatchQuality(0, 0, float("nan"), False)
-            if not rest.too_large or self.plain_psm:
+            if (not rest.too_large or self.plain_psm) and n_good_w >= cfg.psm.min_valid_beams:
                 self._kf = _Keyframe(cur, pose, cov, n_good_w)
                 kf_replaced = True
         else:
@@ -302,8 +318,11 @@ class Estimator:
                 mount = cfg.laser_mount
                 guess_robot = between(kf.pose, predicted)
                 guess = compose(compose(inverse(mount), guess_robot), mount)
-                res = match_prepared(kf.prep, cur, guess, cfg.psm)
-                refused = res.refused
+                if scan_ok:
+                    res = match_prepared(kf.prep, cur, guess, cfg.psm)
+                    refused = res.refused
+                else:
+                    refused = True
                 if not refused:
                     matched = self._constrain_weak_directions(res, guess)
                     rel_robot = compose(compose(mount, matched), inverse(mount))

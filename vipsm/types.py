@@ -126,6 +126,7 @@ class EstimateFlag(enum.Flag):
     OBSTACLE_TOO_LARGE = enum.auto()  # restoration refused: the obstacle covers too much of the scan
     BRIDGE_INVALID = enum.auto()  # a cut segment spanned two surfaces and was invalidated, not bridged
     STALE_FRAME = enum.auto()  # the frame was too old for the scan and was not used
+    FRAME_ERROR = enum.auto()  # the frame could not be processed (bad image) and was not used
 
 
 @dataclass(frozen=True)

@@ -189,3 +189,27 @@ def test_bearings_need_not_be_the_utm_table() -> None:
         scan = world.scan(compose(truth, LASER), bearings=b, t_s=t, stamp_s=t)
         e = est.step(scan, Odometry(0.2 * t, 0.0, 0.0, 0.2, 0.0, t))
     assert EstimateFlag.ODOMETRY_FALLBACK not in e.flags and e.quality.beams_used > 250
+
+
+def test_bad_inputs_never_raise() -> None:
+    world = box_room(8.0, 6.0)
+    seq = _sequence(world, 6, frames=False)
+    est = Estimator(CFG)
+    # an unusable first scan: no keyframe yet, the next cycles dead-reckon then match again
+    first = seq[0][0]
+    e0 = est.step(Scan(np.full(first.ranges_m.size, np.nan), first.bearings_rad, 0.0), seq[0][1])
+    assert EstimateFlag.FIRST_SCAN in e0.flags
+    e1 = est.step(seq[1][0], seq[1][1])
+    assert EstimateFlag.ODOMETRY_FALLBACK in e1.flags and EstimateFlag.FIRST_SCAN not in e1.flags
+    # descending bearings: refused, flagged, no exception
+    s2 = seq[2][0]
+    e2 = est.step(Scan(s2.ranges_m, s2.bearings_rad[::-1].copy(), s2.stamp_s), seq[2][1])
+    assert EstimateFlag.ODOMETRY_FALLBACK in e2.flags
+    # a frame that is not an image
+    bad = Frame(np.zeros((4, 4), dtype=np.float64), seq[3][0].stamp_s, CAM.intrinsics)
+    est.step(seq[3][0], seq[3][1], bad)
+    e4 = est.step(seq[4][0], seq[4][1], Frame(np.zeros((4, 4), dtype=np.float64), seq[4][0].stamp_s, CAM.intrinsics))
+    assert EstimateFlag.FRAME_ERROR in e4.flags
+    e5 = est.step(seq[5][0], seq[5][1])
+    assert EstimateFlag.ODOMETRY_FALLBACK not in e5.flags
+    assert abs(e5.pose.x_m - seq[5][3].x_m) < 0.02
