@@ -13,6 +13,11 @@ a stream runs, one reader thread owns the port, puts scans into a :class:`~drive
 and reconnects on its own after an unplug or ``silent_windows_before_reconnect`` windows of
 ``frame_timeout_s`` without a valid frame. A reader thread that gives up surfaces its error through
 the buffer (raised by the next :meth:`Utm30lxClient.next_scan`) and :attr:`Utm30lxClient.last_error`.
+
+Clocks: every scan carries the host's ``time.monotonic()`` at receipt and the device's 24-bit ms
+stamp, unwrapped (resets after RS or a reconnect start a new epoch, they are not wraps). The offset
+between them comes from TM round trips at open and after each reconnect; while streaming,
+:class:`~drivers.hokuyo_scip.timebase.DriftTracker` follows the drift between syncs.
 """
 
 from __future__ import annotations
