@@ -89,12 +89,23 @@ def _segments_raw(r: np.ndarray, valid: np.ndarray, dphi: float, jump: float, k:
     return seg
 
 
-def _beams_in(interval: BearingInterval, r: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray:
-    """Beams whose point, seen from the interval's origin, lies inside the interval +- margin.
-    Beams without a return use their own bearing (parallax unknown)."""
+def _seen_bearings(interval: BearingInterval, r: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bearing of each beam's point seen from the interval's origin (beams without a return keep
+    their own bearing: parallax unknown)."""
+    if interval.origin_x_m == 0.0 and interval.origin_y_m == 0.0:
+        return b
     x = r * np.cos(b) - interval.origin_x_m
     y = r * np.sin(b) - interval.origin_y_m
-    seen = np.where(np.isfinite(r), np.arctan2(y, x), b)
+    with np.errstate(invalid="ignore"):
+        return np.where(np.isfinite(r), np.arctan2(y, x), b)
+
+
+def _beams_in(
+    interval: BearingInterval, r: np.ndarray, b: np.ndarray, margin: float, seen: np.ndarray | None = None
+) -> np.ndarray:
+    """Beams whose point, seen from the interval's origin, lies inside the interval +- margin."""
+    if seen is None:
+        seen = _seen_bearings(interval, r, b)
     return (seen >= interval.bearing_min_rad - margin) & (seen <= interval.bearing_max_rad + margin)
 
 
@@ -165,13 +176,14 @@ def restore(
     cut_mask = np.zeros(n, dtype=bool)
     obstacles: list[ObstacleSegment] = []
     for iv in intervals:
-        core = _beams_in(iv, r, b, 0.0)
+        seen = _seen_bearings(iv, r, b)
+        core = _beams_in(iv, r, b, 0.0, seen)
         # margin: max(min margin, half-width of margin_width_m at the nearest range in the core)
         near = np.nanmin(np.where(core & valid, r, np.inf)) if np.any(core & valid) else np.inf
         margin = cfg.margin_min_rad
         if math.isfinite(near) and near > 0:
             margin = max(margin, math.atan2(0.5 * cfg.margin_width_m, near))
-        wide = _beams_in(iv, r, b, margin)
+        wide = _beams_in(iv, r, b, margin, seen)
         inside = np.bincount(seg[wide & valid], minlength=nseg)
         touched = np.flatnonzero(np.bincount(seg[core & valid], minlength=nseg))
         touched = touched[touched > 0]
