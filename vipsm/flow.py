@@ -193,12 +193,14 @@ class FlowDetector:
         self.mount = mount or CameraMount()
         self._dis = cv2.DISOpticalFlow_create(self.config.dis_preset)
         self._history: list[tuple[np.ndarray, float, Frame, Pose2D]] = []
+        self._last_result: FlowResult | None = None
         self._geo: tuple | None = None
         #: (residual flow px, threshold px, usable mask, grid step) of the last detection, for diagnostics
         self.last_residual: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None
 
     def reset(self) -> None:
         self._history = []
+        self._last_result = None
 
     def _pick_old(self, stamp_s: float, shape: tuple[int, ...]) -> tuple[np.ndarray, float, Frame, Pose2D] | None:
         cfg = self.config
@@ -228,12 +230,16 @@ class FlowDetector:
         (the scan nearest to the frame), giving the depth per viewing direction. Returns None when
         there is no usable earlier frame yet."""
         cfg = self.config
+        if self._history and self._history[-1][2].stamp_s == frame.stamp_s:
+            # the same frame again (a camera slower than the estimator's cycle): same answer
+            return self._last_result
         grey, scale = _grey(frame, cfg.max_width_px)
         old = self._pick_old(frame.stamp_s, grey.shape)
         self._history.append((grey, scale, frame, odom_pose_at_frame))
         self._history = [
             it for it in self._history if frame.stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s + 1e-9
         ][-8:]
+        self._last_result = None
         if old is None:
             return None
         ogrey, oscale, oframe, opose = old
@@ -374,12 +380,13 @@ class FlowDetector:
             )
             b = np.arctan2(rya, rxa)
             intervals.append(BearingInterval(float(b.min()), float(b.max()), m.x_m, m.y_m, "camera"))
-        return FlowResult(
+        self._last_result = FlowResult(
             tuple(intervals),
             float(alpha),
             int(np.count_nonzero(mask)),
             tuple((int(a), int(b_), int(c_), int(d)) for a, b_, c_, d in merged),
         )
+        return self._last_result
 
 
 def interval_to_laser(

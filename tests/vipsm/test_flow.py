@@ -166,3 +166,18 @@ def test_grey_and_colour_frames_and_large_frames_agree() -> None:
     assert out is not None and len(out.intervals) == 1
     centre = 0.5 * (out.intervals[0].bearing_min_rad + out.intervals[0].bearing_max_rad)
     assert abs(math.degrees(centre - _true_bearing(world, Pose2D(0.1, 0.0, 0.0), 0.5))) <= 1.0
+
+
+def test_the_same_frame_twice_gives_the_same_answer() -> None:
+    world = box_room(9.0, 6.0, x0=-1.0, y0=-3.0, pillars=False)
+    world.circles = [Circle(3.5, 1.0, 0.3, vy_mps=-0.4)]
+    det = FlowDetector(FlowConfig(), MOUNT)
+    res = None
+    for k in range(5):
+        t = 0.1 * k
+        truth = Pose2D(0.2 * t, 0.0, 0.0)
+        frame = Frame(CAM.render(world, truth, t), t, CAM.intrinsics, 0.0, 0.0, k)
+        res = det.detect(frame, truth, _depth_points(world, truth, t), 0.2, 0.0)
+        again = det.detect(frame, truth, _depth_points(world, truth, t), 0.2, 0.0)
+        assert again is res
+    assert res is not None and len(res.intervals) == 1
