@@ -543,7 +543,26 @@ def print_table(results: list[dict[str, Any]]) -> None:
             )
 
 
+def tune_allocator() -> bool:
+    """Keep freed memory in the process (glibc): a fixed 32 MB mmap threshold and no heap trimming.
+
+    Each cycle allocates and frees many arrays of a few hundred kB (images, scans); glibc's default
+    returns them to the kernel and faults them in again, which cost the evaluation about 1.3 million
+    page faults and 3 s of system time for the two scenarios. Returns whether the tuning applied
+    (False off glibc)."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        m_trim_threshold, m_mmap_threshold = -1, -3
+        ok = libc.mallopt(m_mmap_threshold, 32 * 1024 * 1024) == 1
+        return bool(ok and libc.mallopt(m_trim_threshold, 512 * 1024 * 1024) == 1)
+    except (OSError, AttributeError):
+        return False
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
+    tune_allocator()
     scenarios = build_scenarios(args, args.scenario)
     results = []
     t0 = time.perf_counter()

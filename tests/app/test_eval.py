@@ -118,3 +118,13 @@ def test_bench_prints_world_figures() -> None:
     assert set(figures) == {"world_sweep_ms_median", "world_render_320x240_ms_median", "world_eval_cycle_ms_median"}
     assert all(v > 0 for v in figures.values())
     assert figures["world_eval_cycle_ms_median"] >= figures["world_render_320x240_ms_median"]
+
+
+def test_allocator_tuning_applies_on_glibc() -> None:
+    import platform
+
+    applied = cmd_eval.tune_allocator()
+    if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
+        assert applied is True
+    else:
+        assert applied is False
