@@ -29,7 +29,7 @@ from .sensors import CameraModel, LaserModel, RobotMount, intrinsics
 
 
 class WorldTimeError(ValueError):
-    """A query for a time older than the world's retained history."""
+    """A query for a time older than the world's retained history, or implausibly far ahead."""
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,7 @@ class World:
         start_s: float = 0.0,
         step_s: float = 0.01,
         history_s: float = 5.0,
+        max_jump_s: float = 3600.0,
     ) -> None:
         self.scenario = scenario
         self.mount = mount or RobotMount()
@@ -86,6 +87,8 @@ class World:
         self.start_s = float(start_s)
         self.step_s = float(step_s)
         self.history_s = float(history_s)
+        #: a query further ahead than this is refused (a wrong clock would otherwise integrate for ever)
+        self.max_jump_s = float(max_jump_s)
         self._lock = threading.RLock()
         x0, y0, th0 = scenario.robot_start
         self._robot = Unicycle(x_m=x0, y_m=y0, theta_rad=th0)
@@ -137,6 +140,10 @@ class World:
         with self._lock:
             if t_s <= self._t:
                 return
+            if not math.isfinite(t_s) or t_s - self._t > self.max_jump_s:
+                raise WorldTimeError(
+                    f"time {t_s!r} is more than {self.max_jump_s} s ahead of the world ({self._t:.3f} s): wrong clock?"
+                )
             r = self._robot
             while self._t < t_s - 1e-12:
                 dt = min(self.step_s, t_s - self._t)

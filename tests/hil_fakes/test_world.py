@@ -398,6 +398,10 @@ def test_history_is_bounded_and_old_queries_are_refused() -> None:
     assert world._n < 1.0 / world.step_s + 10
     with pytest.raises(WorldTimeError):
         world.state(10.0)
+    with pytest.raises(WorldTimeError, match="wrong clock"):
+        world.state(1.7e9)  # e.g. time.time() where time.monotonic() was meant
+    with pytest.raises(WorldTimeError):
+        world.state(math.inf)
     assert world.state(19.5)[0] > 0
     # before the start, the robot stands at its start pose
     fresh = World(paper_scenario("1"), start_s=5.0)
