@@ -260,7 +260,12 @@ class ViewRenderer:
         assert grey is not None
         grey *= gain.astype(f32)
         if self.noise_sigma > 0:
-            grey += rng.standard_normal(shape, dtype=f32) * f32(self.noise_sigma)
+            # OpenCV's Gaussian generator is ~3x faster than numpy's here; it is seeded from ``rng`` every
+            # frame so images stay reproducible (cv2's RNG is per thread: this reseeds the caller's)
+            noise = np.empty(shape, f32)
+            cv2.setRNGSeed(int(rng.integers(1 << 31)))
+            cv2.randn(noise, 0.0, float(self.noise_sigma))
+            grey += noise
         grey_u8 = np.clip(grey, 0.0, 255.0).astype(np.uint8)
         grey_u8[label == 0] = 150
         # tint per surface class through one lookup: table[label * 256 + grey] = BGR
