@@ -252,12 +252,16 @@ class World:
     def _view_renderer(self) -> ViewRenderer:
         if self._view is None:
             cm = self.camera
-            half = ROOM_WIDTH_M / 2
+            if self._walls.shape[0]:  # the ceiling covers the walls' bounding box
+                xs, ys = self._walls[:, [0, 2]], self._walls[:, [1, 3]]
+                box = (float(xs.min()), float(ys.min()), float(xs.max()), float(ys.max()))
+            else:
+                box = (0.0, -ROOM_WIDTH_M / 2, ROOM_LENGTH_M, ROOM_WIDTH_M / 2)
             self._view = ViewRenderer(
                 self._walls,
                 np.array([w.height_m for w in self.scenario.walls]),
                 self._wall_refl,
-                (0.0, -half, ROOM_LENGTH_M, half),
+                box,
                 cm.ceiling_height_m,
                 cm.texel_m,
                 cm.noise_sigma,
