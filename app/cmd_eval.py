@@ -288,12 +288,19 @@ def run_scenario(
     scenario: Scenario,
     *,
     frame_lag_s: float = 0.04,
+    camera_fps: float = 0.0,
     jpeg_quality: int = 80,
     hfov_deg: float = 54.0,
     keep_scans: bool = False,
     mount: RobotMount | None = None,
 ) -> RunLog:
     """Run VIPSM and plain PSM side by side over the scenario and collect what the metrics need."""
+    if not (math.isfinite(frame_lag_s) and frame_lag_s >= 0):
+        raise AppError(f"--frame-lag-s must be >= 0, got {frame_lag_s}")
+    if not (math.isfinite(camera_fps) and camera_fps >= 0):
+        raise AppError(f"--camera-fps must be >= 0, got {camera_fps}")
+    if not 0 <= jpeg_quality <= 100:
+        raise AppError(f"--jpeg-quality must be 0..100, got {jpeg_quality}")
     mount = mount or RobotMount()
     world = World(scenario, mount=mount)
     vipsm_est, plain_est = make_estimators(mount)
@@ -308,6 +315,7 @@ def run_scenario(
     world.command(scenario.robot_speed_mps, 0.0, 0.0)
     n_cycles = int(math.floor(scenario.duration_s / CYCLE_S + 1e-9)) + 1
     t_world = 0.0
+    last_frame: Frame | None = None
     for k in range(n_cycles):
         t = k * CYCLE_S
         w0 = time.perf_counter()
@@ -316,15 +324,24 @@ def run_scenario(
         ox, oy, oth, ov, ow = world.odometry(t)
         odo = Odometry(ox, oy, oth, ov, ow, t)
         frame = None
-        t_frame = t - frame_lag_s
+        if camera_fps > 0:  # free-running camera: the newest frame captured frame_lag_s before the scan
+            n_frame = math.floor((t - frame_lag_s) * camera_fps + 1e-9)
+            t_frame = n_frame / camera_fps
+        else:  # one frame per cycle
+            n_frame = k
+            t_frame = t - frame_lag_s
         if t_frame >= 0:
-            img = world.render(t_frame, 0.0, 0.0, hfov)
-            if jpeg_quality > 0:
-                ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
-                if not ok:
-                    raise AppError("OpenCV could not encode a JPEG frame")
-                img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-            frame = Frame(img, t_frame, intr, pan_rad=0.0, tilt_rad=0.0, seq=k)
+            if last_frame is not None and last_frame.seq == n_frame:
+                frame = last_frame  # the camera is slower than the cycle: the same frame again
+            else:
+                img = world.render(t_frame, 0.0, 0.0, hfov)
+                if jpeg_quality > 0:
+                    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
+                    if not ok:
+                        raise AppError("OpenCV could not encode a JPEG frame")
+                    img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+                frame = Frame(img, t_frame, intr, pan_rad=0.0, tilt_rad=0.0, seq=n_frame)
+            last_frame = frame
         truth = world.truth(t)
         truth_frame = world.truth(max(t_frame, 0.0))
         t_prev = max(t - CYCLE_S, 0.0)
@@ -567,7 +584,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     results = []
     t0 = time.perf_counter()
     for sc in scenarios:
-        log = run_scenario(sc, frame_lag_s=args.frame_lag_s, jpeg_quality=args.jpeg_quality,
+        log = run_scenario(sc, frame_lag_s=args.frame_lag_s, jpeg_quality=args.jpeg_quality, camera_fps=args.camera_fps,
                            keep_scans=args.plots is not None)
         results.append(scenario_result(log))
         if args.plots is not None:
@@ -593,6 +610,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     add_scenario_arguments(p, allow_all=True)
     p.add_argument("--frame-lag-s", type=float, default=0.04,
                    help="camera frame captured this long before the scan's first beam (default 0.04 s)")
+    p.add_argument("--camera-fps", type=float, default=0.0,
+                   help="free-running camera at this rate; each cycle gets the newest frame captured at least "
+                   "--frame-lag-s before the scan (0, the default: one fresh frame per cycle)")
     p.add_argument("--jpeg-quality", type=int, default=80,
                    help="JPEG round trip of every frame, as the camera delivers them (0: off; default 80)")
     p.add_argument("--json", action="store_true", help="print one JSON object")

@@ -128,3 +128,42 @@ def test_allocator_tuning_applies_on_glibc() -> None:
         assert applied is True
     else:
         assert applied is False
+
+
+class _Recorder:
+    """Stands in for an estimator: records its inputs, returns the odometry pose."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[object, object, object]] = []
+
+    def step(self, scan, odometry, frame=None):  # type: ignore[no-untyped-def]
+        import numpy as np
+
+        from vipsm.types import Estimate, MatchQuality
+
+        self.calls.append((scan, odometry, frame))
+        return Estimate(scan.stamp_s, odometry.pose, np.zeros((3, 3)), (), MatchQuality(0, 0, 0.0, False))
+
+
+def test_both_methods_get_identical_inputs_and_a_free_running_camera(monkeypatch: pytest.MonkeyPatch) -> None:
+    from hil_fakes.world import paper_scenario
+
+    recs = (_Recorder(), _Recorder())
+    monkeypatch.setattr(cmd_eval, "make_estimators", lambda mount: recs)
+    log = cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 1.0}), camera_fps=5.0, frame_lag_s=0.03)
+    a, b = recs[0].calls, recs[1].calls
+    assert len(a) == len(b) == 11 == len(log.times_s)
+    for (sa, oa, fa), (sb, ob, fb) in zip(a, b):
+        assert sa is sb and oa is ob and fa is fb  # the very same objects
+    for k, (scan, odo, frame) in enumerate(a):
+        assert scan.stamp_s == pytest.approx(0.1 * k) and odo.stamp_s == scan.stamp_s
+        assert scan.ranges_m.shape == (1081,) and scan.beam_dt_s == pytest.approx(0.025 / 1440)
+        if frame is None:
+            assert k == 0
+            continue
+        assert frame.stamp_s <= scan.stamp_s - 0.03 + 1e-9 and frame.stamp_s * 5.0 == pytest.approx(frame.seq)
+        assert frame.image.shape == (240, 320, 3) and frame.intrinsics.width_px == 320
+    frames = [f for _, _, f in a if f is not None]
+    assert len({id(f) for f in frames}) == 5  # 5 fps over 1 s: a new frame every other cycle
+    with pytest.raises(AppError, match="camera-fps"):
+        cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 1.0}), camera_fps=-1.0)
