@@ -11,7 +11,10 @@ Per cycle (the paper's Fig. 5 flow, with the product's additions):
    the camera-selected segments are still used to locate obstacles.
 3. PSM (:mod:`vipsm.psm`) of the current scan against the reference keyframe, seeded by odometry.
    Refused matches fall back to odometry (flag ``ODOMETRY_FALLBACK``).
-4. Obstacles: the cut points placed with the matched pose, the body centre corrected for seeing
+4. Laser motion cue (beyond the paper): body-sized foreground segments standing clearly in front of
+   what the keyframe (or the one before) saw are obstacles too, which catches bodies whose image
+   motion is too small for the camera (e.g. coming head-on); they are masked from the next cycle on.
+5. Obstacles: the cut points placed with the matched pose, the body centre corrected for seeing
    only its front (:mod:`vipsm.tracker`), a constant-velocity Kalman tracker for velocity and ids.
 
 Reference-scan policy (keyframes): the current scan is matched against a keyframe, not against the
