@@ -83,6 +83,47 @@ SCENARIO_FLAGS: dict[str, str] = {
 }
 
 
+# The robustness suite (``eval --scenario robustness``): the issue's "beyond the two scenarios" cases,
+# each a paper scenario with overrides; VIPSM should stay within ROBUSTNESS_FACTOR x the targets.
+ROBUSTNESS_SUITE: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("crossing0", "2", {"crossing_deg": 0.0}),
+    ("crossing30", "2", {"crossing_deg": 30.0}),
+    ("crossing60", "2", {"crossing_deg": 60.0}),
+    ("s2_speed0.5", "2", {"obstacle_speed_mps": 0.5}),
+    ("s2_speed1.0", "2", {"obstacle_speed_mps": 1.0}),
+    ("s1_speed1.0", "1", {"obstacle_speed_mps": 1.0}),
+    ("s2_two_obstacles", "2", {"obstacles": 2}),
+    ("s1_two_obstacles", "1", {"obstacles": 2}),
+    ("s2_odom_noise3", "2", {"odom_noise": 3.0}),
+    ("s1_odom_noise3", "1", {"odom_noise": 3.0}),
+)
+ROBUSTNESS_FACTOR = 2.0
+#: the issue's targets for VIPSM: metric -> (bound, "max" or "min")
+TARGETS: dict[str, tuple[float, str]] = {
+    "obstacle_err_mean_m": (0.10, "max"),
+    "obstacle_err_std_m": (0.08, "max"),
+    "obstacle_detected_fraction": (0.95, "min"),
+    "pose_err_final_m": (0.05, "max"),
+    "heading_err_final_deg": (1.0, "max"),
+    "velocity_err_mean_mps": (0.05, "max"),
+}
+
+
+def target_misses(metrics: dict[str, Any], factor: float = 1.0) -> list[str]:
+    """The targets a method's metrics miss (``factor`` loosens them: bounds x factor, and for the
+    located fraction the allowed miss rate x factor); a missing (None) metric is a miss."""
+    out = []
+    for key, (bound, kind) in TARGETS.items():
+        value = metrics.get(key)
+        if kind == "max":
+            ok = value is not None and value <= bound * factor
+        else:
+            ok = value is not None and value >= 1.0 - (1.0 - bound) * factor
+        if not ok:
+            out.append(key)
+    return out
+
+
 # ---------------------------------------------------------------------------------------- scenarios
 def add_scenario_args(parser: argparse.ArgumentParser, *, with_duration: bool = True) -> None:
     """The custom-scenario flags shared by ``eval`` and the daemon's ``sim``."""
@@ -108,13 +149,13 @@ def add_scenario_arguments(parser: argparse.ArgumentParser, *, allow_all: bool =
     """``--scenario`` (1, 2 and, with ``allow_all``, all) plus the custom-scenario flags and
     ``--scenario-file``: what ``eval`` and the daemon's ``sim`` accept. Turn the parsed arguments into
     scenarios with :func:`build_scenarios` (or :func:`build_scenario_from_args` for exactly one)."""
-    choices = ["1", "2", "all"] if allow_all else ["1", "2"]
+    choices = ["1", "2", "all", "robustness"] if allow_all else ["1", "2"]
     parser.add_argument(
         "--scenario",
         choices=choices,
         default=None,
         help="the paper's scenario 1 (45 deg approach) or 2 (90 deg crossing)"
-        + (", or all (the default)" if allow_all else " (default 1)"),
+        + (", all (both; the default), or robustness (the suite of harder variants)" if allow_all else " (default 1)"),
     )
     add_scenario_args(parser)
 
@@ -122,7 +163,7 @@ def add_scenario_arguments(parser: argparse.ArgumentParser, *, allow_all: bool =
 def build_scenario_from_args(args: argparse.Namespace, default: str = "1") -> Scenario:
     """The one scenario selected by ``--scenario`` / ``--scenario-file`` and the flags (for ``sim``)."""
     which = getattr(args, "scenario", None) or default
-    if which == "all":
+    if which in ("all", "robustness"):
         raise AppError("this command runs one scenario: --scenario 1 or 2")
     return build_scenarios(args, which)[0]
 
@@ -138,7 +179,7 @@ def scenario_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def scenario_param_sets(args: argparse.Namespace, which: str | None) -> list[dict[str, Any]]:
-    """Parameter dicts for ``which`` ("1", "2", "all" or None) with the file and the flags applied.
+    """Parameter dicts for ``which`` ("1", "2", "all", "robustness" or None) with the file and the flags applied.
 
     ``--scenario-file`` replaces the paper scenarios (its name is the file's ``name`` or stem); flags
     override either. A paper scenario changed by flags gets ``_custom`` appended to its name.
@@ -147,6 +188,8 @@ def scenario_param_sets(args: argparse.Namespace, which: str | None) -> list[dic
     path = getattr(args, "scenario_file", None)
     if path:
         return [{**load_scenario_file(path), **overrides}]
+    if which == "robustness":
+        return [{**paper_params(base, extra), "name": label, **overrides} for label, base, extra in ROBUSTNESS_SUITE]
     names = list(PAPER_SCENARIOS) if which in (None, "all") else [which]
     sets = []
     for n in names:
@@ -542,21 +585,27 @@ def _fmt(x: float | None, unit_scale: float = 1.0, digits: int = 3) -> str:
     return "-" if x is None else f"{x * unit_scale:.{digits}f}"
 
 
-def print_table(results: list[dict[str, Any]]) -> None:
+def print_table(results: list[dict[str, Any]], factor: float = 1.0) -> None:
     print("Obstacle position error (Table 1 of the paper), robot final pose error, obstacle velocity error")
     header = (f"{'scenario':<24} {'method':<10} {'cycles':>6} {'err mean m':>10} {'err std m':>10} {'err max m':>10} "
-              f"{'located':>8} {'vel err':>8} {'pose m':>7} {'head deg':>8} {'ms/cyc':>7}")
+              f"{'located':>8} {'vel err':>8} {'pose m':>7} {'head deg':>8} {'ms/cyc':>7}  targets")
     print(header)
     print("-" * len(header))
     for r in results:
         for method in ("vipsm", "plain_psm"):
             m = r[method]
+            if method == "vipsm":
+                misses = target_misses(m, factor)
+                check = "met" if not misses else "MISSED: " + ", ".join(misses)
+                check += f" (x{factor:g})" if factor != 1 else ""
+            else:
+                check = ""
             print(
                 f"{r['name']:<24} {('VIPSM' if method == 'vipsm' else 'plain PSM'):<10} {r['cycles']:>6} "
                 f"{_fmt(m['obstacle_err_mean_m']):>10} {_fmt(m['obstacle_err_std_m']):>10} "
                 f"{_fmt(m['obstacle_err_max_m']):>10} {_fmt(m['obstacle_detected_fraction'], 100, 1) + '%':>8} "
                 f"{_fmt(m['velocity_err_mean_mps']):>8} {_fmt(m['pose_err_final_m']):>7} "
-                f"{_fmt(m['heading_err_final_deg'], 1, 2):>8} {_fmt(m['ms_per_cycle'], 1, 2):>7}"
+                f"{_fmt(m['heading_err_final_deg'], 1, 2):>8} {_fmt(m['ms_per_cycle'], 1, 2):>7}  {check}"
             )
 
 
@@ -595,7 +644,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.json:
         print_json({"scenarios": results})
     else:
-        print_table(results)
+        print_table(results, ROBUSTNESS_FACTOR if args.scenario == "robustness" else 1.0)
         print(f"total {elapsed:.2f} s for {len(results)} scenario(s), both methods")
     return 0
 

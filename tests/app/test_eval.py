@@ -167,3 +167,22 @@ def test_both_methods_get_identical_inputs_and_a_free_running_camera(monkeypatch
     assert len({id(f) for f in frames}) == 5  # 5 fps over 1 s: a new frame every other cycle
     with pytest.raises(AppError, match="camera-fps"):
         cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 1.0}), camera_fps=-1.0)
+
+
+def test_target_check_and_the_robustness_suite() -> None:
+    good = {"obstacle_err_mean_m": 0.05, "obstacle_err_std_m": 0.03, "obstacle_detected_fraction": 0.97,
+            "pose_err_final_m": 0.02, "heading_err_final_deg": 0.5, "velocity_err_mean_mps": 0.01}
+    assert cmd_eval.target_misses(good) == []
+    bad = {**good, "obstacle_err_mean_m": 0.15, "obstacle_detected_fraction": 0.92, "velocity_err_mean_mps": None}
+    assert cmd_eval.target_misses(bad) == ["obstacle_err_mean_m", "obstacle_detected_fraction", "velocity_err_mean_mps"]
+    assert cmd_eval.target_misses(bad, 2.0) == ["velocity_err_mean_mps"]  # 0.15 <= 0.20; 92 % >= 90 %
+    p = argparse.ArgumentParser()
+    cmd_eval.add_scenario_arguments(p)
+    sets = cmd_eval.scenario_param_sets(p.parse_args(["--scenario", "robustness", "--seed", "3"]), "robustness")
+    names = [s["name"] for s in sets]
+    assert len(names) == len(set(names)) == len(cmd_eval.ROBUSTNESS_SUITE)
+    assert all(s["seed"] == 3 for s in sets)
+    scenarios = cmd_eval.build_scenarios(p.parse_args(["--scenario", "robustness"]), "robustness")
+    assert {sc.params["crossing_deg"] for sc in scenarios} >= {0.0, 30.0, 45.0, 60.0, 90.0}
+    assert max(sc.params["obstacle_speed_mps"] for sc in scenarios) == 1.0
+    assert max(len(sc.obstacles) for sc in scenarios) == 2 and max(sc.params["odom_noise"] for sc in scenarios) == 3.0
