@@ -368,3 +368,14 @@ def test_aria_simple_connect_sequence_over_tcp() -> None:
         assert model.stats.bad_checksum == 0 and model.stats.unknown_commands == 0
     finally:
         server.stop()
+
+
+def test_wheel_speeds_match_the_recorded_amrisim_values() -> None:
+    # fact sheet 1.6: at VEL 200 / RVEL -10, AMRISim reported lvel 231, rvel 168 and ROTVEL -100
+    sim = Sim(trans_accel_mmps2=2000, rot_accel_degps2=300)
+    sim.connect()
+    sim.send(cmd_int(4, 1) + cmd_int(11, 200) + H("FA FB 06 15 1B 0A 00 1F 1B"))
+    body = [p for p in sim.run(1.0) if p[0] in (0x32, 0x33)][-1]
+    f = sip_fields(body)
+    assert f["lv"] == 231 and abs(f["rv"] - 168) <= 1  # AMRISim truncates 168.8, we round
+    assert struct.unpack_from("<h", body, 20 + 3 * f["n"] + 8)[0] == -100
