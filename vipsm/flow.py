@@ -275,7 +275,12 @@ class FlowDetector:
             pb = np.arctan2(dy, dx)
             pd = np.hypot(dx, dy)
             order = np.argsort(pb)
-            depth = np.interp(az, pb[order], pd[order], left=cfg.max_depth_m, right=cfg.max_depth_m)
+            pb, pd = pb[order], pd[order]
+            # the nearest laser point's depth, not an interpolation: across a depth edge (a body in
+            # front of a wall) interpolated depths belong to neither surface and fake residual flow
+            jj = np.clip(np.searchsorted(pb, az), 1, pb.size - 1)
+            jj -= (np.abs(pb[jj - 1] - az) < np.abs(pb[jj] - az)).astype(np.intp)
+            depth = np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), cfg.max_depth_m, pd[jj])
         dist_h = np.minimum(depth, floor_d)
         valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
         t = dist_h / np.maximum(hn, 1e-9)
@@ -360,8 +365,6 @@ class FlowDetector:
                             u1 -= du
                         else:
                             u0 -= du
-            if cfg.snap_to_depth and col_depth is not None:
-                u0, u1 = _snap_to_depth(u0, u1, col_depth, st, cfg)
             spans.append([u0, u1, y0 * st, (y0 + hh) * st])
         spans.sort()
         merged: list[list[float]] = []
@@ -372,6 +375,9 @@ class FlowDetector:
                 merged[-1][3] = max(merged[-1][3], sp[3])
             else:
                 merged.append(list(sp))
+        if cfg.snap_to_depth and col_depth is not None:
+            for sp in merged:
+                sp[0], sp[1] = _snap_to_depth(sp[0], sp[1], col_depth, st, cfg)
         intervals = []
         for u0, u1, v0, v1 in merged:
             vc = 0.5 * (v0 + v1)

@@ -181,3 +181,20 @@ def test_the_same_frame_twice_gives_the_same_answer() -> None:
         again = det.detect(frame, truth, _depth_points(world, truth, t), 0.2, 0.0)
         assert again is res
     assert res is not None and len(res.intervals) == 1
+
+
+def test_panned_camera_bearing_in_the_robot_frame() -> None:
+    world = box_room(9.0, 8.0, x0=-1.0, y0=-4.0, pillars=False)
+    world.circles = [Circle(2.5, 2.2, 0.3, vx_mps=0.35, vy_mps=0.0)]  # about 40 deg left, moving right-to-left
+    det = FlowDetector(FlowConfig(), MOUNT)
+    pan = math.radians(35.0)
+    res = None
+    for k in range(7):
+        t = 0.1 * k
+        truth = Pose2D(0.2 * t, 0.0, 0.0)
+        frame = Frame(CAM.render(world, truth, t, pan_rad=pan), t, CAM.intrinsics, pan, 0.0, k)
+        res = det.detect(frame, truth, _depth_points(world, truth, t), 0.2, 0.0)
+    assert res is not None and len(res.intervals) == 1, res
+    iv = res.intervals[0]
+    centre = 0.5 * (iv.bearing_min_rad + iv.bearing_max_rad)
+    assert abs(math.degrees(centre - _true_bearing(world, Pose2D(0.12, 0.0, 0.0), 0.6))) <= 1.0
