@@ -22,8 +22,9 @@ from __future__ import annotations
 import enum
 import math
 import struct
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 from .errors import ArcosChecksumError, ArcosConfigError, ArcosProtocolError
 
@@ -465,8 +466,11 @@ class ConfigPacket:
     the known layout (newer firmware).
     """
 
-    values: dict[str, int | str] = field(hash=False)
+    values: Mapping[str, int | str] = field(hash=False)
     extra: bytes = b""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "values", MappingProxyType(dict(self.values)))
 
     def get(self, name: str, default: int | str | None = None) -> int | str | None:
         return self.values.get(name, default)
