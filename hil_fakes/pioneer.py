@@ -8,7 +8,7 @@ What it models:
 * the handshake SYNC0/SYNC1/SYNC2 (reply: name, class, subclass), restarting at SYNC0 when a SYNC
   comes out of order (as real ARCOS does, fact sheet 1.4); OPEN starts a SIP every ``sip_cycle_s``;
   CLOSE ends the session; OPEN/CLOSE with an argument are accepted;
-* CONFIG (CONFIGpac 0x20 in ARIA's field order), ENCODER (0x90 stream), the velocity commands
+* CONFIG (CONFIGpac 0x20 in ARIA's field order), ENCODER (0x90 stream), IOREQUEST (0xF0), the velocity commands
   (VEL, RVEL, ROTATE, VEL2, STOP, E_STOP), limits (SETV, SETA, SETRV, SETRA), ENABLE (motors start
   disabled unless configured otherwise), SETO, SONAR, HOSTBAUD, RESET; other known commands are
   accepted and counted; frames with a bad checksum are ignored and counted;
@@ -204,7 +204,8 @@ SYNC0, SYNC1, SYNC2 = 0, 1, 2
 PULSE, OPEN, CLOSE = 0, 1, 2
 ENABLE, SETA, SETV, SETO, ROTATE, SETRV, VEL, CONFIG, ENCODER = 4, 5, 6, 7, 9, 10, 11, 18, 19
 RVEL, SETRA, SONAR, STOP, VEL2, HOSTBAUD, E_STOP, BATTERYINFO, RESET = 21, 23, 28, 29, 32, 50, 55, 62, 253
-_KNOWN_OTHERS = {3, 8, 12, 13, 15, 17, 22, 30, 40, 44, 56, 58, 90, 92}
+IOREQUEST = 40
+_KNOWN_OTHERS = {3, 8, 12, 13, 15, 17, 22, 30, 44, 56, 58, 90, 92}
 _BAUDS = {0: 9600, 1: 19200, 2: 38400, 3: 57600, 4: 115200}
 
 
@@ -309,6 +310,7 @@ class FakePioneer(DeviceModel):
         self.motors_enabled = cfg.motors_enabled_at_start
         self.sonar_on = True
         self.encoder_stream = False
+        self.io_stream = False
         self.host_baud = 9600
         self._v_set_mmps = 0.0
         self._w_set_degps = 0.0
@@ -345,7 +347,7 @@ class FakePioneer(DeviceModel):
             self._halt(self._now_s)
             self.state = "sync0"
             self.motors_enabled = self.config.motors_enabled_at_start
-            self.encoder_stream = False
+            self.encoder_stream = self.io_stream = False
             self._odo.reset(0.0, 0.0, 0.0)
             self.emit(arcos_packet(bytes([code])))
 
@@ -436,7 +438,7 @@ class FakePioneer(DeviceModel):
             self.stats.sessions_closed += 1
         self._halt(now_s)
         self.state = "sync0"
-        self.encoder_stream = False
+        self.encoder_stream = self.io_stream = False
         self._next_sip_s = None
 
     def _halt(self, now_s: float) -> None:
@@ -536,6 +538,10 @@ class FakePioneer(DeviceModel):
             self.stats.configs_sent += 1
         elif cmd == ENCODER and arg is not None:
             self.encoder_stream = arg > 0
+        elif cmd == IOREQUEST and arg is not None:
+            self.io_stream = arg == 2
+            if arg == 1:
+                self.emit(self._io_packet())
         elif cmd == SONAR and arg is not None:
             self.sonar_on = arg != 0
         elif cmd == HOSTBAUD and arg is not None:
@@ -641,6 +647,8 @@ class FakePioneer(DeviceModel):
             self.emit(self._junk_data)
         self.emit(arcos_packet(bytes(payload)))
         self.stats.sips_sent += 1
+        if self.io_stream:
+            self.emit(self._io_packet())
         if self.encoder_stream:
             ticks = cfg.ticks_mm
             self.emit(
@@ -654,6 +662,11 @@ class FakePioneer(DeviceModel):
                 )
             )
             self.stats.encoder_packets += 1
+
+    def _io_packet(self) -> bytes:
+        """IOpac (0xF0): one digital-in byte, one digital-out byte, the battery on one analog port."""
+        analog = round(self.config.battery_dv / 10.0 / 5.0 * 255) & 0xFFFF  # nominal 0..5 V scale
+        return arcos_packet(bytes([0xF0, 1, 0x00, 1, 0x00, 1]) + struct.pack("<H", analog))
 
     def _count_wraps(self, x15: int, y15: int, th: int) -> None:
         prev = self._prev_sent

@@ -175,6 +175,7 @@ class ArcosClient:
         self._last_error: BaseException | None = None
         self._last_sample: OdometrySample | None = None
         self._last_encoder: EncoderPacket | None = None
+        self._last_io: codec.IoPacket | None = None
         #: after close(): whether the controller went quiet after CLOSE (None: close never reached it)
         self.close_confirmed: bool | None = None
         self._baudrate: int | None = None
@@ -211,6 +212,10 @@ class ArcosClient:
     @property
     def last_encoder(self) -> EncoderPacket | None:
         return self._last_encoder
+
+    @property
+    def last_io(self) -> codec.IoPacket | None:
+        return self._last_io
 
     @property
     def decoder_stats(self) -> codec.DeframerStats:
@@ -389,6 +394,10 @@ class ArcosClient:
     def request_encoder(self, on: bool) -> None:
         """Start (ENCODER 2) or stop the 0x90 stream; mind the bandwidth at 9600 baud."""
         self._send(codec.encoder_command(2 if on else 0))
+
+    def request_io(self, mode: int) -> None:
+        """IOREQUEST: IOpac 0 stop / 1 once / 2 continuous; the newest is ``last_io``."""
+        self._send(codec.io_request_command(mode))
 
     def send_raw(self, packet: bytes) -> None:
         """Send a pre-built frame (any command of :mod:`drivers.p2os.codec`)."""
@@ -676,6 +685,8 @@ class ArcosClient:
             raise ControllerResetError(f"controller reset packet {ev.packet_type:#04x}: the session is gone")
         elif isinstance(ev, EncoderPacket):
             self._last_encoder = ev
+        elif isinstance(ev, codec.IoPacket):
+            self._last_io = ev
         elif isinstance(ev, ConfigPacket):
             if self._info is not None:
                 self._info = dataclasses.replace(self._info, config=ev)

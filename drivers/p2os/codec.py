@@ -42,6 +42,7 @@ INT16_MAX = 32767
 SIP_TYPES = frozenset({0x32, 0x33})
 CONFIG_TYPE = 0x20
 ENCODER_TYPE = 0x90
+IO_TYPE = 0xF0
 RESET_TYPES = frozenset({0xFF, 0xFE})
 
 #: VEL2 wheel-speed unit on the P3-DX (mm/s per VEL2 byte step), the ``Vel2Divisor`` of p3dx.p
@@ -414,6 +415,15 @@ class EncoderPacket:
 
 
 @dataclass(frozen=True)
+class IoPacket:
+    """IOpac (0xF0): digital inputs, digital outputs (one byte per 8 lines) and raw analog values."""
+
+    digital_in: bytes
+    digital_out: bytes
+    analog_raw: tuple[int, ...]
+
+
+@dataclass(frozen=True)
 class ResetPacket:
     """0xFF / 0xFE: the microcontroller reset; the session is gone."""
 
@@ -480,7 +490,9 @@ class ConfigPacket:
         return v if isinstance(v, int) else None
 
 
-Event = SyncEcho | RobotIdentity | Sip | ConfigPacket | EncoderPacket | ResetPacket | UnknownPacket | BadFrame
+Event = (
+    SyncEcho | RobotIdentity | Sip | ConfigPacket | EncoderPacket | IoPacket | ResetPacket | UnknownPacket | BadFrame
+)
 
 
 # --------------------------------------------------------------------------------------------
@@ -583,6 +595,30 @@ def decode_encoder(payload: bytes) -> EncoderPacket:
     return EncoderPacket(left_counts=left, right_counts=right)
 
 
+def decode_io(payload: bytes) -> IoPacket:
+    """u8 count + digital-in bytes, u8 count + digital-out bytes, u8 count + u16 analog values."""
+    pos = 1
+    parts: list[bytes] = []
+    for what, width in (("digital inputs", 1), ("digital outputs", 1), ("analog values", 2)):
+        if pos >= len(payload):
+            raise ArcosProtocolError(f"IOpac ends before its {what} count", raw=payload)
+        n = payload[pos]
+        pos += 1
+        if pos + n * width > len(payload):
+            raise ArcosProtocolError(f"IOpac claims {n} {what} but is too short", raw=payload)
+        parts.append(bytes(payload[pos : pos + n * width]))
+        pos += n * width
+    analog = tuple(struct.unpack(f"<{len(parts[2]) // 2}H", parts[2]))
+    return IoPacket(digital_in=parts[0], digital_out=parts[1], analog_raw=analog)
+
+
+def io_request_command(mode: int) -> bytes:
+    """IOREQUEST: IOpac 0 stop / 1 once / 2 continuous (mind the bandwidth at 9600 baud)."""
+    if mode not in (0, 1, 2):
+        raise ArcosConfigError(f"IOREQUEST mode must be 0, 1 or 2, got {mode}")
+    return int_command(Command.IOREQUEST, mode)
+
+
 def decode_payload(payload: bytes) -> Event:
     """Decode one checksum-valid payload; raises :class:`ArcosProtocolError` if it is malformed."""
     if not payload:
@@ -598,6 +634,8 @@ def decode_payload(payload: bytes) -> Event:
         return decode_config(payload)
     if ptype == ENCODER_TYPE:
         return decode_encoder(payload)
+    if ptype == IO_TYPE:
+        return decode_io(payload)
     if ptype in RESET_TYPES:
         return ResetPacket(packet_type=ptype)
     return UnknownPacket(packet_type=ptype, payload=bytes(payload))

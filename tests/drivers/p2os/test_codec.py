@@ -182,7 +182,7 @@ def test_encoder_reset_unknown_and_sync_echo_packets() -> None:
         codec.frame(struct.pack("<Bii", 0x90, -5, 70000))
         + codec.frame(b"\xff")
         + codec.frame(b"\xfe")
-        + codec.frame(b"\xf0\x01\x02")
+        + codec.frame(b"\xf8\x01\x02")
         + codec.frame(b"\x00")
         + codec.frame(b"\x01")
     )
@@ -190,10 +190,19 @@ def test_encoder_reset_unknown_and_sync_echo_packets() -> None:
         EncoderPacket(-5, 70000),
         ResetPacket(0xFF),
         ResetPacket(0xFE),
-        codec.UnknownPacket(0xF0, b"\xf0\x01\x02"),
+        codec.UnknownPacket(0xF8, b"\xf8\x01\x02"),
         SyncEcho(0),
         SyncEcho(1),
     ]
+
+
+def test_io_packet_layout_and_truncation() -> None:
+    payload = b"\xf0" + b"\x01\x0f" + b"\x01\xf0" + b"\x02" + struct.pack("<HH", 512, 1023)
+    (ev,) = ArcosDecoder().feed(codec.frame(payload))
+    assert ev == codec.IoPacket(digital_in=b"\x0f", digital_out=b"\xf0", analog_raw=(512, 1023))
+    with pytest.raises(ArcosProtocolError):
+        codec.decode_io(payload[:-1])
+    assert codec.io_request_command(2) == codec.int_command(codec.Command.IOREQUEST, 2)
 
 
 def test_truncated_sync2_strings_are_flagged() -> None:

@@ -265,6 +265,19 @@ def test_e_stop_halts_at_once(make_rig: Callable[..., Rig]) -> None:
     assert rig.fake.truth(time.monotonic())[3] == 0.0
 
 
+def test_encoder_and_io_packets(make_rig: Callable[..., Rig]) -> None:
+    rig = make_rig()
+    c = rig.client()
+    c.connect()
+    c.request_encoder(True)
+    c.request_io(1)
+    assert wait_for(lambda: c.last_encoder is not None and c.last_io is not None)
+    io = c.last_io
+    assert io is not None and io.digital_in == b"\x00" and len(io.analog_raw) == 1
+    c.request_encoder(False)
+    assert c.stats.unexpected_packets == 0
+
+
 def test_limits_and_seto(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig(subclass="p3dx-sh")
     c = rig.client()
