@@ -35,7 +35,7 @@ class FlowConfig:
     alpha_w_px_per_rad: float = 30.0  # ... and with the angle turned
     alpha_max_px: float = 6.0
     alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
-    fb_check: bool = True  # drop pixels failing the forward-backward flow consistency check
+    fb_check: bool = False  # drop pixels failing the forward-backward flow consistency check
     fb_tol_px: float = 1.0
     fb_tol_rel: float = 0.2
     snap_to_depth: bool = True  # snap blob edges to the laser's depth edges when a foreground run matches
