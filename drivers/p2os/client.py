@@ -210,6 +210,16 @@ class ArcosClient:
         return self._last_sample
 
     @property
+    def keepalive_interval_s(self) -> float:
+        """The keep-alive period in force: the configured one, but at most a quarter of the controller's watchdog."""
+        interval = self.config.keepalive_interval_s
+        info = self._info
+        watchdog_ms = info.config.int_value("watchdog_ms") if info is not None and info.config is not None else None
+        if watchdog_ms:
+            interval = min(interval, watchdog_ms / 4000.0)
+        return interval
+
+    @property
     def last_encoder(self) -> EncoderPacket | None:
         return self._last_encoder
 
@@ -713,7 +723,7 @@ class ArcosClient:
                 self._command_active = False
                 self.stats.command_timeouts += 1
             alive = now - self._last_heartbeat_s <= cfg.heartbeat_timeout_s
-            if alive and now - self._last_write_s >= cfg.keepalive_interval_s:
+            if alive and now - self._last_write_s >= self.keepalive_interval_s:
                 self._write_direct(port, codec.pulse_command())
                 self.stats.keepalives_sent += 1
 

@@ -325,6 +325,16 @@ def test_keepalive_feeds_the_watchdog_while_the_app_is_alive(make_rig: Callable[
     assert newest(c).v_mps > 0.1
 
 
+def test_keepalive_never_slower_than_a_quarter_of_the_watchdog(make_rig: Callable[..., Rig]) -> None:
+    rig = make_rig(watchdog_s=0.8)
+    c = rig.client(command_timeout_s=None, keepalive_interval_s=5.0, heartbeat_timeout_s=0.5)
+    c.connect()
+    assert c.keepalive_interval_s == pytest.approx(0.2)
+    c.set_velocity(0.2, 0.0)
+    keep_alive_for(c, 1.8)
+    assert rig.fake.stats.watchdog_trips == 0
+
+
 def test_command_timeout_commands_zero_velocity(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig(watchdog_s=5.0)
     c = rig.client(command_timeout_s=0.3, heartbeat_timeout_s=1.0)
