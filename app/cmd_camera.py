@@ -32,34 +32,49 @@ from .cli import emit
 from .errors import AppError
 
 
-def decode_jpeg(jpeg: bytes) -> np.ndarray:
-    img = cv2.imdecode(np.frombuffer(jpeg, dtype=np.uint8), cv2.IMREAD_COLOR)
+def decode_jpeg(jpeg: bytes, *, grey: bool = False) -> np.ndarray:
+    """The one JPEG decoder of the app (BGR, or grey for the estimator: the daemon and replay use
+    ``grey=True`` so both feed the estimator identical images)."""
+    img = cv2.imdecode(np.frombuffer(jpeg, dtype=np.uint8), cv2.IMREAD_GRAYSCALE if grey else cv2.IMREAD_COLOR)
     if img is None:
         raise MjpegFormatError(f"OpenCV could not decode a {len(jpeg)}-byte JPEG", raw=jpeg[:16])
     return img
 
 
-def to_vipsm_frame(frame: CameraFrame, calibration: PtzCalibration | None = None) -> Frame:
-    """Decode a driver frame and attach intrinsics for its size and the zoom in force at capture."""
+def to_vipsm_frame(
+    frame: CameraFrame,
+    calibration: PtzCalibration | None = None,
+    *,
+    fallback_ptz: tuple[float, float, int] = (0.0, 0.0, 0),
+    grey: bool = False,
+) -> Frame:
+    """Decode a driver frame and attach intrinsics for its size and the zoom in force at capture.
+
+    ``fallback_ptz`` (pan_rad, tilt_rad, zoom position) is used when the frame carries no PTZ
+    state (no VISCA link: the camera stays where the config put it)."""
     cal = calibration or PtzCalibration()
-    img = decode_jpeg(frame.jpeg)
+    img = decode_jpeg(frame.jpeg, grey=grey)
     h, w = img.shape[:2]
-    zoom = frame.ptz.zoom_position if frame.ptz is not None else 0
+    if frame.ptz is not None:
+        pan, tilt, zoom = frame.ptz.pan_rad, frame.ptz.tilt_rad, frame.ptz.zoom_position
+    else:
+        pan, tilt, zoom = fallback_ptz
     k = cal.intrinsics(zoom, w, h)
     return Frame(
         image=img,
         stamp_s=frame.stamp_s,
         intrinsics=Intrinsics(k.fx_px, k.fy_px, k.cx_px, k.cy_px, w, h),
-        pan_rad=frame.ptz.pan_rad if frame.ptz is not None else 0.0,
-        tilt_rad=frame.ptz.tilt_rad if frame.ptz is not None else 0.0,
+        pan_rad=pan,
+        tilt_rad=tilt,
         seq=frame.seq,
     )
 
 
 def _visca_config(args: argparse.Namespace) -> ViscaConfig:
     t = float(getattr(args, "timeout_s", 5.0) or 5.0)
-    return ViscaConfig(baudrate=int(getattr(args, "baud", 9600) or 9600), ack_timeout_s=min(t, 2.0),
-                       inquiry_timeout_s=min(t, 2.0))
+    return ViscaConfig(
+        baudrate=int(getattr(args, "baud", 9600) or 9600), ack_timeout_s=min(t, 2.0), inquiry_timeout_s=min(t, 2.0)
+    )
 
 
 def _state_dict(client: ViscaClient) -> dict[str, Any]:
@@ -80,10 +95,16 @@ def probe(args: argparse.Namespace) -> dict[str, Any]:
     with ViscaClient(args.camera, _visca_config(args)) as client:
         ver = client.version
         out["camera_count"] = client.camera_count
-        out["version"] = None if ver is None else {
-            "vendor": f"0x{ver.vendor:04X}", "model": f"0x{ver.model:04X}", "rom": f"0x{ver.rom_version:04X}",
-            "sockets": ver.sockets,
-        }
+        out["version"] = (
+            None
+            if ver is None
+            else {
+                "vendor": f"0x{ver.vendor:04X}",
+                "model": f"0x{ver.model:04X}",
+                "rom": f"0x{ver.rom_version:04X}",
+                "sockets": ver.sockets,
+            }
+        )
         out["max_speed"] = {"pan": client.pan_max_speed, "tilt": client.tilt_max_speed}
         out["power"] = client.power().name.lower()
         out["focus"] = client.focus_mode().name.lower()
@@ -100,8 +121,12 @@ def probe(args: argparse.Namespace) -> dict[str, Any]:
             out.setdefault("warnings", []).append(f"inquiry.cgi: {exc}")
         frame = fetch_oneshot(cfg)
         img = decode_jpeg(frame.jpeg)
-        out["frame"] = {"width_px": int(img.shape[1]), "height_px": int(img.shape[0]),
-                        "stamp_s": round(frame.stamp_s, 6), "jpeg_bytes": len(frame.jpeg)}
+        out["frame"] = {
+            "width_px": int(img.shape[1]),
+            "height_px": int(img.shape[0]),
+            "stamp_s": round(frame.stamp_s, 6),
+            "jpeg_bytes": len(frame.jpeg),
+        }
     return out
 
 
@@ -128,8 +153,13 @@ def _cmd_ptz(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("ptz", help="move the SNC-RZ50 (degrees, zoom position) and print the position read back")
-    p.add_argument("--camera", metavar="URL", required=True, help="VISCA port: a tty, a pty, socket://host:port, "
-                   "or http://[user:pw@]camera for the visca-ptzf.cgi pass-through")
+    p.add_argument(
+        "--camera",
+        metavar="URL",
+        required=True,
+        help="VISCA port: a tty, a pty, socket://host:port, "
+        "or http://[user:pw@]camera for the visca-ptzf.cgi pass-through",
+    )
     p.add_argument("--pan-deg", type=float, help="pan, degrees, left positive (default: keep)")
     p.add_argument("--tilt-deg", type=float, help="tilt, degrees, up positive (default: keep)")
     p.add_argument("--zoom", type=int, help="zoom position 0 (wide) .. 16384 (optical tele)")
@@ -167,7 +197,9 @@ def _start_fake_http_process() -> tuple[subprocess.Popen[str], str]:
     """The fake camera's HTTP side in its own process, as a real camera is its own device."""
     proc = subprocess.Popen(
         [sys.executable, "-c", _FAKE_MAIN, "--http", "127.0.0.1:0", "--size", "320x240"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     assert proc.stdout is not None
     line = proc.stdout.readline().strip()

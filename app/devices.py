@@ -17,7 +17,7 @@ from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
 from drivers.common import Backoff
-from drivers.errors import DriverError, DriverTimeoutError
+from drivers.errors import DriverError
 from drivers.hokuyo_scip.client import ClientConfig as ScipConfig
 from drivers.hokuyo_scip.client import ConnectionState as ScipState
 from drivers.hokuyo_scip.client import LaserScan, Utm30lxClient
@@ -27,17 +27,19 @@ from drivers.ptz_cam.client import ViscaClient
 from drivers.ptz_cam.config import HttpConfig, ViscaConfig
 from drivers.ptz_cam.frames import CameraFrame, MjpegFrameSource
 from vipsm.estimator import Estimator
-from vipsm.types import Frame, Intrinsics, Odometry, Scan
+from vipsm.types import Odometry, Scan
 
+from .cmd_camera import to_vipsm_frame
 from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
 from .errors import AppError
 from .fieldlog import FieldLog
-from .replay import decode_jpeg, deterministic_opencv
+from .replay import deterministic_opencv
 from .sdnotify import SystemdNotifier
 from .status import StatusServer
 
 C = TypeVar("C")
+T = TypeVar("T")
 
 
 class Opener(Generic[C]):
@@ -99,6 +101,29 @@ class Opener(Generic[C]):
                 pass
 
 
+def drain(get: Callable[[float], T]) -> list[T]:
+    """Everything a client's buffer holds now, without waiting; stops quietly when the client's
+    reader has failed (the adapter's ``state`` reports that and reopens)."""
+    out: list[T] = []
+    while True:
+        try:
+            out.append(get(0.0))
+        except DriverError:  # DriverTimeoutError: empty; anything else: the reader gave up
+            return out
+
+
+def port_state(opener: Opener[Any], ok: bool, connecting: bool, failed: bool) -> str:
+    """The loop's device state from a client's connection state; a failed client is reopened."""
+    if opener.client is None or connecting:
+        return "connecting"
+    if ok:
+        return "ok"
+    if failed:
+        opener.reopen()
+        return "failed"
+    return "stalled"
+
+
 # ---------------------------------------------------------------------------------------------
 # scanner
 
@@ -134,33 +159,19 @@ class ScannerAdapter:
         self.opener: Opener[Utm30lxClient] = Opener("scanner", open_fn, lambda c: c.close(), max_backoff_s)
 
     def state(self) -> str:
-        c = self.opener.client
-        if c is None:
-            return "connecting"
-        st = c.state
-        if st == ScipState.STREAMING:
-            return "ok"
-        if st in (ScipState.CONNECTING, ScipState.RECONNECTING):
-            return "connecting"
-        if st == ScipState.FAILED:
-            self.opener.reopen()
-            return "failed"
-        return "stalled"
+        st = self.opener.client.state if self.opener.client is not None else None
+        return port_state(
+            self.opener,
+            st == ScipState.STREAMING,
+            st in (ScipState.CONNECTING, ScipState.RECONNECTING),
+            st == ScipState.FAILED,
+        )
 
     def poll(self) -> list[ScanSample]:
         c = self.opener.client
-        out: list[ScanSample] = []
         if c is None:
-            return out
-        while True:
-            try:
-                s = c.next_scan(timeout_s=0.0)
-            except DriverTimeoutError:
-                break
-            except DriverError:
-                break  # the client's reader gave up; state() reports it and reopens
-            out.append(ScanSample(scan_from_driver(s), s.device_stamp_ms))
-        return out
+            return []
+        return [ScanSample(scan_from_driver(s), s.device_stamp_ms) for s in drain(c.next_scan)]
 
     def counters(self) -> dict[str, int]:
         c = self.opener.client
@@ -200,40 +211,27 @@ class BaseAdapter:
         self.opener: Opener[ArcosClient] = Opener("base", open_fn, lambda c: c.close(), max_backoff_s)
 
     def state(self) -> str:
-        c = self.opener.client
-        if c is None:
-            return "connecting"
-        st = c.state
-        if st == ArcosState.CONNECTED:
-            return "ok"
-        if st in (ArcosState.CONNECTING, ArcosState.RECONNECTING):
-            return "connecting"
-        if st == ArcosState.LOST:
-            self.opener.reopen()
-            return "failed"
-        return "stalled"
+        st = self.opener.client.state if self.opener.client is not None else None
+        return port_state(
+            self.opener,
+            st == ArcosState.CONNECTED,
+            st in (ArcosState.CONNECTING, ArcosState.RECONNECTING),
+            st == ArcosState.LOST,
+        )
 
     def poll(self) -> list[OdomSample]:
         c = self.opener.client
-        out: list[OdomSample] = []
         if c is None:
-            return out
-        while True:
-            try:
-                s = c.get_sample(timeout_s=0.0)
-            except DriverTimeoutError:
-                break
-            except DriverError:
-                break
-            out.append(
-                OdomSample(
-                    Odometry(s.x_m, s.y_m, s.theta_rad, s.v_mps, s.w_radps, s.stamp_s),
-                    battery_v=s.battery_v,
-                    stalled=s.left_stall or s.right_stall,
-                    motors_enabled=s.motors_enabled,
-                )
+            return []
+        return [
+            OdomSample(
+                Odometry(s.x_m, s.y_m, s.theta_rad, s.v_mps, s.w_radps, s.stamp_s),
+                battery_v=s.battery_v,
+                stalled=s.left_stall or s.right_stall,
+                motors_enabled=s.motors_enabled,
             )
-        return out
+            for s in drain(c.get_sample)
+        ]
 
     def command(self, v_mps: float, w_radps: float) -> None:
         c = self.opener.client
@@ -292,7 +290,6 @@ class CameraAdapter:
         self._fixed_tilt = math.radians(d.camera_tilt_deg)
         self._zoom = d.camera_zoom
         self._visca_cfg = ViscaConfig(baudrate=d.camera_baud)
-        self._intrinsics: dict[tuple[int, int, int], Intrinsics] = {}
         self._last_seq: int | None = None
         self.decode_errors = 0
         self.visca: Opener[ViscaClient] | None = None
@@ -318,24 +315,11 @@ class CameraAdapter:
         http_cfg = HttpConfig(base_url=d.camera_http_url, frame_rate=d.camera_fps)
         self.source = MjpegFrameSource(http_cfg, ptz=ptz).start()
 
-    def _intr(self, zoom: int, w: int, h: int) -> Intrinsics:
-        key = (zoom, w, h)
-        if key not in self._intrinsics:
-            ci = self._visca_cfg.calibration.intrinsics(zoom, w, h)
-            self._intrinsics[key] = Intrinsics(ci.fx_px, ci.fy_px, ci.cx_px, ci.cy_px, ci.width_px, ci.height_px)
-        return self._intrinsics[key]
-
     def frame_from_driver(self, f: CameraFrame) -> FrameSample:
-        image = decode_jpeg(f.jpeg)
-        if f.ptz is not None:
-            pan, tilt, zoom = f.ptz.pan_rad, f.ptz.tilt_rad, f.ptz.zoom_position
-        else:
-            pan, tilt, zoom = self._fixed_pan, self._fixed_tilt, self._zoom
-        h, w = image.shape[:2]
-        frame = Frame(
-            image=image, stamp_s=f.stamp_s, intrinsics=self._intr(zoom, w, h), pan_rad=pan, tilt_rad=tilt, seq=f.seq
+        frame = to_vipsm_frame(
+            f, self._visca_cfg.calibration, fallback_ptz=(self._fixed_pan, self._fixed_tilt, self._zoom), grey=True
         )
-        return FrameSample(frame, f.jpeg, zoom)
+        return FrameSample(frame, f.jpeg, f.ptz.zoom_position if f.ptz is not None else self._zoom)
 
     def state(self) -> str:
         if self.source.last_error is not None and not self.source.connected:
@@ -349,7 +333,7 @@ class CameraAdapter:
         self._last_seq = f.seq
         try:
             return self.frame_from_driver(f)
-        except AppError:
+        except DriverError:  # a JPEG OpenCV cannot decode: counted, the cycle runs without it
             self.decode_errors += 1
             return None
 

@@ -34,13 +34,15 @@ def deterministic_opencv() -> None:
 
 
 def decode_jpeg(jpeg: bytes) -> np.ndarray:
-    """The one decoder used live and in replay (grey, as the estimator's optical flow wants)."""
-    import cv2
+    """The JPEG decode used live and in replay (grey, as the estimator's optical flow wants)."""
+    from drivers.errors import ProtocolError
 
-    img = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_GRAYSCALE)
-    if img is None:
-        raise LogFormatError(f"JPEG of {len(jpeg)} bytes does not decode")
-    return img
+    from .cmd_camera import decode_jpeg as decode
+
+    try:
+        return decode(jpeg, grey=True)
+    except ProtocolError as exc:
+        raise LogFormatError(str(exc)) from exc
 
 
 def _nan(values: list[float | None]) -> np.ndarray:
