@@ -112,16 +112,38 @@ def drain(get: Callable[[float], T]) -> list[T]:
             return out
 
 
-def port_state(opener: Opener[Any], ok: bool, connecting: bool, failed: bool) -> str:
-    """The loop's device state from a client's connection state; a failed client is reopened."""
-    if opener.client is None or connecting:
-        return "connecting"
-    if ok:
-        return "ok"
-    if failed:
-        opener.reopen()
-        return "failed"
-    return "stalled"
+class ClientAdapter(Generic[C]):
+    """What the scanner and base adapters share: the opener, counters, state mapping, close."""
+
+    STAT_KEYS: tuple[str, ...] = ()
+    OK: tuple[Any, ...] = ()
+    CONNECTING: tuple[Any, ...] = ()
+    FAILED: tuple[Any, ...] = ()
+    opener: Opener[C]
+
+    def state(self) -> str:
+        """The loop's device state from the client's connection state; a failed client is reopened."""
+        c = self.opener.client
+        st = getattr(c, "state", None)
+        if c is None or st in self.CONNECTING:
+            return "connecting"
+        if st in self.OK:
+            return "ok"
+        if st in self.FAILED:
+            self.opener.reopen()
+            return "failed"
+        return "stalled"
+
+    def counters(self) -> dict[str, int]:
+        c = self.opener.client
+        d: dict[str, int] = {"open_attempts": self.opener.attempts}
+        if c is not None:
+            st = c.stats  # type: ignore[attr-defined]
+            d.update({k: int(getattr(st, k)) for k in self.STAT_KEYS})
+        return d
+
+    def close(self) -> None:
+        self.opener.close()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -142,7 +164,12 @@ def scan_from_driver(s: LaserScan) -> Scan:
     )
 
 
-class ScannerAdapter:
+class ScannerAdapter(ClientAdapter[Utm30lxClient]):
+    STAT_KEYS = ("frames", "corrupted_frames", "buffer_drops", "reconnects", "status_errors", "garbage_events")
+    OK = (ScipState.STREAMING,)
+    CONNECTING = (ScipState.CONNECTING, ScipState.RECONNECTING)
+    FAILED = (ScipState.FAILED,)
+
     def __init__(self, url: str, intensity: bool, max_backoff_s: float) -> None:
         self.intensity = intensity
 
@@ -158,50 +185,31 @@ class ScannerAdapter:
 
         self.opener: Opener[Utm30lxClient] = Opener("scanner", open_fn, lambda c: c.close(), max_backoff_s)
 
-    def state(self) -> str:
-        st = self.opener.client.state if self.opener.client is not None else None
-        return port_state(
-            self.opener,
-            st == ScipState.STREAMING,
-            st in (ScipState.CONNECTING, ScipState.RECONNECTING),
-            st == ScipState.FAILED,
-        )
-
     def poll(self) -> list[ScanSample]:
         c = self.opener.client
         if c is None:
             return []
         return [ScanSample(scan_from_driver(s), s.device_stamp_ms) for s in drain(c.next_scan)]
 
-    def counters(self) -> dict[str, int]:
-        c = self.opener.client
-        d: dict[str, int] = {"open_attempts": self.opener.attempts}
-        if c is not None:
-            st = c.stats
-            d.update(
-                {
-                    k: int(getattr(st, k))
-                    for k in (
-                        "frames",
-                        "corrupted_frames",
-                        "buffer_drops",
-                        "reconnects",
-                        "status_errors",
-                        "garbage_events",
-                    )
-                }
-            )
-        return d
-
-    def close(self) -> None:
-        self.opener.close()
-
 
 # ---------------------------------------------------------------------------------------------
 # base
 
 
-class BaseAdapter:
+class BaseAdapter(ClientAdapter[ArcosClient]):
+    STAT_KEYS = (
+        "sessions",
+        "checksum_errors",
+        "bad_frames",
+        "reconnects",
+        "keepalives_sent",
+        "command_timeouts",
+        "controller_resets",
+    )
+    OK = (ArcosState.CONNECTED,)
+    CONNECTING = (ArcosState.CONNECTING, ArcosState.RECONNECTING)
+    FAILED = (ArcosState.LOST,)
+
     def __init__(self, url: str, baudrate: int, command_timeout_s: float, max_backoff_s: float) -> None:
         def open_fn() -> ArcosClient:
             client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate, command_timeout_s=command_timeout_s))
@@ -209,15 +217,6 @@ class BaseAdapter:
             return client
 
         self.opener: Opener[ArcosClient] = Opener("base", open_fn, lambda c: c.close(), max_backoff_s)
-
-    def state(self) -> str:
-        st = self.opener.client.state if self.opener.client is not None else None
-        return port_state(
-            self.opener,
-            st == ArcosState.CONNECTED,
-            st in (ArcosState.CONNECTING, ArcosState.RECONNECTING),
-            st == ArcosState.LOST,
-        )
 
     def poll(self) -> list[OdomSample]:
         c = self.opener.client
@@ -252,29 +251,10 @@ class BaseAdapter:
                 pass
 
     def counters(self) -> dict[str, int]:
-        c = self.opener.client
-        d: dict[str, int] = {"open_attempts": self.opener.attempts}
-        if c is not None:
-            st = c.stats
-            d.update(
-                {
-                    k: int(getattr(st, k))
-                    for k in (
-                        "sessions",
-                        "checksum_errors",
-                        "bad_frames",
-                        "reconnects",
-                        "keepalives_sent",
-                        "command_timeouts",
-                        "controller_resets",
-                    )
-                }
-            )
-            d["samples"] = c.samples.put_count
+        d = super().counters()
+        if self.opener.client is not None:
+            d["samples"] = self.opener.client.samples.put_count
         return d
-
-    def close(self) -> None:
-        self.opener.close()
 
 
 # ---------------------------------------------------------------------------------------------
