@@ -198,3 +198,25 @@ def test_panned_camera_bearing_in_the_robot_frame() -> None:
     iv = res.intervals[0]
     centre = 0.5 * (iv.bearing_min_rad + iv.bearing_max_rad)
     assert abs(math.degrees(centre - _true_bearing(world, Pose2D(0.12, 0.0, 0.0), 0.6))) <= 1.0
+
+
+def test_camera_panning_between_frames() -> None:
+    """The pan changes by 2 deg per frame (the camera following something): its image motion is
+    predicted from both frames' pan angles and removed like the robot's own motion."""
+    world = box_room(9.0, 8.0, x0=-1.0, y0=-4.0, pillars=False)
+    world.circles = [Circle(2.5, 2.2, 0.3, vx_mps=0.35, vy_mps=0.0)]
+    det = FlowDetector(FlowConfig(), MOUNT)
+    checked = 0
+    for k in range(8):
+        t = 0.1 * k
+        truth = Pose2D(0.2 * t, 0.0, 0.0)
+        pan = math.radians(30.0 + 2.0 * k)
+        frame = Frame(CAM.render(world, truth, t, pan_rad=pan), t, CAM.intrinsics, pan, 0.0, k)
+        res = det.detect(frame, truth, _depth_points(world, truth, t), 0.2, 0.0)
+        if k >= 4:
+            assert res is not None and len(res.intervals) == 1, res
+            iv = res.intervals[0]
+            centre = 0.5 * (iv.bearing_min_rad + iv.bearing_max_rad)
+            assert abs(math.degrees(centre - _true_bearing(world, truth, t))) <= 1.0
+            checked += 1
+    assert checked == 4
