@@ -32,7 +32,9 @@ import argparse
 import math
 import signal
 import struct
+import termios
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -253,9 +255,10 @@ class PioneerConfig:
     start_open: bool = False
     #: keep the session open when the client goes away (a real robot does not notice a cable pull)
     keep_session_on_disconnect: bool = True
-    #: model a controller that does not follow HOSTBAUD: after it, the line is unreadable (nothing
-    #: is emitted, input is ignored) for this long, as when host and controller rates differ
-    hostbaud_mute_s: float = 0.0
+    #: the host port's rate at power-up (the FLASH HostBaud; reported in the CONFIGpac)
+    host_baud: int = 9600
+    #: False: HOSTBAUD is ignored (the controller stays at its rate)
+    hostbaud_supported: bool = True
 
     @property
     def dist_conv_mm(self) -> float:
@@ -311,7 +314,11 @@ class FakePioneer(DeviceModel):
         self.sonar_on = True
         self.encoder_stream = False
         self.io_stream = False
-        self.host_baud = 9600
+        self.host_baud = cfg.host_baud
+        #: returns the rate the host set on its end of the line (None: unknown, e.g. TCP); see serve()
+        self.line_baud: Callable[[], int | None] | None = None
+        self.garbled_in_bytes = 0
+        self.garbled_out_bytes = 0
         self._v_set_mmps = 0.0
         self._w_set_degps = 0.0
         self._trans_vel_max = float(cfg.trans_vel_max_mmps)
@@ -332,11 +339,17 @@ class FakePioneer(DeviceModel):
         self._sip_index = 0
         self._now_s = 0.0
         self.e_stopped = False
-        self._mute_until_s = -math.inf
+
+    def _rates_differ(self) -> bool:
+        line = self.line_baud() if self.line_baud is not None else None
+        return line is not None and line != self.host_baud
 
     def emit(self, data: bytes) -> None:
-        if self._now_s < self._mute_until_s:
-            return
+        if self._rates_differ():
+            # what a UART at another rate makes of our bytes: noise (kept free of 0xFA so it can
+            # never be read as a frame header)
+            self.garbled_out_bytes += len(data)
+            data = bytes(0 if (b ^ 0x5A) == 0xFA else (b ^ 0x5A) for b in data)
         super().emit(data)
 
     # -- faults and test accessors -------------------------------------------------------------
@@ -348,6 +361,7 @@ class FakePioneer(DeviceModel):
             self.state = "sync0"
             self.motors_enabled = self.config.motors_enabled_at_start
             self.encoder_stream = self.io_stream = False
+            self.host_baud = self.config.host_baud
             self._odo.reset(0.0, 0.0, 0.0)
             self.emit(arcos_packet(bytes([code])))
 
@@ -394,7 +408,8 @@ class FakePioneer(DeviceModel):
     def on_bytes(self, data: bytes, now_s: float) -> None:
         with self._lock:
             self._now_s = now_s
-            if now_s < self._mute_until_s:
+            if self._rates_differ():
+                self.garbled_in_bytes += len(data)
                 return
             for body in self._rx.feed(data):
                 self._on_command(body, now_s)
@@ -436,6 +451,7 @@ class FakePioneer(DeviceModel):
     def _close_session(self, now_s: float) -> None:
         if self.state == "open":
             self.stats.sessions_closed += 1
+        self.host_baud = self.config.host_baud  # back to the FLASH rate (assumed; [?] on hardware)
         self._halt(now_s)
         self.state = "sync0"
         self.encoder_stream = self.io_stream = False
@@ -545,9 +561,7 @@ class FakePioneer(DeviceModel):
         elif cmd == SONAR and arg is not None:
             self.sonar_on = arg != 0
         elif cmd == HOSTBAUD and arg is not None:
-            if self.config.hostbaud_mute_s > 0:
-                self._mute_until_s = now_s + self.config.hostbaud_mute_s
-            else:
+            if self.config.hostbaud_supported:
                 self.host_baud = _BAUDS.get(arg, self.host_baud)
         elif cmd == RESET:
             self.send_reset_packet()
@@ -718,7 +732,8 @@ class FakePioneer(DeviceModel):
             500,
         )
         p += s(cfg.name)
-        p += bytes([round(cfg.sip_cycle_s * 1000) & 0xFF, 0, 0])  # SipCycle, HostBaud (0=9600), Aux1Baud
+        host_code = {v: k for k, v in _BAUDS.items()}.get(cfg.host_baud, 0)
+        p += bytes([round(cfg.sip_cycle_s * 1000) & 0xFF, host_code, 0])  # SipCycle, HostBaud (FLASH), Aux1Baud
         p += struct.pack("<HHB", 0, 1, 1)  # gripper, front sonar, rear sonar
         p += struct.pack("<HHH", 110, 16570, round(cfg.watchdog_s * 1000))  # LowBattery, RevCount, Watchdog ms
         p += struct.pack("<BHHHH", 0, 0, 0, 300, 50)  # NormalMPacs, StallVal, StallCount, JoyVel, JoyRotVel
@@ -754,9 +769,28 @@ def serve(model: FakePioneer, *, tcp: str | None = None, pty: bool = False, link
         endpoint: TcpEndpoint | PtyEndpoint = TcpEndpoint(host or "127.0.0.1", int(port))
     elif pty:
         endpoint = PtyEndpoint(link)
+        model.line_baud = lambda: pty_line_baud(endpoint)
     else:
         raise ValueError("serve needs tcp=HOST:PORT or pty=True")
     return DeviceServer(model, endpoint).start()
+
+
+_TERMIOS_RATES = {getattr(termios, f"B{r}"): r for r in (9600, 19200, 38400, 57600, 115200)}
+
+
+def pty_line_baud(endpoint: PtyEndpoint) -> int | None:
+    """The rate the host set on its end of a pty (on Linux the master reports the slave's termios).
+
+    Reads the endpoint's master descriptor; None when it is closed or the rate is not an ARCOS one.
+    """
+    fd = getattr(endpoint, "_master", -1)
+    if fd < 0:
+        return None
+    try:
+        speed = termios.tcgetattr(fd)[5]
+    except (termios.error, OSError):
+        return None
+    return _TERMIOS_RATES.get(speed)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -66,6 +66,11 @@ class ArcosClientConfig:
     baudrate: int = DEFAULT_BAUDRATE
     #: after CONFIG, switch the host port to this rate with HOSTBAUD (serial only; None: stay)
     switch_baudrate: int | None = None
+    #: serial only: when nothing answers at ``baudrate``, try these rates in turn (ROS p2os order:
+    #: 38400, 19200, 115200, 57600); empty: no hunting
+    baud_candidates: tuple[int, ...] = ()
+    #: handshake attempts per hunted rate
+    hunt_attempts: int = 2
     baud_switch_timeout_s: float = 0.9
     port_timeout_s: float = 0.05
     write_timeout_s: float = 1.0
@@ -117,6 +122,11 @@ class ArcosClientConfig:
             raise ArcosConfigError(f"baudrate must be one of {sorted(codec.HOSTBAUD_CODES)}, got {self.baudrate}")
         if self.switch_baudrate is not None and self.switch_baudrate not in codec.HOSTBAUD_CODES:
             raise ArcosConfigError(f"switch_baudrate must be one of {sorted(codec.HOSTBAUD_CODES)}")
+        bad = [b for b in self.baud_candidates if b not in codec.HOSTBAUD_CODES]
+        if bad:
+            raise ArcosConfigError(f"baud_candidates must be among {sorted(codec.HOSTBAUD_CODES)}, got {bad}")
+        if self.hunt_attempts < 1:
+            raise ArcosConfigError("hunt_attempts must be >= 1")
 
     @property
     def is_socket(self) -> bool:
@@ -136,6 +146,7 @@ class ClientStats:
     reconnects: int = 0
     controller_resets: int = 0
     baud_fallbacks: int = 0
+    baud_hunts: int = 0  # rates tried beyond the configured one
     unexpected_packets: int = 0
     #: the most recent errors met by the reader (bounded, newest last)
     errors: collections.deque[str] = field(default_factory=lambda: collections.deque(maxlen=32))
@@ -443,7 +454,10 @@ class ArcosClient:
             self._decoder = ArcosDecoder()
             self._baudrate = None if cfg.is_socket else cfg.baudrate
         try:
-            identity = self._handshake(port)
+            try:
+                identity = self._handshake(port)
+            except ArcosTimeoutError as silent:
+                identity = self._hunt_baud(port, silent)
             params = params_for_subclass(
                 identity.subclass,
                 fallback=cfg.subclass_fallback,
@@ -532,9 +546,33 @@ class ArcosClient:
                 raise ArcosDisconnectedError(str(exc)) from exc
         self._decoder.clear()
 
-    def _handshake(self, port: serial.SerialBase) -> RobotIdentity:
+    def _hunt_baud(self, port: serial.SerialBase, silent: ArcosTimeoutError) -> RobotIdentity:
+        """Nothing answered at the configured rate: try ``baud_candidates`` (serial only), else re-raise."""
+        cfg = self.config
+        if cfg.is_socket or not cfg.baud_candidates:
+            raise silent
+        tried = [cfg.baudrate]
+        for rate in cfg.baud_candidates:
+            if rate in tried:
+                continue
+            tried.append(rate)
+            try:
+                port.baudrate = rate
+            except (serial.SerialException, OSError, ValueError) as exc:
+                raise ArcosDisconnectedError(f"cannot set {rate} baud: {exc}") from exc
+            self._baudrate = rate
+            self.stats.baud_hunts += 1
+            self._flush_input(port, quiet_s=0.05, max_s=0.3)
+            try:
+                return self._handshake(port, attempts=cfg.hunt_attempts)
+            except ArcosTimeoutError:
+                continue
+        raise ArcosTimeoutError(f"no answer to SYNC from {cfg.url} at {', '.join(map(str, tried))} baud")
+
+    def _handshake(self, port: serial.SerialBase, attempts: int | None = None) -> RobotIdentity:
         """SYNC0, SYNC1, SYNC2 with a per-step timeout and a bounded number of restarts."""
         cfg = self.config
+        max_attempts = cfg.sync_attempts if attempts is None else attempts
         attempts = 0
         heard_anything = False
         step = 0
@@ -581,7 +619,7 @@ class ArcosClient:
                 continue
             attempts += 1
             self.stats.sync_restarts += 1
-            if attempts >= cfg.sync_attempts:
+            if attempts >= max_attempts:
                 if not heard_anything:
                     raise ArcosTimeoutError(
                         f"no answer to SYNC from {cfg.url} after {attempts} tries "
@@ -655,6 +693,8 @@ class ArcosClient:
         time.sleep(0.05)  # let the command leave the UART at the old rate
         try:
             port.baudrate = target
+            # bytes that arrived at the old rate (SIPs sent before the controller switched) prove nothing
+            port.reset_input_buffer()
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ArcosDisconnectedError(f"cannot set {target} baud: {exc}") from exc
         self._decoder.clear()
@@ -672,6 +712,7 @@ class ArcosClient:
         self.stats.baud_fallbacks += 1
         try:
             port.baudrate = current
+            port.reset_input_buffer()
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ArcosDisconnectedError(f"cannot restore {current} baud: {exc}") from exc
         self._decoder.clear()

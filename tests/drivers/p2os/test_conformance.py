@@ -495,8 +495,22 @@ def test_hostbaud_switch_on_a_tty(transport: str, make_rig: Callable[..., Rig]) 
 def test_hostbaud_falls_back_when_the_controller_does_not_follow(transport: str, make_rig: Callable[..., Rig]) -> None:
     if transport != "pty":
         pytest.skip("HOSTBAUD applies to serial ports only")
-    rig = make_rig(hostbaud_mute_s=1.0)
+    rig = make_rig(hostbaud_supported=False)  # the pty carries the rates: a mismatch garbles the line
     c = _connected(rig, switch_baudrate=38400, sip_silence_timeout_s=2.0)
     assert c.stats.baud_fallbacks == 1
     assert c.info.baudrate == 9600 and rig.fake.host_baud == 9600
+    assert rig.fake.garbled_out_bytes > 0  # the fallback really met an unreadable line
+    _samples_keep_flowing(c)
+
+
+def test_baud_hunting_finds_the_controller_rate(transport: str, make_rig: Callable[..., Rig]) -> None:
+    if transport != "pty":
+        pytest.skip("baud rates apply to serial ports only")
+    rig = make_rig(host_baud=38400)  # FLASH HostBaud changed from the 9600 default
+    silent = rig.client(sync_step_timeout_s=0.2, sync_attempts=2, stale_close_wait_s=0.05, reconnect=False)
+    with pytest.raises(ArcosTimeoutError):
+        silent.connect()
+    c = _connected(rig, sync_step_timeout_s=0.3, sync_attempts=2, baud_candidates=(19200, 38400, 115200))
+    assert c.info.baudrate == 38400 and c.stats.baud_hunts == 2
+    assert c.info.config is not None and c.info.config.values["host_baud"] == 2
     _samples_keep_flowing(c)
