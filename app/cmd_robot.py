@@ -89,6 +89,8 @@ def _client_config(args: argparse.Namespace, **kw: Any) -> ArcosClientConfig:
     }
     if getattr(args, "switch_baud", None):
         base["switch_baudrate"] = int(args.switch_baud)
+    if getattr(args, "hunt_bauds", None):
+        base["baud_candidates"] = tuple(int(b) for b in args.hunt_bauds.split(","))
     if getattr(args, "subclass_fallback", None):
         base["subclass_fallback"] = args.subclass_fallback
     base.update(kw)
@@ -180,6 +182,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--timeout-s", type=float, default=5.0, help="per-sample timeout")
     p.add_argument("--baud", type=int, default=9600, help="serial rate (ignored on TCP)")
     p.add_argument("--switch-baud", type=int, help="switch the port to this rate with HOSTBAUD after CONFIG")
+    p.add_argument("--hunt-bauds", metavar="RATES", help="if nothing answers, try these rates, e.g. 38400,19200")
     p.add_argument("--subclass-fallback", help="conversion table for an unknown subclass (p3dx or p3dx-sh)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=_cmd_drive)

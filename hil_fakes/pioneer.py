@@ -422,11 +422,7 @@ class FakePioneer(DeviceModel):
             if self.state != "open":
                 return None
             cfg = self.config
-            if (
-                self._last_cmd_s is not None
-                and not self.watchdog_stopped
-                and now_s - self._last_cmd_s > cfg.watchdog_s
-            ):
+            if self._last_cmd_s is not None and not self.watchdog_stopped and now_s - self._last_cmd_s > cfg.watchdog_s:
                 self.watchdog_stopped = True
                 self.stats.watchdog_trips += 1
                 self.plant.command(0.0, 0.0, now_s)
@@ -814,6 +810,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--start-open", action="store_true", help="start with a stale open session")
     parser.add_argument("--junk-every", type=int, default=0, help="junk before every N-th SIP")
+    parser.add_argument(
+        "--host-baud",
+        type=int,
+        default=9600,
+        choices=sorted(_BAUDS.values()),
+        help="the controller's FLASH host rate (a pty client at another rate sees noise)",
+    )
+    parser.add_argument("--no-hostbaud", action="store_true", help="ignore HOSTBAUD (stay at --host-baud)")
 
 
 def config_from_args(args: argparse.Namespace) -> PioneerConfig:
@@ -835,6 +839,8 @@ def config_from_args(args: argparse.Namespace) -> PioneerConfig:
             seed=args.seed,
         ),
         start_open=args.start_open,
+        host_baud=args.host_baud,
+        hostbaud_supported=not args.no_hostbaud,
     )
 
 

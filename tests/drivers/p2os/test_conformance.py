@@ -245,6 +245,7 @@ def test_vel2_and_stop(make_rig: Callable[..., Rig]) -> None:
     rig = make_rig()
     c = rig.client()
     c.connect()
+
     def vel2_step() -> bool:
         c.set_wheel_velocities(0.2, 0.2)
         return newest(c).v_mps > 0.15

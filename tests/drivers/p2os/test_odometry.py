@@ -172,9 +172,7 @@ def test_velocities_battery_flags_and_sonar_poses() -> None:
     st.integers(0, 4095),
     st.lists(st.tuples(st.integers(-3000, 3000), st.integers(-3000, 3000), st.integers(-300, 300)), max_size=60),
 )
-def test_accumulation_equals_the_unwrapped_sum(
-    x0: int, y0: int, th0: int, steps: list[tuple[int, int, int]]
-) -> None:
+def test_accumulation_equals_the_unwrapped_sum(x0: int, y0: int, th0: int, steps: list[tuple[int, int, int]]) -> None:
     """Whatever the start and the steps (each under half a range), the counts add up exactly."""
     tr = OdometryTracker(params_for_subclass("p3dx-sh"))
     tr.update(sip(x0, y0, th0), 0.0)
