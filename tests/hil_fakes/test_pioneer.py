@@ -10,6 +10,7 @@ import math
 import socket
 import struct
 import time
+from collections.abc import Callable
 
 import pytest
 
@@ -331,21 +332,24 @@ def test_aria_simple_connect_sequence_over_tcp() -> None:
             sock.settimeout(0.2)
             buf = bytearray()
 
-            def exchange(data: bytes, wait_s: float = 0.3) -> list[bytes]:
+            def exchange(data: bytes, wait_s: float = 0.3, min_frames: int = 0) -> list[bytes]:
+                """Send, then collect for ``wait_s`` (longer, up to 5 s, until ``min_frames`` came)."""
                 buf.clear()
                 sock.sendall(data)
-                end = time.monotonic() + wait_s
-                while time.monotonic() < end:
+                start = time.monotonic()
+                while True:
+                    elapsed = time.monotonic() - start
+                    if elapsed >= 5.0 or (elapsed >= wait_s and len(frames(bytes(buf))) >= min_frames):
+                        return frames(bytes(buf))
                     try:
                         buf.extend(sock.recv(4096))
                     except TimeoutError:
                         pass
-                return frames(bytes(buf))
 
-            assert exchange(H("FA FB 03 00 00 00")) == [b"\x00"]
-            assert exchange(H("FA FB 03 01 00 01")) == [b"\x01"]
-            assert exchange(H("FA FB 03 02 00 02")) == [b"\x02fakebot\x00Pioneer\x00p3dx\x00"]
-            replies = exchange(cmd_int(1, 1) + H("FA FB 06 12 3B 01 00 13 3B"), wait_s=0.5)
+            assert exchange(H("FA FB 03 00 00 00"), min_frames=1) == [b"\x00"]
+            assert exchange(H("FA FB 03 01 00 01"), min_frames=1) == [b"\x01"]
+            assert exchange(H("FA FB 03 02 00 02"), min_frames=1) == [b"\x02fakebot\x00Pioneer\x00p3dx\x00"]
+            replies = exchange(cmd_int(1, 1) + H("FA FB 06 12 3B 01 00 13 3B"), wait_s=0.5, min_frames=2)
             assert any(p[0] == 0x20 for p in replies) and any(p[0] in (0x32, 0x33) for p in replies)
             sequence = (
                 cmd_int(62, 1)  # BATTERYINFO
@@ -358,13 +362,26 @@ def test_aria_simple_connect_sequence_over_tcp() -> None:
                 + cmd_int(23, -100)
                 + H("FA FB 03 00 00 00")  # PULSE
             )
-            sips = [p for p in exchange(sequence) if p[0] in (0x32, 0x33)]
-            assert sips and sip_fields(sips[-1])["flags"] & 1  # motors enabled
-            exchange(H("FA FB 06 0B 3B FA 00") + chk(H("0B 3B FA 00")), wait_s=1.0)  # VEL 250
-            assert model.truth(time.monotonic())[3] > 0.1
-            exchange(cmd_int(4, 0) + cmd_int(2, 1))  # ENABLE 0, CLOSE 1
-            assert model.state == "sync0" and not model.motors_enabled
-            assert exchange(b"", wait_s=0.4) == []  # the stream stopped
+            exchange(sequence, wait_s=0.1)
+
+            def until(pred: Callable[[], bool], timeout_s: float = 5.0) -> bool:
+                end = time.monotonic() + timeout_s
+                while time.monotonic() < end:
+                    if pred():
+                        return True
+                    exchange(b"", wait_s=0.05)
+                return pred()
+
+            def enabled_sip_seen() -> bool:
+                return any(p[0] in (0x32, 0x33) and sip_fields(p)["flags"] & 1 for p in frames(bytes(buf)))
+
+            assert until(enabled_sip_seen)  # motors enabled, reported in the SIP FLAGS
+            sock.sendall(H("FA FB 06 0B 3B FA 00") + chk(H("0B 3B FA 00")))  # VEL 250
+            assert until(lambda: model.truth(time.monotonic())[3] > 0.1)
+            sock.sendall(cmd_int(4, 0) + cmd_int(2, 1))  # ENABLE 0, CLOSE 1
+            assert until(lambda: model.state == "sync0" and not model.motors_enabled)
+            exchange(b"", wait_s=0.2)  # drain what was in flight
+            assert exchange(b"", wait_s=0.3) == []  # the stream stopped
         assert model.stats.bad_checksum == 0 and model.stats.unknown_commands == 0
     finally:
         server.stop()
