@@ -32,7 +32,6 @@ import argparse
 import math
 import signal
 import struct
-import termios
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -771,22 +770,13 @@ def serve(model: FakePioneer, *, tcp: str | None = None, pty: bool = False, link
     return DeviceServer(model, endpoint).start()
 
 
-_TERMIOS_RATES = {getattr(termios, f"B{r}"): r for r in (9600, 19200, 38400, 57600, 115200)}
+_ARCOS_RATES = (9600, 19200, 38400, 57600, 115200)
 
 
 def pty_line_baud(endpoint: PtyEndpoint) -> int | None:
-    """The rate the host set on its end of a pty (on Linux the master reports the slave's termios).
-
-    Reads the endpoint's master descriptor; None when it is closed or the rate is not an ARCOS one.
-    """
-    fd = getattr(endpoint, "_master", -1)
-    if fd < 0:
-        return None
-    try:
-        speed = termios.tcgetattr(fd)[5]
-    except (termios.error, OSError):
-        return None
-    return _TERMIOS_RATES.get(speed)
+    """The rate the host set on its end of a pty; None when it is closed or the rate is not an ARCOS one."""
+    bps = endpoint.line_speed_bps()
+    return bps if bps in _ARCOS_RATES else None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

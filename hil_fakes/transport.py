@@ -22,6 +22,7 @@ import errno
 import os
 import select
 import socket
+import termios
 import threading
 import time
 import tty
@@ -30,6 +31,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 Clock = Callable[[], float]
+
+_TERMIOS_BPS = {
+    getattr(termios, f"B{r}"): r
+    for r in (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 921600)
+    if hasattr(termios, f"B{r}")
+}
 
 # Longest the device loop blocks on input before polling the model again.
 _MAX_IDLE_S = 0.005
@@ -100,6 +107,18 @@ class PtyEndpoint(Endpoint):
     @property
     def slave_name(self) -> str:
         return self._slave_name
+
+    def line_speed_bps(self) -> int | None:
+        """The bit rate the host set on its end of the pty (Linux reports the slave's termios through
+        the master), so a fake can model a wrong baud rate; None when closed or not a standard rate."""
+        fd = self._master
+        if fd < 0:
+            return None
+        try:
+            speed = termios.tcgetattr(fd)[5]
+        except (termios.error, OSError):
+            return None
+        return _TERMIOS_BPS.get(speed)
 
     @property
     def connected(self) -> bool:
