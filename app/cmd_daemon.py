@@ -118,9 +118,11 @@ def process_usage() -> dict[str, float]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from .cmd_eval import tune_allocator
     from .devices import build_loop
 
     config = _config(args)
+    tune_allocator()  # per-cycle image and scan arrays stay in the process: no page-fault churn
     stop = threading.Event()
     install_signal_handlers(stop)
     loop = build_loop(config, log_path=args.log)
@@ -163,9 +165,11 @@ def loop_summary(loop: Any) -> dict[str, Any]:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    from .cmd_eval import tune_allocator
     from .sim import run_sim
 
     config = _config(args)
+    tune_allocator()
     summary = run_sim(config, args)
     emit(summary, args.json)
     return 0

@@ -34,7 +34,7 @@ from hil_fakes.utm30lx import Utm30lxModel
 from hil_fakes.world.scenarios import build_scenario
 from hil_fakes.world.world import World
 
-from .cmd_eval import obstacle_in_camera
+from .cmd_eval import obstacle_in_camera, tune_allocator
 
 TRUTH_PERIOD_S = 0.02
 
@@ -159,6 +159,7 @@ def main(argv: list[str]) -> int:
         print("usage: python -m app.simhost PARAMS_JSON DIR", file=sys.stderr)
         return 2
     params = json.loads(argv[0])
+    tune_allocator()  # rendered frames and sweeps are allocated every few ms
     host = SimHost(params, Path(argv[1]))
     out = sys.stdout
     out.write(json.dumps(host.addresses()) + "\n")

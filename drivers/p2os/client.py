@@ -700,9 +700,15 @@ class ArcosClient:
         self._decoder.clear()
         self._write_direct(port, codec.pulse_command())
         deadline = time.monotonic() + cfg.baud_switch_timeout_s
+        # Two SIPs at the new rate prove the switch: one may have left the controller at the old rate
+        # and still come through after the flush (USB-serial adapters deliver their FIFO late).
+        sips_at_new_rate = 0
         while time.monotonic() < deadline:
             for ev in self._read_events(port):
                 if isinstance(ev, Sip):
+                    sips_at_new_rate += 1
+                    if sips_at_new_rate < 2:
+                        continue
                     self._baudrate = target
                     self._handle_event(ev, time.monotonic())
                     if self._info is not None:
