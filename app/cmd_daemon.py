@@ -155,7 +155,7 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "log_dropped": loop.log.stats.dropped if loop.log is not None else 0,
             "log_bad_messages": loop.log.stats.bad_messages if loop.log is not None else 0,
             "log_error": loop.log.stats.error if loop.log is not None else None,
-            "events": list(s.state_changes[-50:]),
+            "events": list(s.state_changes)[-50:],
         }
     )
     out["devices"] = loop.final_counters or {

@@ -20,6 +20,7 @@ import dataclasses
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -247,7 +248,8 @@ class RunStats:
     fallback_cycles: int = 0
     device_stop_cycles: int = 0
     safety_stop_cycles: int = 0
-    state_changes: list[str] = field(default_factory=list)
+    #: the most recent state changes (bounded: a flapping device must not grow memory)
+    state_changes: deque[str] = field(default_factory=lambda: deque(maxlen=200))
 
 
 class ControlLoop:
