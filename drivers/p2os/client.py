@@ -682,6 +682,17 @@ class ArcosClient:
             packets.append(codec.setra_command(-abs(math.degrees(cfg.rot_decel_radps2))))
         return packets
 
+    def _set_line_rate(self, port: serial.SerialBase, baud: int, what: str) -> None:
+        """Switch the host side to ``baud``, drop what arrived at the old rate, poke the controller."""
+        try:
+            port.baudrate = baud
+            # bytes that arrived at the old rate (SIPs sent before the controller switched) prove nothing
+            port.reset_input_buffer()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise ArcosDisconnectedError(f"cannot {what} {baud} baud: {exc}") from exc
+        self._decoder.clear()
+        self._write_direct(port, codec.pulse_command())
+
     def _maybe_switch_baud(self, port: serial.SerialBase, packet: ConfigPacket) -> None:
         """HOSTBAUD switch as ARIA does it: only if the controller allows it (ResetBaud 2), with fallback."""
         cfg = self.config
@@ -691,14 +702,7 @@ class ArcosClient:
             return
         self._write_direct(port, codec.hostbaud_command(target))
         time.sleep(0.05)  # let the command leave the UART at the old rate
-        try:
-            port.baudrate = target
-            # bytes that arrived at the old rate (SIPs sent before the controller switched) prove nothing
-            port.reset_input_buffer()
-        except (serial.SerialException, OSError, ValueError) as exc:
-            raise ArcosDisconnectedError(f"cannot set {target} baud: {exc}") from exc
-        self._decoder.clear()
-        self._write_direct(port, codec.pulse_command())
+        self._set_line_rate(port, target, "set")
         deadline = time.monotonic() + cfg.baud_switch_timeout_s
         # Two SIPs at the new rate prove the switch: one may have left the controller at the old rate
         # and still come through after the flush (USB-serial adapters deliver their FIFO late).
@@ -716,13 +720,7 @@ class ArcosClient:
                     return
         # no SIP at the new rate: fall back to the old one
         self.stats.baud_fallbacks += 1
-        try:
-            port.baudrate = current
-            port.reset_input_buffer()
-        except (serial.SerialException, OSError, ValueError) as exc:
-            raise ArcosDisconnectedError(f"cannot restore {current} baud: {exc}") from exc
-        self._decoder.clear()
-        self._write_direct(port, codec.pulse_command())
+        self._set_line_rate(port, current, "restore")
         self._last_sip_s = time.monotonic()  # the silence timeout starts again on the restored line
 
     # -- reader thread ----------------------------------------------------------------------------
