@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "sim", help="the simulated robot: world and byte-level fakes in a child process, the daemon against them"
     )
     _add_config_args(p)
-    from .cmd_eval import add_scenario_arguments
+    from .evaluation.scenarios import add_scenario_arguments
 
     add_scenario_arguments(p, allow_all=False)
     p.add_argument("--log", metavar="FILE", default=None, help="field log path (default: sim-<time>.mcap)")
@@ -118,8 +118,8 @@ def process_usage() -> dict[str, float]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .cmd_eval import tune_allocator
     from .devices import build_loop
+    from .evaluation.runner import tune_allocator
 
     config = _config(args)
     tune_allocator()  # per-cycle image and scan arrays stay in the process: no page-fault churn
@@ -165,7 +165,7 @@ def loop_summary(loop: Any) -> dict[str, Any]:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    from .cmd_eval import tune_allocator
+    from .evaluation.runner import tune_allocator
     from .sim import run_sim
 
     config = _config(args)

@@ -4,7 +4,7 @@ The world and the three byte-level fakes run in a child process (``app.simhost``
 runs exactly what ``run`` runs (device adapters, driver clients, estimator, field log, status
 server) with the fakes' addresses as device URLs and the ``cruise`` mission at the scenario's robot
 speed. The child streams the world's ground truth; the summary compares the daemon's live estimates
-with it, using the evaluation's metric (``app.cmd_eval``: obstacle errors over the cycles where a
+with it, using the evaluation's metric (``app.evaluation.metrics``: obstacle errors over the cycles where a
 moving obstacle is in the camera's view, greedy nearest assignment, located within 0.5 m).
 """
 
@@ -29,17 +29,11 @@ from hil_fakes.world.scenarios import build_scenario
 from hil_fakes.world.sensors import RobotMount
 from vipsm.types import Estimate
 
-from .cmd_eval import (
-    LOCATED_GATE_M,
-    MIN_TRACK_AGE,
-    MethodLog,
-    _assign,
-    _replace_fields,
-    mount_values,
-    scenario_param_sets,
-)
 from .config import Config
 from .errors import AppError
+from .evaluation.metrics import LOCATED_GATE_M, MIN_TRACK_AGE, MethodLog, _assign
+from .evaluation.runner import _replace_fields, mount_values
+from .evaluation.scenarios import scenario_param_sets
 
 SIM_LOG_PATTERN = "sim-%Y%m%d-%H%M%S.mcap"
 

@@ -34,7 +34,8 @@ from hil_fakes.utm30lx import Utm30lxModel
 from hil_fakes.world.scenarios import build_scenario
 from hil_fakes.world.world import World
 
-from .cmd_eval import obstacle_in_camera, tune_allocator
+from .evaluation.metrics import obstacle_in_camera
+from .evaluation.runner import tune_allocator
 
 TRUTH_PERIOD_S = 0.02
 

@@ -8,9 +8,11 @@ the increments exactly (arc integration, the same motion model as
 
 Error model, per step with true increments ``ds`` (signed, m) and ``dth`` (signed, rad):
 
-* systematic: ``ds' = ds * (1 + scale_error)``; ``dth' = dth + heading_drift_rad_per_m * ds``
-  (drift follows the signed distance, as an unequal wheel diameter does: driving backwards turns
-  the other way);
+* systematic: ``ds' = ds * (1 + scale_error)``; ``dth' = dth * (1 + rot_scale_error) +
+  heading_drift_rad_per_m * ds`` (drift follows the signed distance, as an unequal wheel diameter
+  does: driving backwards turns the other way; a left/right radius mismatch ``d`` on a wheelbase ``b``
+  gives ``d / b`` rad/m; ``rot_scale_error`` is an effective wheelbase that differs from the
+  configured one);
 * random (independent Gaussian per step, variance proportional to the distance or angle of the
   step, so the accumulated error does not depend on how finely the motion is cut):
   ``ds'  += N(0, sigma_trans_frac^2 * |ds| * 1 m)``, i.e. after driving ``D`` metres the distance
@@ -37,6 +39,9 @@ class OdometryNoise:
     scale_error: float = 0.0
     #: heading error added per metre driven (signed distance), rad/m
     heading_drift_rad_per_m: float = 0.0
+    #: fraction; rotation reported too large by this (effective wheelbase shorter than the configured
+    #: one: 0.02 = 2 %)
+    rot_scale_error: float = 0.0
     #: std of the distance error accumulated over 1 m of travel, m/m
     sigma_trans_frac: float = 0.0
     #: std of the heading error accumulated over 1 rad of rotation, rad/rad
@@ -51,7 +56,7 @@ class OdometryNoise:
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f"OdometryNoise.{name} must be finite and >= 0, got {value}")
-        for name in ("scale_error", "heading_drift_rad_per_m"):
+        for name in ("scale_error", "heading_drift_rad_per_m", "rot_scale_error"):
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise ValueError(f"OdometryNoise.{name} must be finite, got {value}")
@@ -88,7 +93,7 @@ class WheelOdometry:
         """Add the true body-frame increments since the last step (distance along the arc, rotation)."""
         n = self.noise
         ds = ds_m * (1.0 + n.scale_error)
-        dth = dtheta_rad + n.heading_drift_rad_per_m * ds_m
+        dth = dtheta_rad * (1.0 + n.rot_scale_error) + n.heading_drift_rad_per_m * ds_m
         if n.is_random:
             if n.sigma_trans_frac > 0 and ds_m != 0.0:
                 ds += float(self._rng.normal(0.0, n.sigma_trans_frac * math.sqrt(abs(ds_m))))

@@ -32,6 +32,27 @@ class Wall:
 
 
 @dataclass(frozen=True)
+class Gait:
+    """How a walking person moves their legs (see :mod:`hil_fakes.world.people` for the model)."""
+
+    stride_m: float = 1.3
+    stance_frac: float = 0.6
+    #: radius of a leg (trousered shin) at laser height: 0.10-0.15 m diameter
+    leg_radius_m: float = 0.06
+    hip_halfwidth_m: float = 0.10
+    leg_length_m: float = 0.90
+    #: body radius for the ground truth and collision checks (shoulders about 0.45 m wide)
+    body_radius_m: float = 0.25
+    height_m: float = 1.75
+    #: gait phase at the start of the path (0.3: both feet under the pelvis, side by side)
+    phase0: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (0.3 <= self.stride_m <= 2.5 and 0.4 <= self.stance_frac <= 0.8 and self.leg_radius_m > 0):
+            raise ValueError(f"implausible gait {self}")
+
+
+@dataclass(frozen=True)
 class ObstaclePath:
     """A vertical cylinder moving along a polyline at constant speed.
 
@@ -45,6 +66,9 @@ class ObstaclePath:
     start_s: float
     height_m: float = 1.7
     reflectivity: float = 0.5
+    #: a walking person (legs at the laser, a body in the camera) instead of a cylinder; ``radius_m``
+    #: is then the body's radius for the ground truth
+    gait: Gait | None = None
 
     def __post_init__(self) -> None:
         if len(self.waypoints) < 1:

@@ -135,10 +135,10 @@ class ViewRenderer:
         cy: float,
         width_px: int,
         height_px: int,
-        obstacles: list[tuple[float, float, float, float]],
+        obstacles: list[tuple[float, float, float, float, float]],
         rng: np.random.Generator,
     ) -> np.ndarray:
-        """BGR uint8 image. ``obstacles``: (centre x, centre y, radius, height) per obstacle."""
+        """BGR uint8 image. ``obstacles``: vertical cylinders (centre x, centre y, radius, z bottom, z top)."""
         if tilt_rad == 0.0:
             return self._render_level(
                 cam_x_m, cam_y_m, cam_z_m, heading_rad, fx, fy, cx, cy, width_px, height_px, obstacles, rng
@@ -213,7 +213,7 @@ class ViewRenderer:
                 tk = np.broadcast_to(t_ob[..., k], shape)
                 with np.errstate(invalid="ignore"):
                     zk = cam_z_m + tk * tan_el
-                hit = np.isfinite(tk) & (tk < dist) & (zk >= 0) & (zk <= ob[k, 3])
+                hit = np.isfinite(tk) & (tk < dist) & (zk >= ob[k, 3]) & (zk <= ob[k, 4])
                 if not hit.any():
                     continue
                 label[hit] = 4 + (k % 4)
@@ -284,7 +284,7 @@ class ViewRenderer:
         cy: float,
         width_px: int,
         height_px: int,
-        obstacles: list[tuple[float, float, float, float]],
+        obstacles: list[tuple[float, float, float, float, float]],
         rng: np.random.Generator,
     ) -> np.ndarray:
         """Fast path for a level camera (tilt 0): every ray of a column has the same azimuth, so the
@@ -341,8 +341,8 @@ class ViewRenderer:
                 if not visible.any():
                     continue
                 tks = np.where(visible, tk, 1.0)
-                lo = np.where(visible, -cam_z_m / np.maximum(tks, 1e-6), 1.0).astype(f32)
-                hi = np.where(visible, (ob[k, 3] - cam_z_m) / np.maximum(tks, 1e-6), -1.0).astype(f32)
+                lo = np.where(visible, (ob[k, 3] - cam_z_m) / np.maximum(tks, 1e-6), 1.0).astype(f32)
+                hi = np.where(visible, (ob[k, 4] - cam_z_m) / np.maximum(tks, 1e-6), -1.0).astype(f32)
                 hit = (q >= lo) & (q <= hi)
                 hit_f = hit.astype(f32)
                 hx = cam_x_m + tks * dx - ob[k, 0]

@@ -40,7 +40,10 @@ import numpy as np
 
 from hil_fakes.wheel_odometry import OdometryNoise
 
-from .geometry import ObstaclePath, Wall
+from .camera_effects import IDEAL_CAMERA, CameraEffects
+from .clutter import Clutter, furnish
+from .geometry import Gait, ObstaclePath, Wall
+from .laser_effects import IDEAL_LASER, LaserEffects
 
 ROOM_LENGTH_M = 8.0
 ROOM_WIDTH_M = 4.9
@@ -85,9 +88,9 @@ PARAMS: dict[str, Param] = {
     "obstacle_start_s": Param(float, 5.0, 0.0, None, "s", "time the obstacle starts moving"),
     "robot_speed_mps": Param(float, 0.20, 0.0, 1.5, "m/s", "commanded forward speed of the robot"),
     "duration_s": Param(float, 30.0, 0.5, 3600.0, "s", "length of the run"),
-    "obstacles": Param(int, 1, 1, 4, "", "number of moving obstacles"),
+    "obstacles": Param(int, 1, 0, 4, "", "number of moving obstacles (0: a static room)"),
     "odom_noise": Param(float, 1.0, 0.0, 20.0, "x", "odometry noise scale (0 = perfect, 1 = default model)"),
-    "seed": Param(int, 1, None, None, "", "seed of every random generator of the world"),
+    "seed": Param(int, 1, 0, 2**32 - 1, "", "seed of every random generator of the world"),
     # individual odometry-noise terms (OdometryNoise fields); when given they replace odom_noise x base
     "odom_scale_error": Param(float, None, -0.5, 0.5, "", "odometry distance scale error (0.01 = +1 %)"),
     "odom_heading_drift_rad_per_m": Param(float, None, -1.0, 1.0, "rad/m", "odometry heading drift"),
@@ -96,7 +99,47 @@ PARAMS: dict[str, Param] = {
     "odom_sigma_rot_rad_per_m": Param(float, None, 0.0, 1.0, "rad/sqrt(m)", "odometry heading noise per metre"),
     "closest_approach_m": Param(float, 1.0, 0.0, 3.0, "m", "closest distance robot centre - obstacle centre"),
     "closest_approach_time_s": Param(float, 17.0, 0.0, None, "s", "time of the closest approach"),
+    # the robot's path
+    "robot_yaw_rate_radps": Param(
+        float, 0.0, -0.5, 0.5, "rad/s", "commanded turn rate (a curve) from robot_turn_start_s"
+    ),
+    "robot_turn_start_s": Param(float, 0.0, 0.0, None, "s", "time the robot starts turning"),
+    # people
+    "person_stride_m": Param(float, 1.3, 0.6, 2.0, "m", "a walking person's stride (two steps)"),
+    "person_leg_diameter_m": Param(float, 0.12, 0.06, 0.25, "m", "leg (shin) diameter at the laser's height"),
+    "step_aside_m": Param(float, 0.0, -2.0, 2.0, "m", "head-on walker: sidestep (left +) when step_aside_gap_m away"),
+    "step_aside_gap_m": Param(float, 2.5, 1.0, 6.0, "m", "head-on walker: distance to the robot at the sidestep"),
+    # static clutter
+    "clutter": Param(int, 0, 0, 3, "", "furniture: 0 none, 1-3 chairs, tables, boxes, a bin, a post per level"),
+    # the realistic world's effects (ignored by the ideal world); defaults from datasheets and physics
+    "laser_divergence_deg": Param(float, 0.3, 0.0, 2.0, "deg", "UTM-30LX beam divergence [?] (0.25-0.4)"),
+    "laser_mixed_prob": Param(float, 0.5, 0.0, 1.0, "", "probability a footprint on a depth edge mixes"),
+    "laser_dropout_prob": Param(float, 0.001, 0.0, 0.5, "", "random no-return probability per beam"),
+    "laser_spurious_prob": Param(float, 2e-4, 0.0, 0.5, "", "spurious short return probability per beam"),
+    "laser_grazing_limit_deg": Param(float, 78.0, 45.0, 90.0, "deg", "no return beyond this incidence"),
+    "camera_k1": Param(float, -0.15, -0.5, 0.5, "", "radial distortion k1 (barrel < 0)"),
+    "camera_k2": Param(float, 0.02, -0.5, 0.5, "", "radial distortion k2"),
+    "camera_pp_offset_px": Param(float, 3.0, -20.0, 20.0, "px", "principal point offset (x; y is -2/3 of it)"),
+    "camera_mount_yaw_deg": Param(float, 0.4, -5.0, 5.0, "deg", "camera mount yaw error"),
+    "camera_fps": Param(float, 25.0, 1.0, 60.0, "1/s", "camera frame rate (its own free-running clock)"),
+    "camera_clock_ppm": Param(float, 60.0, -1000.0, 1000.0, "ppm", "camera clock rate error"),
+    "camera_latency_min_s": Param(float, 0.04, 0.0, 1.0, "s", "capture-to-delivery latency, lower bound"),
+    "camera_latency_max_s": Param(float, 0.10, 0.0, 1.0, "s", "capture-to-delivery latency, upper bound"),
+    "camera_exposure_s": Param(float, 1.0 / 60.0, 0.0, 0.1, "s", "exposure time (motion blur)"),
+    "camera_exposure_drift": Param(float, 0.03, 0.0, 0.3, "", "auto-exposure gain drift amplitude"),
+    "camera_vignetting": Param(float, 0.25, 0.0, 0.8, "", "brightness fall-off in the corners"),
+    "camera_jpeg_quality": Param(int, 65, 1, 100, "", "JPEG quality of the frames"),
+    "odom_wheelbase_error": Param(float, 0.02, -0.2, 0.2, "", "effective wheelbase error (rotation scale)"),
+    "sip_delay_s": Param(float, 0.03, 0.0, 0.1, "s", "encoder sampling to SIP sending"),
 }
+
+#: parameters that take one of a few words
+CHOICES: dict[str, tuple[str, ...]] = {
+    "world": ("realistic", "ideal"),
+    "obstacle_kind": ("cylinder", "person"),
+}
+#: the realistic world's effect parameters: the ideal world ignores them
+EFFECT_KEYS = tuple(k for k in PARAMS if k.startswith(("laser_", "camera_"))) + ("odom_wheelbase_error", "sip_delay_s")
 
 PAPER_SCENARIOS: dict[str, dict[str, Any]] = {
     "1": {"name": "scenario1_45deg", "crossing_deg": 45.0},
@@ -116,10 +159,30 @@ class Scenario:
     odometry_noise: OdometryNoise
     seed: int
     notes: tuple[str, ...] = field(default_factory=tuple)
+    #: "realistic" or "ideal"
+    world: str = "ideal"
+    clutter: Clutter = field(default_factory=Clutter)
+    laser_effects: LaserEffects = IDEAL_LASER
+    camera_effects: CameraEffects = IDEAL_CAMERA
+    #: the controller samples its encoders this long before it sends a SIP
+    sip_delay_s: float = 0.0
+    #: odometry in ARCOS integer units (mm, 2 pi / 4096 rad)
+    odom_quantize: bool = False
+    robot_yaw_rate_radps: float = 0.0
+    robot_turn_start_s: float = 0.0
+
+    def command_at(self, t_s: float) -> tuple[float, float]:
+        """The velocity command (v_mps, w_radps) the scenario's driver gives at scenario time ``t_s``."""
+        w = self.robot_yaw_rate_radps if t_s >= self.robot_turn_start_s else 0.0
+        return self.robot_speed_mps, w
+
+    def static_footprints(self) -> list[tuple[float, float, float, str]]:
+        """(x_m, y_m, radius_m, kind) of every piece of furniture (for the evaluation's reports)."""
+        return self.clutter.footprints()
 
 
 def default_params() -> dict[str, Any]:
-    return {key: p.default for key, p in PARAMS.items()}
+    return {**{key: p.default for key, p in PARAMS.items()}, **{key: ch[0] for key, ch in CHOICES.items()}}
 
 
 def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
@@ -131,9 +194,14 @@ def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
                 raise ScenarioError(key, f"must be a non-empty string, got {value!r}")
             out[key] = value
             continue
+        if key in CHOICES:
+            if value not in CHOICES[key]:
+                raise ScenarioError(key, f"must be one of {', '.join(CHOICES[key])}, got {value!r}")
+            out[key] = value
+            continue
         spec = PARAMS.get(key)
         if spec is None:
-            raise ScenarioError(key, f"unknown key (known: name, {', '.join(PARAMS)})")
+            raise ScenarioError(key, f"unknown key (known: name, {', '.join([*CHOICES, *PARAMS])})")
         if value is None and spec.default is None:
             out[key] = None  # optional term left unset
             continue
@@ -152,13 +220,20 @@ def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
         if spec.hi is not None and value > spec.hi:
             raise ScenarioError(key, f"must be <= {spec.hi} {spec.unit}, got {value}")
         out[key] = value
-    min_ca = out["obstacle_diameter_m"] / 2 + ROBOT_RADIUS_M + 0.05
+    if out["camera_latency_min_s"] > out["camera_latency_max_s"]:
+        raise ScenarioError("camera_latency_min_s", "must be <= camera_latency_max_s")
+    min_ca = body_diameter_m(out) / 2 + ROBOT_RADIUS_M + 0.05
     if out["closest_approach_m"] < min_ca:
         raise ScenarioError(
             "closest_approach_m",
             f"{out['closest_approach_m']} m would hit the robot: needs >= {min_ca:.2f} m for this obstacle diameter",
         )
     return out
+
+
+def body_diameter_m(prm: dict[str, Any]) -> float:
+    """The moving body's diameter: the cylinder's, or a person's body (shoulders)."""
+    return 2 * Gait().body_radius_m if prm.get("obstacle_kind") == "person" else prm["obstacle_diameter_m"]
 
 
 def paper_params(which: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -231,7 +306,7 @@ def _obstacle_path(prm: dict[str, Any], side: float, t_ca: float, key: str) -> O
         n = np.array([0.0, -side])
     x0, y0, _ = ROBOT_START
     p_ca = np.array([robot_x_at(t_ca, x0, prm["robot_speed_mps"]), y0]) + prm["closest_approach_m"] * n
-    r = prm["obstacle_diameter_m"] / 2
+    r = body_diameter_m(prm) / 2
     lo = np.array([r + WALL_MARGIN_M, -ROOM_WIDTH_M / 2 + r + WALL_MARGIN_M])
     hi = np.array([ROOM_LENGTH_M - r - WALL_MARGIN_M, ROOM_WIDTH_M / 2 - r - WALL_MARGIN_M])
     t_in, t_out = _box_interval(p_ca, vo, lo, hi)
@@ -246,13 +321,52 @@ def _obstacle_path(prm: dict[str, Any], side: float, t_ca: float, key: str) -> O
         raise ScenarioError(key, "the obstacle's path inside the room ends before it starts moving")
     p_start = p_ca + vo * (t_move - t_ca)
     p_end = p_ca + vo * (t_end - t_ca)
+    waypoints = [(float(p_start[0]), float(p_start[1])), (float(p_end[0]), float(p_end[1]))]
+    if prm["step_aside_m"] != 0.0:
+        waypoints = _with_sidestep(prm, waypoints, t_move, float(lo[1]), float(hi[1]))
+    return _body(prm, tuple(waypoints), float(t_move))
+
+
+def _body(prm: dict[str, Any], waypoints: tuple[tuple[float, float], ...], start_s: float) -> ObstaclePath:
+    if prm["obstacle_kind"] == "person":
+        gait = Gait(stride_m=prm["person_stride_m"], leg_radius_m=prm["person_leg_diameter_m"] / 2)
+        return ObstaclePath(
+            gait.body_radius_m,
+            waypoints,
+            prm["obstacle_speed_mps"],
+            start_s,
+            gait.height_m,
+            reflectivity=0.4,
+            gait=gait,
+        )
     return ObstaclePath(
-        radius_m=r,
-        waypoints=((float(p_start[0]), float(p_start[1])), (float(p_end[0]), float(p_end[1]))),
-        speed_mps=prm["obstacle_speed_mps"],
-        start_s=float(t_move),
-        height_m=prm["obstacle_height_m"],
+        prm["obstacle_diameter_m"] / 2, waypoints, prm["obstacle_speed_mps"], start_s, prm["obstacle_height_m"]
     )
+
+
+def _with_sidestep(
+    prm: dict[str, Any], waypoints: list[tuple[float, float]], t_move: float, y_lo: float, y_hi: float
+) -> list[tuple[float, float]]:
+    """Insert a sidestep of ``step_aside_m`` (a 45 deg diagonal) where the walker is
+    ``step_aside_gap_m`` ahead of the robot, then keep walking parallel to the old line."""
+    (x0, y0), (x1, y1) = waypoints
+    d = np.array([x1 - x0, y1 - y0])
+    length = float(np.hypot(*d))
+    u = d / max(length, 1e-9)
+    s_m = 0.0
+    for k in range(1, 1000):
+        s_m = min(length, k * 0.02)
+        t = t_move + s_m / prm["obstacle_speed_mps"]
+        gap = math.hypot(x0 + u[0] * s_m - robot_x_at(t, ROBOT_START[0], prm["robot_speed_mps"]), y0 + u[1] * s_m)
+        if gap <= prm["step_aside_gap_m"] or s_m >= length:
+            break
+    side = np.array([-u[1], u[0]]) * prm["step_aside_m"]
+    a = np.array([x0, y0]) + u * s_m
+    b = a + u * abs(prm["step_aside_m"]) + side
+    b[1] = min(max(b[1], y_lo), y_hi)
+    end = np.array([x1, y1]) + (b - a - u * abs(prm["step_aside_m"]))
+    end[1] = b[1]
+    return [(x0, y0), (float(a[0]), float(a[1])), (float(b[0]), float(b[1])), (float(end[0]), float(end[1]))]
 
 
 def _min_separation(a: ObstaclePath, b: ObstaclePath, t_end: float) -> float:
@@ -283,16 +397,29 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
         if path.start_s > prm["obstacle_start_s"] + 1e-9:
             notes.append(f"obstacle {k + 1} starts moving at {path.start_s:.2f} s (its path enters the room then)")
         obstacles.append(path)
+    realistic = prm["world"] == "realistic"
     k_noise = prm["odom_noise"]
     terms = {key: val * k_noise for key, val in BASE_ODOMETRY_NOISE.items()}
     for key in BASE_ODOMETRY_NOISE:
         if prm.get("odom_" + key) is not None:
             terms[key] = prm["odom_" + key]
+    if realistic:
+        terms["rot_scale_error"] = prm["odom_wheelbase_error"] * k_noise
     noise = OdometryNoise(**terms, seed=prm["seed"])
+    clutter = Clutter()
+    if prm["clutter"] > 0:
+        rng = np.random.default_rng([prm["seed"], 11])
+        half = ROOM_WIDTH_M / 2
+        keepout = tuple(
+            (*o.waypoints[i], *o.waypoints[i + 1], o.radius_m + 0.3)
+            for o in obstacles
+            for i in range(len(o.waypoints) - 1)
+        )
+        clutter = furnish(rng, prm["clutter"], (0.3, ROOM_LENGTH_M), (-half, half), ROBOT_RADIUS_M + 0.45, keepout)
     return Scenario(
         name=str(prm["name"]),
         params=prm,
-        walls=paper_room(),
+        walls=paper_room() + clutter.walls,
         obstacles=tuple(obstacles),
         robot_start=ROBOT_START,
         robot_speed_mps=prm["robot_speed_mps"],
@@ -300,9 +427,105 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
         odometry_noise=noise,
         seed=prm["seed"],
         notes=tuple(notes),
+        world=prm["world"],
+        clutter=clutter,
+        laser_effects=laser_effects(prm) if realistic else IDEAL_LASER,
+        camera_effects=camera_effects(prm) if realistic else IDEAL_CAMERA,
+        sip_delay_s=prm["sip_delay_s"] if realistic else 0.0,
+        odom_quantize=realistic,
+        robot_yaw_rate_radps=prm["robot_yaw_rate_radps"],
+        robot_turn_start_s=prm["robot_turn_start_s"],
+    )
+
+
+def laser_effects(prm: dict[str, Any]) -> LaserEffects:
+    return LaserEffects(
+        divergence_rad=math.radians(prm["laser_divergence_deg"]),
+        mixed_prob=prm["laser_mixed_prob"],
+        dropout_prob=prm["laser_dropout_prob"],
+        spurious_prob=prm["laser_spurious_prob"],
+        grazing_limit_deg=prm["laser_grazing_limit_deg"],
+    )
+
+
+def camera_effects(prm: dict[str, Any]) -> CameraEffects:
+    off = prm["camera_pp_offset_px"]
+    return CameraEffects(
+        k1=prm["camera_k1"],
+        k2=prm["camera_k2"],
+        pp_offset_px=(off, -2.0 * off / 3.0),
+        mount_yaw_rad=math.radians(prm["camera_mount_yaw_deg"]),
+        fps=prm["camera_fps"],
+        clock_ppm=prm["camera_clock_ppm"],
+        latency_s=(prm["camera_latency_min_s"], prm["camera_latency_max_s"]),
+        exposure_s=prm["camera_exposure_s"],
+        exposure_drift=prm["camera_exposure_drift"],
+        vignetting=prm["camera_vignetting"],
+        jpeg_quality=prm["camera_jpeg_quality"],
     )
 
 
 def paper_scenario(which: str, overrides: dict[str, Any] | None = None) -> Scenario:
     """The paper's scenario "1" (45 deg approach) or "2" (90 deg crossing), optionally modified."""
     return build_scenario(paper_params(which, overrides))
+
+
+#: ``eval --scenario realistic``: the realistic world's suite (name -> parameters). People walk at
+#: 1.0-1.4 m/s (Bohannon 1997: comfortable gait speed of adults 1.3-1.5 m/s; indoors, slower).
+_PERSON = {
+    "obstacle_kind": "person",
+    "obstacle_speed_mps": 1.2,
+    "obstacle_start_s": 2.0,
+    "closest_approach_m": 1.2,
+    "closest_approach_time_s": 9.0,
+    "duration_s": 20.0,
+}
+REALISTIC_SUITE: dict[str, dict[str, Any]] = {
+    "paper1": {"crossing_deg": 45.0},
+    "paper2": {"crossing_deg": 90.0},
+    "cross_30": {**_PERSON, "crossing_deg": 30.0},
+    "cross_60": {**_PERSON, "crossing_deg": 60.0, "obstacle_speed_mps": 1.0},
+    "cross_90": {**_PERSON, "crossing_deg": 90.0, "obstacle_speed_mps": 1.4},
+    "head_on_step_aside": {
+        **_PERSON,
+        "crossing_deg": 0.0,
+        "obstacle_speed_mps": 1.0,
+        "closest_approach_m": 0.65,
+        "step_aside_m": 0.9,
+        "step_aside_gap_m": 2.5,
+        "closest_approach_time_s": 12.0,
+    },
+    "two_people_opposite": {**_PERSON, "crossing_deg": 90.0, "obstacles": 2, "closest_approach_time_s": 8.0},
+    "curve_crossing": {
+        **_PERSON,
+        "crossing_deg": 90.0,
+        "robot_yaw_rate_radps": 0.05,
+        "robot_turn_start_s": 1.0,
+        "closest_approach_m": 1.5,
+    },
+    "cylinder_clutter": {"crossing_deg": 45.0, "clutter": 2},
+    "static_clutter": {"obstacles": 0, "clutter": 3, "duration_s": 25.0},
+    "stand_then_walk": {
+        **_PERSON,
+        "crossing_deg": 90.0,
+        "obstacle_speed_mps": 1.1,
+        "obstacle_start_s": 7.0,
+        "closest_approach_time_s": 10.5,
+        "closest_approach_m": 1.5,
+        "duration_s": 18.0,
+    },
+}
+#: each suite scenario's default seed (any other seed works: ``suite_scenario(name, seed)``)
+SUITE_SEEDS: dict[str, int] = {name: 101 + k for k, name in enumerate(REALISTIC_SUITE)}
+
+
+def suite_params(name: str, seed: int | None = None, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    if name not in REALISTIC_SUITE:
+        raise ScenarioError("scenario", f"unknown suite scenario {name!r} (known: {', '.join(REALISTIC_SUITE)})")
+    prm: dict[str, Any] = {"name": name, **REALISTIC_SUITE[name], "seed": SUITE_SEEDS[name] if seed is None else seed}
+    return {**prm, **(overrides or {})}
+
+
+def suite_scenario(name: str, seed: int | None = None, overrides: dict[str, Any] | None = None) -> Scenario:
+    """One scenario of the realistic suite, with its default seed or ``seed``, optionally modified."""
+    return build_scenario(suite_params(name, seed, overrides))

@@ -17,12 +17,16 @@ import math
 import threading
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from hil_fakes.kinematics import Unicycle
 from hil_fakes.wheel_odometry import WheelOdometry
 
+from .camera_effects import CameraClock, distortion_maps, photometric
 from .geometry import cast_circles, cast_walls, walls_array
+from .laser_effects import footprint_return
+from .people import body_parts, leg_centres
 from .render import ViewRenderer
 from .scenarios import ROOM_LENGTH_M, ROOM_WIDTH_M, Scenario
 from .sensors import CameraModel, LaserModel, RobotMount, intrinsics
@@ -41,6 +45,10 @@ class ObstacleTruth:
     vy_mps: float
     radius_m: float
     moving: bool
+    #: "cylinder" or "person" (x_m, y_m is then the body centre, radius_m the body's radius)
+    kind: str = "cylinder"
+    #: a person's leg centres at the laser's height
+    legs: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -102,6 +110,16 @@ class World:
         self._rng = np.random.default_rng([scenario.seed, 1])
         self._cam_rng = np.random.default_rng([scenario.seed, 2])
         self._walls = walls_array(scenario.walls)
+        self._fx_rng = np.random.default_rng([scenario.seed, 3])
+        seen = [w.height_m >= self.mount.laser_z_m for w in scenario.walls]
+        self._laser_walls = self._walls[np.array(seen, bool)] if scenario.walls else self._walls
+        self._laser_wall_refl = np.array([w.reflectivity for w, ok in zip(scenario.walls, seen, strict=True) if ok])
+        z = self.mount.laser_z_m
+        self._static = np.array(
+            [(c.x_m, c.y_m, c.radius_m, c.reflectivity) for c in scenario.clutter.circles if c.z0_m <= z <= c.z1_m],
+            dtype=float,
+        ).reshape(-1, 4)
+        self._clock = CameraClock(scenario.camera_effects, scenario.seed)
         self._radii = np.array([o.radius_m for o in scenario.obstacles])
         self._obs_refl = np.array([o.reflectivity for o in scenario.obstacles])
         self._wall_refl = np.array([w.reflectivity for w in scenario.walls])
@@ -192,61 +210,130 @@ class World:
         for i, o in enumerate(self.scenario.obstacles):
             p = o.positions(ts)
             vel = o.velocities(ts)
+            legs: tuple[tuple[float, float], ...] = ()
+            if o.gait is not None:
+                lc = leg_centres(o, o.gait, np.array(ts), self.mount.laser_z_m)
+                legs = tuple((float(a), float(b)) for a, b in lc)
             obs.append(
                 ObstacleTruth(i, float(p[0]), float(p[1]), float(vel[0]), float(vel[1]), o.radius_m,
-                              bool(np.hypot(*vel) > 0))
+                              bool(np.hypot(*vel) > 0), "person" if o.gait is not None else "cylinder", legs)
             )
         return Truth(t_s, x, y, math.atan2(math.sin(th), math.cos(th)), v, w, tuple(obs))
 
     def odometry(self, t_s: float) -> tuple[float, float, float, float, float]:
         """The wheel odometry (x_m, y_m, theta_rad, v_mps, w_radps) at ``t_s`` (noisy pose; the
-        velocities are the odometry's own: true ones scaled by the scale error)."""
+        velocities are the odometry's own: true ones scaled by the scale error).
+
+        The realistic world reports the state ``sip_delay_s`` before ``t_s`` (the controller samples its
+        encoders before it sends the SIP) in ARCOS integer units (mm, 2 pi / 4096 rad, mm/s)."""
+        sc = self.scenario
         with self._lock:
-            x, y, th, v, w = (float(a) for a in self._interp(np.array(t_s, float), (_OX, _OY, _OTH, _V, _W)))
-        v *= 1.0 + self.scenario.odometry_noise.scale_error
-        return x, y, math.atan2(math.sin(th), math.cos(th)), v, w
+            t_q = max(t_s - sc.sip_delay_s, self.start_s)
+            x, y, th, v, w = (float(a) for a in self._interp(np.array(t_q, float), (_OX, _OY, _OTH, _V, _W)))
+        v *= 1.0 + sc.odometry_noise.scale_error
+        th = math.atan2(math.sin(th), math.cos(th))
+        if sc.odom_quantize:
+            unit = 2 * math.pi / 4096
+            x, y, v = round(x * 1000) / 1000, round(y * 1000) / 1000, round(v * 1000) / 1000
+            th, w = round(th / unit) * unit, round(w / math.radians(0.1)) * math.radians(0.1)
+        return x, y, th, v, w
 
     # ------------------------------------------------------------------ laser
     def sweep(
         self, t0_s: float, angles_rad: np.ndarray | None = None, beam_dt_s: float | None = None
     ) -> LaserSweep:
         """Ray-cast one UTM-30LX sweep: beam i at ``t0_s + i*beam_dt_s`` from the laser's pose then,
-        against the walls and the obstacles where they are then."""
+        against the walls, the clutter and the moving bodies where they are then; in the realistic
+        world through the beam's footprint with the artefacts of :mod:`.laser_effects`."""
         lm = self.laser
+        fx = self.scenario.laser_effects
         a = lm.angles_rad() if angles_rad is None else np.asarray(angles_rad, float)
         dt = lm.beam_dt_s if beam_dt_s is None else float(beam_dt_s)
         times = t0_s + np.arange(a.size) * dt
         with self._lock:
             x, y, th = self._interp(times, (_X, _Y, _TH))
             noise = self._rng.standard_normal(a.size)
+            fx_rng = np.random.default_rng(self._fx_rng.integers(1 << 62))
         m = self.mount
         c, s = np.cos(th), np.sin(th)
         ox = x + c * m.laser_x_m - s * m.laser_y_m
         oy = y + s * m.laser_x_m + c * m.laser_y_m
-        ang = th + m.laser_theta_rad + a
-        dx, dy = np.cos(ang), np.sin(ang)
-        d_wall, w_idx, _ = cast_walls(ox, oy, dx, dy, self._walls)
-        dist = d_wall
-        hit_ob = np.full(a.size, -1, dtype=np.int64)
-        refl = np.where(w_idx >= 0, self._wall_refl[np.maximum(w_idx, 0)] if self._wall_refl.size else 0.0, 0.0)
-        if self.scenario.obstacles:
-            centres = self.obstacle_centres(times)  # (N, K, 2)
-            t_ob = cast_circles(ox, oy, dx, dy, centres[..., 0], centres[..., 1], self._radii)
-            k = np.argmin(t_ob, axis=1)
-            t_k = t_ob[np.arange(a.size), k]
-            closer = t_k < dist
-            dist = np.where(closer, t_k, dist)
-            hit_ob = np.where(closer, k, -1)
-            refl = np.where(closer, self._obs_refl[k], refl)
-        sigma = np.where(dist <= lm.near_limit_m, lm.sigma_near_m, lm.sigma_far_m)
-        finite = np.isfinite(dist)
-        ranges = np.where(finite, dist + sigma * noise, np.nan)
+        ang = (th + m.laser_theta_rad + a)[:, None] + fx.offsets_rad()[None, :]
+        dist, owner, refl_s, cos_inc = self._cast_laser(ox[:, None], oy[:, None], ang, times)
+        if fx.enabled:
+            dist0, src = footprint_return(dist, cos_inc, fx, fx_rng)
+            pick = np.maximum(src, 0)[:, None]
+            hit_ob = np.where(src >= 0, np.take_along_axis(owner, pick, axis=1)[:, 0], -1)
+            refl = np.where(src >= 0, np.take_along_axis(refl_s, pick, axis=1)[:, 0], 0.4)
+        else:
+            dist0, hit_ob, refl = dist[:, 0], owner[:, 0], refl_s[:, 0]
+        sigma = np.where(dist0 <= lm.near_limit_m, lm.sigma_near_m, lm.sigma_far_m)
+        finite = np.isfinite(dist0)
+        ranges = np.where(finite, dist0 + sigma * noise, np.nan)
         bad = ~finite | (ranges > lm.max_range_m) | (ranges < lm.dmin_m)
         ranges[bad] = np.nan
-        hit_ob[bad] = -1
+        hit_ob = np.where(bad, -1, hit_ob)
         # intensity: reflectivity, incidence (normal of a wall / radial on a cylinder ~ ray), 1/(1+r/3)
         inten = np.where(bad, 0.0, lm.intensity_scale * refl / (1.0 + np.nan_to_num(ranges) / 3.0))
         return LaserSweep(ranges, inten, hit_ob, float(t0_s), dt)
+
+    def _moving_circles(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Circles of the moving bodies at the laser's height at ``times`` (N,): centres (N, K, 2),
+        radii (K,), owner obstacle index (K,). A person is two legs, a cylinder one circle."""
+        centres, radii, owners = [], [], []
+        t = np.asarray(times, float) - self.start_s
+        for k, o in enumerate(self.scenario.obstacles):
+            if o.gait is None:
+                centres.append(o.positions(t)[..., None, :])
+                radii.append(o.radius_m)
+                owners.append(k)
+            else:
+                centres.append(leg_centres(o, o.gait, t, self.mount.laser_z_m))
+                radii += [o.gait.leg_radius_m] * 2
+                owners += [k, k]
+        if not centres:
+            return np.zeros(t.shape + (0, 2)), np.zeros(0), np.zeros(0, np.int64)
+        return np.concatenate(centres, axis=-2), np.array(radii), np.array(owners, np.int64)
+
+    def _cast_laser(
+        self, ox: np.ndarray, oy: np.ndarray, ang: np.ndarray, times: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """First hit of rays from (ox, oy) (N, 1) at angles ``ang`` (N, S): distance (inf: none), owner
+        (obstacle index, -1 static), reflectivity and cosine of the incidence, each (N, S)."""
+        dx, dy = np.cos(ang), np.sin(ang)
+        lw = self._laser_walls
+        dist, w_idx, _ = cast_walls(ox, oy, dx, dy, lw)
+        wi = np.maximum(w_idx, 0)
+        refl = np.where(w_idx >= 0, self._laser_wall_refl[wi] if lw.shape[0] else 0.0, 0.0)
+        if lw.shape[0]:
+            ex, ey = (lw[:, 2] - lw[:, 0])[wi], (lw[:, 3] - lw[:, 1])[wi]
+            cos_inc = np.abs(dx * ey - dy * ex) / np.maximum(np.hypot(ex, ey), 1e-12)
+        else:
+            cos_inc = np.ones_like(dist)
+        owner = np.full(dist.shape, -1, dtype=np.int64)
+        centres, radii, owners = self._moving_circles(times)
+        cx, cy = centres[:, None, :, 0], centres[:, None, :, 1]
+        if self._static.shape[0]:
+            cx = np.concatenate([cx, np.broadcast_to(self._static[:, 0], cx.shape[:2] + (len(self._static),))], -1)
+            cy = np.concatenate([cy, np.broadcast_to(self._static[:, 1], cy.shape[:2] + (len(self._static),))], -1)
+            radii = np.concatenate([radii, self._static[:, 2]])
+            owners = np.concatenate([owners, np.full(len(self._static), -1, np.int64)])
+        if radii.size:
+            refl_c = np.concatenate([self._obs_refl[owners[owners >= 0]], self._static[:, 3]])
+            t_c = cast_circles(np.broadcast_to(ox, dx.shape), np.broadcast_to(oy, dy.shape), dx, dy, cx, cy, radii)
+            k = np.argmin(t_c, axis=-1)
+            t_k = np.take_along_axis(t_c, k[..., None], axis=-1)[..., 0]
+            closer = t_k < dist
+            t_k = np.where(closer, t_k, 0.0)
+            hx = ox + t_k * dx - np.take_along_axis(cx, k[..., None], axis=-1)[..., 0]
+            hy = oy + t_k * dy - np.take_along_axis(cy, k[..., None], axis=-1)[..., 0]
+            with np.errstate(invalid="ignore"):
+                cos_c = np.abs(hx * dx + hy * dy) / radii[k]
+            dist = np.where(closer, t_k, dist)
+            owner = np.where(closer, owners[k], owner)
+            refl = np.where(closer, refl_c[k], refl)
+            cos_inc = np.where(closer, np.nan_to_num(cos_c, nan=1.0), cos_inc)
+        return dist, owner, refl, cos_inc
 
     # ------------------------------------------------------------------ camera
     def _view_renderer(self) -> ViewRenderer:
@@ -278,12 +365,49 @@ class World:
         width_px: int | None = None,
         height_px: int | None = None,
     ) -> np.ndarray:
-        """The camera image (BGR uint8) at ``t_s`` with the given pan/tilt/HFOV."""
+        """The camera image (BGR uint8) exposed at ``t_s`` with the given pan/tilt/HFOV; in the realistic
+        world through the lens, mount and photometry of :mod:`.camera_effects`."""
         cm = self.camera
+        fx_ = self.scenario.camera_effects
         w = width_px or cm.width_px
         h = height_px or cm.height_px
         hfov = cm.hfov_wide_rad if hfov_rad is None else hfov_rad
         fx, fy, cx, cy = intrinsics(w, h, hfov)
+        if not fx_.enabled:
+            return self._render_pinhole(t_s, pan_rad, tilt_rad, (fx, fy, cx, cy), w, h)
+        margin = int(0.12 * max(w, h))
+        cxt, cyt = cx + fx_.pp_offset_px[0], cy + fx_.pp_offset_px[1]
+        times = (t_s - fx_.exposure_s / 2, t_s + fx_.exposure_s / 2) if fx_.exposure_s > 0 else (t_s,)
+        k = (fx, fy, cxt + margin, cyt + margin)
+        shots = [self._render_pinhole(t, pan_rad + fx_.mount_yaw_rad, tilt_rad, k, w + 2 * margin, h + 2 * margin)
+                 for t in times]
+        img = shots[0] if len(shots) == 1 else cv2.addWeighted(shots[0], 0.5, shots[1], 0.5, 0.0)
+        map_x, map_y = distortion_maps(w, h, fx, fy, cxt, cyt, fx_.k1, fx_.k2, margin)
+        img = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return photometric(img, self._clock.exposure_gain(t_s), fx_)
+
+    @property
+    def camera_clock(self) -> CameraClock:
+        """The camera's free-running frame clock (capture instants and delivery latencies)."""
+        return self._clock
+
+    def _camera_bodies(self, t_s: float) -> list[tuple[float, float, float, float, float]]:
+        """Vertical cylinders (x, y, radius, z0, z1) the camera sees at ``t_s`` besides the walls."""
+        t = np.array(t_s - self.start_s, float)
+        out: list[tuple[float, float, float, float, float]] = []
+        for o in self.scenario.obstacles:
+            if o.gait is None:
+                px, py = (float(v) for v in o.positions(t))
+                out.append((px, py, o.radius_m, 0.0, o.height_m))
+            else:
+                out.extend(body_parts(o, o.gait, float(t)))
+        out.extend((c.x_m, c.y_m, c.radius_m, c.z0_m, c.z1_m) for c in self.scenario.clutter.circles)
+        return out
+
+    def _render_pinhole(
+        self, t_s: float, pan_rad: float, tilt_rad: float, k: tuple[float, float, float, float], w: int, h: int
+    ) -> np.ndarray:
+        fx, fy, cx, cy = k
         with self._lock:
             x, y, th = (float(v) for v in self._interp(np.array(t_s, float), (_X, _Y, _TH)))
             view = self._view_renderer()
@@ -292,12 +416,8 @@ class World:
         c, s = math.cos(th), math.sin(th)
         cam_x = x + c * m.camera_x_m - s * m.camera_y_m
         cam_y = y + s * m.camera_x_m + c * m.camera_y_m
-        centres = self.obstacle_centres(np.array(t_s, float))
-        obs = [
-            (float(centres[k, 0]), float(centres[k, 1]), o.radius_m, o.height_m)
-            for k, o in enumerate(self.scenario.obstacles)
-        ]
-        return view.render(cam_x, cam_y, m.camera_z_m, th + pan_rad, tilt_rad, fx, fy, cx, cy, w, h, obs, rng)
+        bodies = self._camera_bodies(t_s)
+        return view.render(cam_x, cam_y, m.camera_z_m, th + pan_rad, tilt_rad, fx, fy, cx, cy, w, h, bodies, rng)
 
     # ------------------------------------------------------------------ sonar
     def sonar_range_m(

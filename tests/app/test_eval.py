@@ -10,9 +10,9 @@ from pathlib import Path
 import cv2
 import pytest
 
-from app import cmd_eval
 from app.cli import main
 from app.errors import AppError
+from app.evaluation import metrics, runner, scenarios
 
 SHORT = ["--duration", "2.0", "--obstacle-start", "0.5", "--approach-time", "6.0"]
 
@@ -26,26 +26,26 @@ def run_cli(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[int, s
 def test_greedy_assignment_is_one_to_one_nearest_first() -> None:
     truth = [(0, 0.0, 0.0), (1, 2.0, 0.0)]
     est = [(1.9, 0.1), (0.2, 0.0), (5.0, 5.0)]
-    assert cmd_eval._assign(est, truth) == {1: 0, 0: 1}
-    assert cmd_eval._assign([(0.1, 0.0)], truth) == {0: 0}
-    assert cmd_eval._assign([], truth) == {}
+    assert metrics._assign(est, truth) == {1: 0, 0: 1}
+    assert metrics._assign([(0.1, 0.0)], truth) == {0: 0}
+    assert metrics._assign([], truth) == {}
 
 
 def test_in_camera_needs_half_the_body_inside_the_fov() -> None:
     hfov = math.radians(54.0)
-    assert cmd_eval.obstacle_in_camera(0, 0, 0, hfov, 3.0, 0.0, 0.4)
+    assert metrics.obstacle_in_camera(0, 0, 0, hfov, 3.0, 0.0, 0.4)
     edge_y = 3.0 * math.tan(hfov / 2)  # centre exactly on the FOV edge: half inside
-    assert cmd_eval.obstacle_in_camera(0, 0, 0, hfov, 3.0, edge_y - 0.05, 0.4)
-    assert not cmd_eval.obstacle_in_camera(0, 0, 0, hfov, 3.0, edge_y + 0.2, 0.4)
-    assert not cmd_eval.obstacle_in_camera(0, 0, 0, hfov, -3.0, 0.0, 0.4)  # behind
-    assert not cmd_eval.obstacle_in_camera(0, 0, math.pi, hfov, 3.0, 0.0, 0.4)  # camera turned away
+    assert metrics.obstacle_in_camera(0, 0, 0, hfov, 3.0, edge_y - 0.05, 0.4)
+    assert not metrics.obstacle_in_camera(0, 0, 0, hfov, 3.0, edge_y + 0.2, 0.4)
+    assert not metrics.obstacle_in_camera(0, 0, 0, hfov, -3.0, 0.0, 0.4)  # behind
+    assert not metrics.obstacle_in_camera(0, 0, math.pi, hfov, 3.0, 0.0, 0.4)  # camera turned away
 
 
 def test_metrics_of_an_empty_log_are_null_not_zero() -> None:
-    m = cmd_eval.MethodLog("vipsm").metrics()
-    assert set(m) == set(cmd_eval.METRIC_KEYS)
+    m = metrics.MethodLog("vipsm").metrics()
+    assert set(m) == set(metrics.METRIC_KEYS)
     assert m["obstacle_err_mean_m"] is None and m["obstacle_detected_fraction"] is None
-    log = cmd_eval.MethodLog("x", errors_m=[0.1, 0.3], located=1, in_view=4, vel_errors_mps=[0.02])
+    log = metrics.MethodLog("x", errors_m=[0.1, 0.3], located=1, in_view=4, vel_errors_mps=[0.02])
     m = log.metrics()
     assert m["obstacle_err_mean_m"] == pytest.approx(0.2) and m["obstacle_err_std_m"] == pytest.approx(0.1)
     assert m["obstacle_err_max_m"] == pytest.approx(0.3) and m["obstacle_detected_fraction"] == 0.25
@@ -53,9 +53,9 @@ def test_metrics_of_an_empty_log_are_null_not_zero() -> None:
 
 def test_scenario_flags_override_and_are_shared_with_sim(tmp_path: Path) -> None:
     p = argparse.ArgumentParser()
-    cmd_eval.add_scenario_arguments(p, allow_all=False)
+    scenarios.add_scenario_arguments(p, allow_all=False)
     args = p.parse_args(["--scenario", "2", "--crossing-deg", "60", "--obstacles", "2", "--odom-noise", "3"])
-    sc = cmd_eval.build_scenario_from_args(args)
+    sc = scenarios.build_scenario_from_args(args)
     assert sc.name == "scenario2_90deg_custom" and sc.params["crossing_deg"] == 60.0
     assert len(sc.obstacles) == 2 and sc.odometry_noise.scale_error == pytest.approx(0.03)
     with pytest.raises(SystemExit):
@@ -63,11 +63,11 @@ def test_scenario_flags_override_and_are_shared_with_sim(tmp_path: Path) -> None
     f = tmp_path / "s.toml"
     f.write_text('name = "fast"\nobstacle_speed_mps = 1.0\ncrossing_deg = 30.0\n')
     args = p.parse_args(["--scenario-file", str(f), "--seed", "9"])
-    sc = cmd_eval.build_scenario_from_args(args)
+    sc = scenarios.build_scenario_from_args(args)
     assert sc.name == "fast" and sc.params["obstacle_speed_mps"] == 1.0 and sc.seed == 9
     args = p.parse_args(["--obstacle-diameter", "0.1", "--closest-approach", "0.2"])
     with pytest.raises(AppError, match="closest_approach_m"):
-        cmd_eval.build_scenario_from_args(args)
+        scenarios.build_scenario_from_args(args)
 
 
 def test_bad_values_are_one_line_errors_naming_the_key(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -86,10 +86,11 @@ def test_json_output_shape_and_plots(capsys: pytest.CaptureFixture[str], tmp_pat
     doc = json.loads(out)
     assert list(doc) == ["scenarios"] and len(doc["scenarios"]) == 1
     sc = doc["scenarios"][0]
-    assert set(sc) == {"name", "params", "cycles", "vipsm", "plain_psm"}
+    assert set(sc) == {"name", "params", "cycles", "vipsm", "plain_psm", "targets_missed"}
+    assert isinstance(sc["targets_missed"], list)
     assert sc["cycles"] == 21 and sc["params"]["crossing_deg"] == 90.0
     for method in ("vipsm", "plain_psm"):
-        assert set(sc[method]) == set(cmd_eval.METRIC_KEYS)
+        assert set(sc[method]) == set(metrics.METRIC_KEYS)
         assert sc[method]["ms_per_cycle"] > 0 and sc[method]["pose_err_final_m"] >= 0
     pngs = sorted(p.name for p in tmp_path.glob("*.png"))
     assert pngs == [f"fig8_map_{sc['name']}.png", f"fig9_paths_{sc['name']}.png"]
@@ -104,8 +105,8 @@ def test_short_scenario_2_vipsm_beats_plain_psm() -> None:
     pytest.importorskip("vipsm.estimator")
     from hil_fakes.world import paper_scenario
 
-    log = cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 15.0}))
-    res = cmd_eval.scenario_result(log)
+    log = runner.run_scenario(paper_scenario("2", {"duration_s": 15.0}))
+    res = runner.scenario_result(log)
     v, p = res["vipsm"], res["plain_psm"]
     assert res["cycles"] == 151
     assert v["obstacle_detected_fraction"] is not None and v["obstacle_detected_fraction"] >= 0.9
@@ -114,7 +115,7 @@ def test_short_scenario_2_vipsm_beats_plain_psm() -> None:
 
 
 def test_bench_prints_world_figures() -> None:
-    figures = cmd_eval.bench(argparse.Namespace())
+    figures = runner.bench(argparse.Namespace())
     assert set(figures) == {"world_sweep_ms_median", "world_render_320x240_ms_median", "world_eval_cycle_ms_median"}
     assert all(v > 0 for v in figures.values())
     assert figures["world_eval_cycle_ms_median"] >= figures["world_render_320x240_ms_median"]
@@ -123,7 +124,7 @@ def test_bench_prints_world_figures() -> None:
 def test_allocator_tuning_applies_on_glibc() -> None:
     import platform
 
-    applied = cmd_eval.tune_allocator()
+    applied = runner.tune_allocator()
     if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
         assert applied is True
     else:
@@ -149,8 +150,9 @@ def test_both_methods_get_identical_inputs_and_a_free_running_camera(monkeypatch
     from hil_fakes.world import paper_scenario
 
     recs = (_Recorder(), _Recorder())
-    monkeypatch.setattr(cmd_eval, "make_estimators", lambda mount: recs)
-    log = cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 1.0}), camera_fps=5.0, frame_lag_s=0.03)
+    monkeypatch.setattr(runner, "make_estimators", lambda mount: recs)
+    log = runner.run_scenario(paper_scenario("2", {"duration_s": 1.0, "world": "ideal"}), camera_fps=5.0,
+                              frame_lag_s=0.03)
     a, b = recs[0].calls, recs[1].calls
     assert len(a) == len(b) == 11 == len(log.times_s)
     for (sa, oa, fa), (sb, ob, fb) in zip(a, b):
@@ -166,23 +168,47 @@ def test_both_methods_get_identical_inputs_and_a_free_running_camera(monkeypatch
     frames = [f for _, _, f in a if f is not None]
     assert len({id(f) for f in frames}) == 5  # 5 fps over 1 s: a new frame every other cycle
     with pytest.raises(AppError, match="camera-fps"):
-        cmd_eval.run_scenario(paper_scenario("2", {"duration_s": 1.0}), camera_fps=-1.0)
+        runner.run_scenario(paper_scenario("2", {"duration_s": 1.0}), camera_fps=-1.0)
+
+
+def test_realistic_camera_frames_are_the_newest_delivered_and_stamped_on_delivery(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from hil_fakes.world import World, paper_scenario
+
+    recs = (_Recorder(), _Recorder())
+    monkeypatch.setattr(runner, "make_estimators", lambda mount: recs)
+    sc = paper_scenario("2", {"duration_s": 1.0})
+    runner.run_scenario(sc)
+    clock = World(sc).camera_clock
+    fx = sc.camera_effects
+    seqs = []
+    for scan, _, frame in recs[0].calls:
+        if frame is None:
+            assert clock.newest(scan.stamp_s) is None
+            continue
+        capture = clock.capture_s(frame.seq)
+        assert fx.latency_s[0] - 1e-9 <= frame.stamp_s - capture <= fx.latency_s[1] + 1e-9
+        assert frame.stamp_s <= scan.stamp_s  # delivered before the cycle that uses it
+        assert clock.newest(scan.stamp_s).seq == frame.seq
+        seqs.append(frame.seq)
+    assert seqs == sorted(seqs) and len(set(seqs)) >= 8  # 25 fps camera, 10 Hz cycle: a new frame every cycle
 
 
 def test_target_check_and_the_robustness_suite() -> None:
     good = {"obstacle_err_mean_m": 0.05, "obstacle_err_std_m": 0.03, "obstacle_detected_fraction": 0.97,
             "pose_err_final_m": 0.02, "heading_err_final_deg": 0.5, "velocity_err_mean_mps": 0.01}
-    assert cmd_eval.target_misses(good) == []
+    assert metrics.target_misses(good) == []
     bad = {**good, "obstacle_err_mean_m": 0.15, "obstacle_detected_fraction": 0.92, "velocity_err_mean_mps": None}
-    assert cmd_eval.target_misses(bad) == ["obstacle_err_mean_m", "obstacle_detected_fraction", "velocity_err_mean_mps"]
-    assert cmd_eval.target_misses(bad, 2.0) == ["velocity_err_mean_mps"]  # 0.15 <= 0.20; 92 % >= 90 %
+    assert metrics.target_misses(bad) == ["obstacle_err_mean_m", "obstacle_detected_fraction", "velocity_err_mean_mps"]
+    assert metrics.target_misses(bad, 2.0) == ["velocity_err_mean_mps"]  # 0.15 <= 0.20; 92 % >= 90 %
     p = argparse.ArgumentParser()
-    cmd_eval.add_scenario_arguments(p)
-    sets = cmd_eval.scenario_param_sets(p.parse_args(["--scenario", "robustness", "--seed", "3"]), "robustness")
+    scenarios.add_scenario_arguments(p)
+    sets = scenarios.scenario_param_sets(p.parse_args(["--scenario", "robustness", "--seed", "3"]), "robustness")
     names = [s["name"] for s in sets]
-    assert len(names) == len(set(names)) == len(cmd_eval.ROBUSTNESS_SUITE)
+    assert len(names) == len(set(names)) == len(scenarios.ROBUSTNESS_SUITE)
     assert all(s["seed"] == 3 for s in sets)
-    scenarios = cmd_eval.build_scenarios(p.parse_args(["--scenario", "robustness"]), "robustness")
-    assert {sc.params["crossing_deg"] for sc in scenarios} >= {0.0, 30.0, 45.0, 60.0, 90.0}
-    assert max(sc.params["obstacle_speed_mps"] for sc in scenarios) == 1.0
-    assert max(len(sc.obstacles) for sc in scenarios) == 2 and max(sc.params["odom_noise"] for sc in scenarios) == 3.0
+    built = scenarios.build_scenarios(p.parse_args(["--scenario", "robustness"]), "robustness")
+    assert {sc.params["crossing_deg"] for sc in built} >= {0.0, 30.0, 45.0, 60.0, 90.0}
+    assert max(sc.params["obstacle_speed_mps"] for sc in built) == 1.0
+    assert max(len(sc.obstacles) for sc in built) == 2 and max(sc.params["odom_noise"] for sc in built) == 3.0

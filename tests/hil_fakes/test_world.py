@@ -31,15 +31,18 @@ HALF_W = ROOM_WIDTH_M / 2
 NOISELESS = LaserModel(sigma_near_m=0.0, sigma_far_m=0.0)
 
 
+IDEAL = {"world": "ideal"}
+
+
 def static_scenario(obstacles: tuple[ObstaclePath, ...] = (), **params: float):
-    sc = build_scenario({"odom_noise": 0.0, **params})
+    sc = build_scenario({"world": "ideal", "odom_noise": 0.0, **params})
     return replace(sc, obstacles=obstacles)
 
 
 # ------------------------------------------------------------------------------------------ scenarios
 @pytest.mark.parametrize("crossing_deg", [0.0, 20.0, 45.0, 70.0, 90.0, 120.0])
 def test_obstacle_path_crosses_the_robot_path_at_the_asked_angle(crossing_deg: float) -> None:
-    sc = build_scenario({"crossing_deg": crossing_deg, "odom_noise": 0.0})
+    sc = build_scenario({"world": "ideal", "crossing_deg": crossing_deg, "odom_noise": 0.0})
     ob = sc.obstacles[0]
     (x0, y0), (x1, y1) = ob.waypoints
     # direction of travel against the robot's heading (+x): the angle between the two paths
@@ -74,7 +77,9 @@ def test_no_obstacle_comes_closer_than_asked_over_the_robustness_grid() -> None:
         for speed in (0.15, 0.5, 1.0):
             for n in (1, 2):
                 try:
-                    sc = build_scenario({"crossing_deg": angle, "obstacle_speed_mps": speed, "obstacles": n})
+                    sc = build_scenario(
+                        {"world": "ideal", "crossing_deg": angle, "obstacle_speed_mps": speed, "obstacles": n}
+                    )
                 except ScenarioError as exc:  # a typed refusal naming the key, never a bad world
                     assert exc.key in ("obstacles", "closest_approach_time_s")
                     continue
@@ -89,7 +94,7 @@ def test_no_obstacle_comes_closer_than_asked_over_the_robustness_grid() -> None:
 
 def test_paper_scenarios_match_the_paper_and_fill_the_scan() -> None:
     for which, angle in (("1", 45.0), ("2", 90.0)):
-        sc = paper_scenario(which)
+        sc = paper_scenario(which, IDEAL)
         assert sc.robot_speed_mps == 0.20 and sc.duration_s == 30.0
         (ob,) = sc.obstacles
         assert ob.radius_m == pytest.approx(0.40) and ob.speed_mps == pytest.approx(0.15)
@@ -105,7 +110,7 @@ def test_paper_scenarios_match_the_paper_and_fill_the_scan() -> None:
 
 
 def test_two_obstacles_never_touch_and_come_from_both_sides() -> None:
-    sc = build_scenario({"obstacles": 2, "crossing_deg": 90.0})
+    sc = build_scenario({"world": "ideal", "obstacles": 2, "crossing_deg": 90.0})
     a, b = sc.obstacles
     t = np.linspace(0, sc.duration_s, 600)
     d = np.hypot(*(a.positions(t) - b.positions(t)).T)
@@ -114,7 +119,7 @@ def test_two_obstacles_never_touch_and_come_from_both_sides() -> None:
 
 
 def test_fast_obstacle_starts_where_its_path_enters_the_room() -> None:
-    sc = build_scenario({"obstacle_speed_mps": 1.0, "crossing_deg": 45.0})
+    sc = build_scenario({"world": "ideal", "obstacle_speed_mps": 1.0, "crossing_deg": 45.0})
     ob = sc.obstacles[0]
     assert ob.start_s > 5.0 and sc.notes
     x, y = ob.waypoints[0]
@@ -123,23 +128,23 @@ def test_fast_obstacle_starts_where_its_path_enters_the_room() -> None:
 
 def test_scenario_errors_name_the_key(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="'crossing_deg'"):
-        build_scenario({"crossing_deg": 200.0})
+        build_scenario({"world": "ideal", "crossing_deg": 200.0})
     with pytest.raises(ScenarioError, match="'obstacles'"):
-        build_scenario({"obstacles": 1.5})
+        build_scenario({"world": "ideal", "obstacles": 1.5})
     with pytest.raises(ScenarioError, match="'bogus'"):
-        build_scenario({"bogus": 1})
+        build_scenario({"world": "ideal", "bogus": 1})
     with pytest.raises(ScenarioError, match="'robot_speed_mps'"):
-        build_scenario({"robot_speed_mps": "fast"})
+        build_scenario({"world": "ideal", "robot_speed_mps": "fast"})
     with pytest.raises(ScenarioError, match="'closest_approach_m'"):
-        build_scenario({"closest_approach_m": 0.3})
+        build_scenario({"world": "ideal", "closest_approach_m": 0.3})
     # a built scenario's params (unset optional terms included) build the same scenario again
-    sc = build_scenario({"crossing_deg": 30.0, "odom_scale_error": 0.03})
+    sc = build_scenario({"world": "ideal", "crossing_deg": 30.0, "odom_scale_error": 0.03})
     assert build_scenario(sc.params) == sc
     assert sc.odometry_noise.scale_error == 0.03 and sc.odometry_noise.sigma_trans_frac == 0.01
     with pytest.raises(ScenarioError, match="'odom_scale_error'"):
-        build_scenario({"odom_scale_error": 0.9})
+        build_scenario({"world": "ideal", "odom_scale_error": 0.9})
     good = tmp_path / "mine.toml"
-    good.write_text('crossing_deg = 30\nobstacle_speed_mps = 0.5\nobstacles = 2\n')
+    good.write_text("crossing_deg = 30\nobstacle_speed_mps = 0.5\nobstacles = 2\n")
     prm = load_scenario_file(good)
     assert prm["name"] == "mine" and build_scenario(prm).params["obstacles"] == 2
     bad = tmp_path / "bad.toml"
@@ -223,8 +228,9 @@ def test_obstacle_range_and_each_beam_at_its_own_time() -> None:
     n_hit = int(np.sum(sw.hit_obstacle == 0))
     assert abs(n_hit - 2 * half / 0.25) <= 2
     # a spinning robot: beam i is cast from the heading the robot has at t0 + i*dt
-    spin = World(replace(static_scenario(), robot_start=(4.0, 0.0, 0.0)), laser=NOISELESS,
-                 mount=RobotMount(laser_x_m=0.0))
+    spin = World(
+        replace(static_scenario(), robot_start=(4.0, 0.0, 0.0)), laser=NOISELESS, mount=RobotMount(laser_x_m=0.0)
+    )
     spin._robot.w_radps = spin._robot.w_cmd_radps = 3.0
     sw = spin.sweep(0.0)
     dt = NOISELESS.beam_dt_s
@@ -290,7 +296,7 @@ def test_rendering_puts_known_points_on_the_predicted_pixels() -> None:
 
 
 def test_tilted_rendering_matches_the_level_fast_path_at_zero_tilt() -> None:
-    sc = paper_scenario("2")
+    sc = paper_scenario("2", IDEAL)
     a = World(sc)
     b = World(sc)
     a.camera = b.camera = replace(a.camera, noise_sigma=0.0)
@@ -303,7 +309,7 @@ def test_tilted_rendering_matches_the_level_fast_path_at_zero_tilt() -> None:
 
 
 def test_rendering_has_texture_and_noise() -> None:
-    world = World(paper_scenario("1"))
+    world = World(paper_scenario("1", IDEAL))
     a = world.render(6.0).astype(float)
     b = world.render(6.0).astype(float)  # same scene, fresh sensor noise
     noise = (a - b)[..., 1]
@@ -314,7 +320,7 @@ def test_rendering_has_texture_and_noise() -> None:
 
 # ------------------------------------------------------------------------------------------ odometry
 def test_odometry_through_the_world_has_the_asked_statistics() -> None:
-    base = build_scenario({"odom_noise": 0.0, "duration_s": 10.0})
+    base = build_scenario({"world": "ideal", "odom_noise": 0.0, "duration_s": 10.0})
     sys_noise = OdometryNoise(scale_error=0.02, heading_drift_rad_per_m=0.01)
     world = World(replace(base, odometry_noise=sys_noise))
     world.command(0.5, 0.0, 0.0)
@@ -344,7 +350,7 @@ def test_odometry_through_the_world_has_the_asked_statistics() -> None:
 
 # ------------------------------------------------------------------------------------------ adapters
 def test_adapters_answer_concurrent_queries_consistently() -> None:
-    sc = paper_scenario("2")
+    sc = paper_scenario("2", IDEAL)
     world = World(sc, start_s=100.0)
     plant, rs, sonar, rend = world.plant(), world.range_source(), world.sonar(), world.renderer(160, 120)
     plant.command(0.2, 0.0, 100.0)
@@ -392,7 +398,7 @@ def test_adapters_answer_concurrent_queries_consistently() -> None:
 
 
 def test_history_is_bounded_and_old_queries_are_refused() -> None:
-    world = World(paper_scenario("1"), history_s=1.0)
+    world = World(paper_scenario("1", IDEAL), history_s=1.0)
     world.command(0.2, 0.0, 0.0)
     world.advance_to(20.0)
     assert world._n < 1.0 / world.step_s + 10
@@ -404,8 +410,8 @@ def test_history_is_bounded_and_old_queries_are_refused() -> None:
         world.state(math.inf)
     assert world.state(19.5)[0] > 0
     # before the start, the robot stands at its start pose
-    fresh = World(paper_scenario("1"), start_s=5.0)
-    assert fresh.state(4.0)[:3] == pytest.approx(paper_scenario("1").robot_start)
+    fresh = World(paper_scenario("1", IDEAL), start_s=5.0)
+    assert fresh.state(4.0)[:3] == pytest.approx(paper_scenario("1", IDEAL).robot_start)
 
 
 def test_sonar_ranges_walls_and_obstacles() -> None:
