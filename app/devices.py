@@ -280,6 +280,7 @@ class CameraAdapter:
                 client.open()
                 try:
                     client.move_to(self._fixed_pan, self._fixed_tilt, wait=True)
+                    client.zoom_to(self._zoom, wait=True)  # a camera can power on zoomed
                     client.start_state_poller(0.2)
                 except BaseException:
                     client.close()

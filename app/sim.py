@@ -25,13 +25,22 @@ import time
 from collections import deque
 from typing import IO, Any
 
+from hil_fakes.world import ObstacleTruth, Truth
 from hil_fakes.world.scenarios import build_scenario
 from hil_fakes.world.sensors import RobotMount
 from vipsm.types import Estimate
 
 from .config import Config
 from .errors import AppError
-from .evaluation.metrics import LOCATED_GATE_M, MIN_TRACK_AGE, MethodLog, _assign
+from .evaluation.metrics import (
+    FALSE_TRACK_GATE_M,
+    LOCATED_GATE_M,
+    MIN_TRACK_AGE,
+    FalseStopJudge,
+    MethodLog,
+    _assign,
+    moving_bodies_near,
+)
 from .evaluation.runner import _replace_fields, mount_values
 from .evaluation.scenarios import scenario_param_sets
 
@@ -99,6 +108,9 @@ class SimScorer:
         self.method = MethodLog("vipsm")
         self.origin = origin
         self.last_pose_err: tuple[float, float] | None = None
+        self.judge = FalseStopJudge()
+        self._prev: tuple[float, float, float] | None = None  # stamp_s, x_m, y_m of the last estimate
+        self._first_s: float | None = None
 
     def to_est(self, x: float, y: float) -> tuple[float, float]:
         assert self.origin is not None
@@ -140,6 +152,7 @@ class SimScorer:
                 ex, ey = self.to_est(x, y)
                 vis.append((i, ex, ey))
                 true_v[i] = (c * vx - s * vy, s * vx + c * vy)
+        self._score_reports(est, sample, tr, (c, s))
         est_xy = [(o.x_m, o.y_m) for o in est.obstacles]
         assigned = _assign(est_xy, vis)
         m = self.method
@@ -154,6 +167,34 @@ class SimScorer:
                 m.located += 1
             if eo.age_cycles >= MIN_TRACK_AGE:
                 m.vel_errors_mps.append(math.hypot(eo.vx_mps - true_v[i][0], eo.vy_mps - true_v[i][1]))
+
+    def _score_reports(
+        self, est: Estimate, sample: dict[str, Any], robot_est: tuple[float, float, float], rot: tuple[float, float]
+    ) -> None:
+        """False moving obstacles and false safety stops (``app.evaluation.metrics``' definitions), with
+        the truth moved into the estimator's frame."""
+        c, s = rot
+        bodies = []
+        for i, (x, y, vx, vy, r, moving, _in_view) in enumerate(sample["obstacles"]):
+            ex, ey = self.to_est(x, y)
+            bodies.append(ObstacleTruth(i, ex, ey, c * vx - s * vy, s * vx + c * vy, r, bool(moving)))
+        t = est.stamp_s
+        v_true = 0.0
+        if self._prev is not None and t > self._prev[0]:
+            v_true = math.hypot(est.pose.x_m - self._prev[1], est.pose.y_m - self._prev[2]) / (t - self._prev[0])
+        self._prev = (t, est.pose.x_m, est.pose.y_m)
+        self._first_s = t if self._first_s is None else self._first_s
+        truth = Truth(t, robot_est[0], robot_est[1], robot_est[2], v_true, 0.0, tuple(bodies))
+        m = self.method
+        for eo in est.obstacles:
+            false = not moving_bodies_near(truth, eo.x_m, eo.y_m, FALSE_TRACK_GATE_M)
+            m.track_false[eo.track_id] = m.track_false.get(eo.track_id, False) or false
+        stopped, false_stop = self.judge.update(
+            t, (est.pose.x_m, est.pose.y_m, est.pose.theta_rad), v_true, est.obstacles, truth
+        )
+        m.stop_cycles += int(stopped)
+        m.false_stop_cycles += int(false_stop)
+        m.minutes = (t - self._first_s + 0.1) / 60.0
 
     def metrics(self) -> dict[str, Any]:
         if self.last_pose_err is not None:

@@ -99,7 +99,12 @@ class SimHost:
             sonar_world=w.sonar(),
         )
         self.robot = DeviceServer(self.robot_model, PtyEndpoint(str(directory / "robot"))).start()
-        self.camera = FakeCamera(renderer=ShiftedRenderer(w.renderer(320, 240), shift))
+        fx = self.scenario.camera_effects
+        self.camera = FakeCamera(renderer=ShiftedRenderer(w.renderer(320, 240), shift),
+                                 jpeg_quality=fx.jpeg_quality if fx.enabled else 80)
+        power_pan_deg, power_zoom = self.scenario.camera_poweron
+        self.camera.state.pan.move_to(0.0, -power_pan_deg * self.camera.spec.pan_counts_per_deg, 0.0)
+        self.camera.state.zoom.move_to(0.0, float(power_zoom), 0.0)
         self.visca = serve_visca(self.camera, PtyEndpoint(str(directory / "camera")))
         self.http = CameraHttpServer(self.camera).start()
 

@@ -57,12 +57,13 @@ IDEAL_LASER = LaserEffects(enabled=False)
 
 
 def footprint_return(
-    dist_m: np.ndarray, cos_inc: np.ndarray, fx: LaserEffects, rng: np.random.Generator
+    dist_m: np.ndarray, cos_inc: np.ndarray, surface: np.ndarray, fx: LaserEffects, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
     """Combine the sub-rays of each beam into one range.
 
     ``dist_m`` (N, S): distance of each sub-ray (inf: nothing hit); ``cos_inc`` (N, S): cosine of the
-    incidence angle there. Returns (range_m (N,) before noise, NaN = no echo; the sub-ray index whose
+    incidence angle there; ``surface`` (N, S): which surface each sub-ray hit (a footprint spread over
+    one surface, as at grazing incidence, is no depth edge). Returns (range_m (N,) before noise, NaN = no echo; the sub-ray index whose
     surface the beam reports, -1 for a mixed or missing echo)."""
     n, s = dist_m.shape
     centre = s // 2
@@ -78,7 +79,8 @@ def footprint_return(
     u = rng.random((n, 3))
     out = np.where(finite[:, centre], dist_m[:, centre], np.nan)
     src = np.where(finite[:, centre], centre, -1)
-    edge = (frac < 1.0) & (frac > 0.0)
+    one_surface = finite.all(axis=1) & (surface == surface[:, centre : centre + 1]).all(axis=1)
+    edge = (frac < 1.0) & (frac > 0.0) & ~one_surface
     # straddling two surfaces
     two = edge & has_bg
     mixed = two & (u[:, 0] < fx.mixed_prob)
@@ -94,9 +96,9 @@ def footprint_return(
     keep = part & (u[:, 1] < frac)
     out = np.where(part, np.where(keep, r_fg, np.nan), out)
     src = np.where(part, np.where(keep, first_fg, -1), src)
-    # grazing incidence on the reported surface
-    cos_src = np.take_along_axis(cos_inc, np.maximum(src, 0)[:, None], axis=1)[:, 0]
-    grazing = (src >= 0) & (cos_src < math.cos(math.radians(fx.grazing_limit_deg)))
+    # grazing incidence on the reported surface (a mixed echo: on the beam's axis)
+    cos_src = np.take_along_axis(cos_inc, np.where(src >= 0, src, centre)[:, None], axis=1)[:, 0]
+    grazing = np.isfinite(out) & (cos_src < math.cos(math.radians(fx.grazing_limit_deg)))
     out = np.where(grazing, np.nan, out)
     # random dropouts and spurious short returns
     out = np.where(u[:, 2] < fx.dropout_prob, np.nan, out)

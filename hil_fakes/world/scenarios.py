@@ -129,6 +129,8 @@ PARAMS: dict[str, Param] = {
     "camera_exposure_drift": Param(float, 0.03, 0.0, 0.3, "", "auto-exposure gain drift amplitude"),
     "camera_vignetting": Param(float, 0.25, 0.0, 0.8, "", "brightness fall-off in the corners"),
     "camera_jpeg_quality": Param(int, 65, 1, 100, "", "JPEG quality of the frames"),
+    "camera_poweron_pan_deg": Param(float, 12.0, -170.0, 170.0, "deg", "pan the camera powers on with (sim)"),
+    "camera_poweron_zoom": Param(int, 0x0600, 0, 0x4000, "", "zoom position the camera powers on with (sim)"),
     "odom_wheelbase_error": Param(float, 0.02, -0.2, 0.2, "", "effective wheelbase error (rotation scale)"),
     "sip_delay_s": Param(float, 0.03, 0.0, 0.1, "s", "encoder sampling to SIP sending"),
 }
@@ -170,6 +172,8 @@ class Scenario:
     odom_quantize: bool = False
     robot_yaw_rate_radps: float = 0.0
     robot_turn_start_s: float = 0.0
+    #: (pan_deg, zoom position) the fake camera powers on with: the daemon must set its own
+    camera_poweron: tuple[float, int] = (0.0, 0)
 
     def command_at(self, t_s: float) -> tuple[float, float]:
         """The velocity command (v_mps, w_radps) the scenario's driver gives at scenario time ``t_s``."""
@@ -216,9 +220,9 @@ def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
             if not math.isfinite(value):
                 raise ScenarioError(key, f"must be finite, got {value!r}")
         if spec.lo is not None and value < spec.lo:
-            raise ScenarioError(key, f"must be >= {spec.lo} {spec.unit}, got {value}")
+            raise ScenarioError(key, f"must be >= {spec.lo}{' ' + spec.unit if spec.unit else ''}, got {value}")
         if spec.hi is not None and value > spec.hi:
-            raise ScenarioError(key, f"must be <= {spec.hi} {spec.unit}, got {value}")
+            raise ScenarioError(key, f"must be <= {spec.hi}{' ' + spec.unit if spec.unit else ''}, got {value}")
         out[key] = value
     if out["camera_latency_min_s"] > out["camera_latency_max_s"]:
         raise ScenarioError("camera_latency_min_s", "must be <= camera_latency_max_s")
@@ -433,6 +437,7 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
         camera_effects=camera_effects(prm) if realistic else IDEAL_CAMERA,
         sip_delay_s=prm["sip_delay_s"] if realistic else 0.0,
         odom_quantize=realistic,
+        camera_poweron=(prm["camera_poweron_pan_deg"], prm["camera_poweron_zoom"]) if realistic else (0.0, 0),
         robot_yaw_rate_radps=prm["robot_yaw_rate_radps"],
         robot_turn_start_s=prm["robot_turn_start_s"],
     )

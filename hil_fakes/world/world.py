@@ -259,9 +259,9 @@ class World:
         ox = x + c * m.laser_x_m - s * m.laser_y_m
         oy = y + s * m.laser_x_m + c * m.laser_y_m
         ang = (th + m.laser_theta_rad + a)[:, None] + fx.offsets_rad()[None, :]
-        dist, owner, refl_s, cos_inc = self._cast_laser(ox[:, None], oy[:, None], ang, times)
+        dist, owner, refl_s, cos_inc, surface = self._cast_laser(ox[:, None], oy[:, None], ang, times)
         if fx.enabled:
-            dist0, src = footprint_return(dist, cos_inc, fx, fx_rng)
+            dist0, src = footprint_return(dist, cos_inc, surface, fx, fx_rng)
             pick = np.maximum(src, 0)[:, None]
             hit_ob = np.where(src >= 0, np.take_along_axis(owner, pick, axis=1)[:, 0], -1)
             refl = np.where(src >= 0, np.take_along_axis(refl_s, pick, axis=1)[:, 0], 0.4)
@@ -297,9 +297,10 @@ class World:
 
     def _cast_laser(
         self, ox: np.ndarray, oy: np.ndarray, ang: np.ndarray, times: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """First hit of rays from (ox, oy) (N, 1) at angles ``ang`` (N, S): distance (inf: none), owner
-        (obstacle index, -1 static), reflectivity and cosine of the incidence, each (N, S)."""
+        (obstacle index, -1 static), reflectivity, cosine of the incidence and the surface hit (wall
+        index, 100000 + circle index, -1 none), each (N, S)."""
         dx, dy = np.cos(ang), np.sin(ang)
         lw = self._laser_walls
         dist, w_idx, _ = cast_walls(ox, oy, dx, dy, lw)
@@ -311,6 +312,7 @@ class World:
         else:
             cos_inc = np.ones_like(dist)
         owner = np.full(dist.shape, -1, dtype=np.int64)
+        surface = w_idx.copy()
         centres, radii, owners = self._moving_circles(times)
         cx, cy = centres[:, None, :, 0], centres[:, None, :, 1]
         if self._static.shape[0]:
@@ -333,7 +335,8 @@ class World:
             owner = np.where(closer, owners[k], owner)
             refl = np.where(closer, refl_c[k], refl)
             cos_inc = np.where(closer, np.nan_to_num(cos_c, nan=1.0), cos_inc)
-        return dist, owner, refl, cos_inc
+            surface = np.where(closer, 100000 + k, surface)
+        return dist, owner, refl, cos_inc, surface
 
     # ------------------------------------------------------------------ camera
     def _view_renderer(self) -> ViewRenderer:
@@ -490,7 +493,8 @@ class PlantAdapter:
         self.world.e_stop(now_s)
 
     def state(self, now_s: float) -> tuple[float, float, float, float, float]:
-        return self.world.state(now_s)
+        """The state the controller samples for the SIP it sends at ``now_s`` (``sip_delay_s`` before)."""
+        return self.world.state(now_s - self.world.scenario.sip_delay_s)
 
 
 class SonarAdapter:
@@ -508,8 +512,12 @@ class RendererAdapter:
 
     def __init__(self, world: World, width_px: int, height_px: int) -> None:
         self.world = world
+        self._rng = np.random.default_rng([world.scenario.seed, 9])
         self.width_px = int(width_px)
         self.height_px = int(height_px)
 
     def render(self, t_s: float, pan_rad: float, tilt_rad: float, hfov_rad: float) -> np.ndarray:
-        return self.world.render(t_s, pan_rad, tilt_rad, hfov_rad, self.width_px, self.height_px)
+        """The frame the camera delivers at ``t_s``: exposed one capture-to-delivery latency earlier."""
+        lo, hi = self.world.scenario.camera_effects.latency_s
+        latency = self._rng.uniform(lo, hi) if self.world.scenario.camera_effects.enabled else 0.0
+        return self.world.render(t_s - latency, pan_rad, tilt_rad, hfov_rad, self.width_px, self.height_px)

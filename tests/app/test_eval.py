@@ -212,3 +212,32 @@ def test_target_check_and_the_robustness_suite() -> None:
     assert {sc.params["crossing_deg"] for sc in built} >= {0.0, 30.0, 45.0, 60.0, 90.0}
     assert max(sc.params["obstacle_speed_mps"] for sc in built) == 1.0
     assert max(len(sc.obstacles) for sc in built) == 2 and max(sc.params["odom_noise"] for sc in built) == 3.0
+
+
+def test_the_realistic_suite_runs_in_reduced_form(capsys: pytest.CaptureFixture[str]) -> None:
+    from hil_fakes.world.scenarios import REALISTIC_SUITE
+
+    code, out, _ = run_cli(capsys, ["eval", "--scenario", "realistic", "--duration", "2.5", "--json"])
+    assert code == 0
+    doc = json.loads(out)
+    assert [s["name"] for s in doc["scenarios"]] == list(REALISTIC_SUITE)
+    for sc in doc["scenarios"]:
+        assert sc["params"]["world"] == "realistic" and sc["cycles"] == 26
+        for method in ("vipsm", "plain_psm"):
+            m = sc[method]
+            assert set(m) == set(metrics.METRIC_KEYS)
+            assert m["false_tracks_per_min"] is not None and m["false_tracks_per_min"] >= 0
+            assert 0 <= m["false_stop_cycles"] <= m["stop_cycles"] <= 26
+        assert isinstance(sc["targets_missed"], list)
+    code, out, _ = run_cli(capsys, ["eval", "--scenario", "cross_90", "--duration", "2.0", "--seed", "42"])
+    assert code == 0 and "cross_90" in out and ("met" in out or "MISSED" in out)
+
+
+def test_bad_scenario_flags_are_one_line_errors(capsys: pytest.CaptureFixture[str]) -> None:
+    for argv in (["--seed", "-1"], ["--world", "dreamy"], ["--scenario", "nosuch"]):
+        try:
+            code = main(["eval", *argv])
+        except SystemExit as exc:  # argparse refuses a bad choice itself
+            code = exc.code
+        err = capsys.readouterr().err
+        assert code == 2 and "error:" in err and "Traceback" not in err
