@@ -63,8 +63,8 @@ def footprint_return(
 
     ``dist_m`` (N, S): distance of each sub-ray (inf: nothing hit); ``cos_inc`` (N, S): cosine of the
     incidence angle there; ``surface`` (N, S): which surface each sub-ray hit (a footprint spread over
-    one surface, as at grazing incidence, is no depth edge). Returns (range_m (N,) before noise, NaN = no echo; the sub-ray index whose
-    surface the beam reports, -1 for a mixed or missing echo)."""
+    one surface, as at grazing incidence, is no depth edge). Returns (range_m (N,) before noise, NaN =
+    no echo; the sub-ray index whose surface the beam reports, -1 for a mixed or missing echo)."""
     n, s = dist_m.shape
     centre = s // 2
     finite = np.isfinite(dist_m)
