@@ -1,5 +1,17 @@
 """Obstacle position from its scan points, and a constant-velocity tracker for several obstacles.
 
+Tracks are born from moving-body candidates (:mod:`vipsm.bodies`) and reported only once
+**confirmed**: seen in ``confirm_hits`` cycles, with motion evidence (free-space violation or camera)
+in ``confirm_evidence`` of them, and displaced at least ``confirm_displacement_m`` from where it was
+born. Furniture never moves, so a camera flow error or a stray return on it never confirms. A track
+dies after ``max_missed`` cycles without a detection, or at once when a beam of the current scan
+passes through where it should be (its space is seen free). At most ``max_tracks`` live at once (the
+least supported are dropped first), so the cost is bounded however cluttered the room.
+
+The filter is a constant-velocity Kalman filter; the process noise ``accel_sigma_mps2`` is that of
+walking people (accelerations of about 1 m/s^2 when starting, stopping or turning), the measurement
+noise comes with each detection (a leg-pair midpoint jitters with the gait more than a circle fit).
+
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
 fitting a circle to the points (algebraic fit, then a fixed-radius refinement with the track's
@@ -11,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +42,12 @@ class TrackerConfig:
     min_fit_extent_rad: float = math.radians(25.0)  # arc (seen from the body) needed to trust a fit
     radius_smoothing: float = 0.2  # exponential smoothing of a track's radius
     merge_m: float = 0.25  # a younger track this close to an older one is dropped
+    confirm_hits: int = 3
+    confirm_evidence: int = 2
+    confirm_displacement_m: float = 0.08
+    #: confirmed tracks slower than this (a body that stopped) are not reported
+    report_min_speed_mps: float = 0.08
+    max_tracks: int = 24
 
 
 @dataclass(frozen=True)
@@ -41,6 +60,11 @@ class Detection:
     scan_index_stop: int
     bearing_min_rad: float
     bearing_max_rad: float
+    #: whether this detection shows motion (free-space violation or camera)
+    evidence: bool = True
+    #: position noise of this detection (None: the tracker's meas_sigma_m)
+    sigma_m: float | None = None
+    kind: str = "body"
 
 
 def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
@@ -133,6 +157,14 @@ class Track:
     last_detection: Detection | None = None
     camera_stamp_s: float = -math.inf  # last cycle a camera interval confirmed this track
     history: list[tuple[float, float, float]] = field(default_factory=list)
+    evidence: int = 0
+    confirmed: bool = False
+    birth_xy: tuple[float, float] = (0.0, 0.0)
+    kind: str = "body"
+
+    @property
+    def speed_mps(self) -> float:
+        return math.hypot(float(self.state[2]), float(self.state[3]))
 
 
 class Tracker:
@@ -164,7 +196,8 @@ class Tracker:
     def _update(self, track: Track, det: Detection) -> None:
         h = np.zeros((2, 4))
         h[0, 0] = h[1, 1] = 1.0
-        r = np.eye(2) * self.config.meas_sigma_m**2
+        sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
+        r = np.eye(2) * sigma**2
         z = np.array([det.x_m, det.y_m])
         s = h @ track.cov @ h.T + r
         k = track.cov @ h.T @ np.linalg.inv(s)
@@ -178,6 +211,23 @@ class Tracker:
             else:
                 track.radius_m = det.radius_m
                 track.radius_known = True
+
+    def _confirm(self, t: Track, det: Detection) -> None:
+        c = self.config
+        t.evidence += int(det.evidence)
+        t.kind = det.kind
+        moved = math.hypot(float(t.state[0]) - t.birth_xy[0], float(t.state[1]) - t.birth_xy[1])
+        if t.hits >= c.confirm_hits and t.evidence >= c.confirm_evidence and moved >= c.confirm_displacement_m:
+            t.confirmed = True
+
+    def reported(self, t: Track) -> bool:
+        """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
+        c = self.config
+        return t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps
+
+    def drop_seen_free(self, seen_free: Any) -> None:
+        """Drop coasting tracks whose predicted position a beam of the current scan passed through."""
+        self.tracks = [t for t in self.tracks if t.missed == 0 or not seen_free(float(t.state[0]), float(t.state[1]))]
 
     def step(self, stamp_s: float, detections: list[Detection]) -> list[tuple[Track, Detection | None]]:
         """Advance all tracks to ``stamp_s`` and fold in the detections. Returns the live tracks with
@@ -208,12 +258,14 @@ class Tracker:
                 t.hits += 1
                 t.missed = 0
                 t.last_detection = got[ti]
+                self._confirm(t, got[ti])
             else:
                 t.missed += 1
         for di, d in enumerate(detections):
             if di in used_d:
                 continue
-            p = np.diag([self.config.meas_sigma_m**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
+            sigma = self.config.meas_sigma_m if d.sigma_m is None else d.sigma_m
+            p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
             self.tracks.append(
                 Track(
                     self._next_id,
@@ -223,6 +275,9 @@ class Tracker:
                     d.radius_fitted,
                     stamp_s,
                     last_detection=d,
+                    evidence=int(d.evidence),
+                    birth_xy=(d.x_m, d.y_m),
+                    kind=d.kind,
                 )
             )
             got[len(self.tracks) - 1] = d
@@ -238,5 +293,10 @@ class Tracker:
                 continue  # a duplicate of an older track (tracks are kept oldest first)
             keep.append(t)
             out.append((t, got.get(ti)))
+        if len(keep) > self.config.max_tracks:  # bounded: keep the confirmed, then the best supported
+            ranked = sorted(keep, key=lambda t: (not t.confirmed, -t.evidence, t.missed, -t.hits))
+            alive = {id(t) for t in ranked[: self.config.max_tracks]}
+            keep = [t for t in keep if id(t) in alive]
+            out = [(t, d) for t, d in out if id(t) in alive]
         self.tracks = keep
         return out

@@ -180,11 +180,17 @@ def moving_bodies_near(truth: Truth, x_m: float, y_m: float, gate_m: float) -> b
     return any(o.moving and math.hypot(o.x_m - x_m, o.y_m - y_m) <= gate_m for o in truth.obstacles)
 
 
+#: a true body predicted within this much of the stop zone justifies a stop (the prediction runs 2 s
+#: ahead on estimated velocities; a person passing a hand's breadth outside the zone is no phantom)
+FALSE_STOP_MARGIN_M = 0.5
+
+
 @dataclass
 class FalseStopJudge:
     """The daemon's safety stop (``app.health.SafetyMonitor`` with the mission defaults) run on a method's
-    estimates, and the same zone test run on the truth: a stop cycle is false when no true body (moving or
-    standing) has been inside the zone within the monitor's resume hysteresis."""
+    estimates, and the same zone test run on the truth with the zone widened by ``FALSE_STOP_MARGIN_M``:
+    a stop cycle is false when no true body (moving or standing) has come that close within the
+    monitor's resume hysteresis: the stop was caused by something that is not there."""
 
     monitor: SafetyMonitor = field(default_factory=lambda: SafetyMonitor(0.9, 2.0, 1.0))
     _last_true_s: float = -math.inf
@@ -194,7 +200,8 @@ class FalseStopJudge:
     ) -> tuple[bool, bool]:
         """(stopped, falsely stopped) this cycle."""
         m = self.monitor
-        if m.intrusion(truth.x_m, truth.y_m, truth.theta_rad, max(truth.v_mps, 0.0), truth.obstacles):
+        wide = SafetyMonitor(m.radius_m + FALSE_STOP_MARGIN_M, m.horizon_s, m.resume_after_clear_s)
+        if wide.intrusion(truth.x_m, truth.y_m, truth.theta_rad, max(truth.v_mps, 0.0), truth.obstacles):
             self._last_true_s = t_s
         stopped = m.update(t_s, *est_pose, max(v_mps, 0.0), est_obstacles)
         return stopped, stopped and t_s - self._last_true_s > m.resume_after_clear_s + CYCLE_S + 1e-9

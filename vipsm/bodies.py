@@ -1,0 +1,181 @@
+"""Body extraction: which segments of the scan may be moving bodies, and people as leg pairs.
+
+Each segment of the (pre-filtered) scan that is narrower than a body and stands in front of what lies
+beside it is a foreground segment. It becomes a **candidate** when it shows motion evidence:
+
+* **free-space violation** (:mod:`vipsm.static_map`): at least ``min_free_share`` of its points lie
+  where the laser recently saw free floor and nothing occupied: something moved there;
+* **camera**: it lies in a bearing interval where optical flow saw independent motion (the paper's
+  cue). The camera alone never confirms a track (:mod:`vipsm.tracker` also needs displacement), so a
+  flow error on furniture cannot make a phantom; it makes a slow body's confirmation faster.
+
+At the laser's height a walking person is two legs (0.08-0.2 m wide) that scissor: leg-sized
+foreground segments within ``leg_pair_max_m`` of each other are one person, placed at the midpoint of
+the two leg centres (the pelvis); a lone leg (the other hidden) is a person at that leg. Wider
+segments (up to ``max_body_width_m``) are round bodies, centred by a circle fit. A pair counts as a
+candidate when either leg shows evidence: the stance leg stands still while the swing leg moves.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .restore import BearingInterval, _beams_in
+from .static_map import FreeSpaceGrid
+from .tracker import TrackerConfig, locate_body
+from .types import Pose2D
+
+
+@dataclass(frozen=True)
+class BodiesConfig:
+    seg_jump_m: float = 0.15
+    seg_jump_range_factor: float = 3.0
+    min_beams: int = 3
+    #: a leg at the laser's height (shin, trousered): 0.05-0.25 m across the segment
+    max_leg_width_m: float = 0.25
+    leg_radius_m: float = 0.06
+    #: two legs of one person: centres at most this far apart (stride at laser height ~0.6 m)
+    leg_pair_max_m: float = 0.65
+    max_body_width_m: float = 1.2
+    #: a foreground segment stands at least this far in front of its neighbours (or next to no return)
+    foreground_m: float = 0.10
+    neighbour_beams: int = 4
+    min_free_share: float = 0.5
+    person_radius_m: float = 0.25
+
+
+@dataclass(frozen=True)
+class Body:
+    x_m: float
+    y_m: float
+    radius_m: float
+    radius_fitted: bool
+    kind: str  # "person", "leg" (a person with one leg seen) or "body"
+    free_share: float  # share of its points in seen-free space
+    camera: bool  # inside a camera motion interval
+    scan_index_start: int
+    scan_index_stop: int
+    bearing_min_rad: float
+    bearing_max_rad: float
+
+
+@dataclass(frozen=True)
+class _Segment:
+    start: int
+    stop: int
+    points: np.ndarray  # world frame
+    width_m: float
+    free_share: float
+    camera: bool
+
+
+def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig) -> list[tuple[int, int]]:
+    """[start, stop) runs of consecutive valid returns on one surface."""
+    n = r.size
+    valid = np.isfinite(r)
+    if n == 0:
+        return []
+    dphi = float(abs(b[-1] - b[0]) / max(n - 1, 1))
+    rr = np.where(valid, r, 0.0)
+    thr = np.maximum(cfg.seg_jump_m, cfg.seg_jump_range_factor * rr * dphi)
+    brk = np.ones(n, bool)
+    brk[1:] = ~valid[:-1] | (np.abs(rr[1:] - rr[:-1]) >= thr[1:])
+    starts = np.flatnonzero(valid & brk)
+    stops = np.append(starts[1:], n)
+    out = []
+    for a, z in zip(starts, stops, strict=True):
+        last = a + int(np.argmin(valid[a:z])) if not valid[a:z].all() else z
+        out.append((int(a), int(last)))
+    return out
+
+
+def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> bool:
+    """The segment stands in front of what lies beside it. Each side's neighbour is the nearest return
+    within ``neighbour_beams`` (a dropped mixed pixel does not hide the surface next to it): a side on
+    the same surface (within ``foreground_m``) means the segment is part of something larger; nearer
+    neighbours on both sides mean it is background seen between two occluders (a wall between a
+    person's legs); one nearer side is a body partly hidden by another, which is kept."""
+    near = float(np.min(r[a:z]))
+    occluded = 0
+    for side in (r[max(a - cfg.neighbour_beams, 0) : a][::-1], r[z : z + cfg.neighbour_beams]):
+        finite = side[np.isfinite(side)]
+        if not finite.size or finite[0] >= near + cfg.foreground_m:
+            continue
+        if finite[0] > near - cfg.foreground_m:
+            return False
+        occluded += 1
+    return occluded < 2
+
+
+def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
+                        camera: list[BearingInterval], cfg: BodiesConfig) -> list[_Segment]:
+    c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
+    in_camera = np.zeros(r.size, bool)
+    for iv in camera:
+        in_camera |= _beams_in(iv, np.where(np.isfinite(r), r, np.nan), b, 0.0)
+    out = []
+    for a, z in segments(r, b, cfg):
+        if z - a < cfg.min_beams or not _foreground(r, a, z, cfg):
+            continue
+        xl, yl = r[a:z] * np.cos(b[a:z]), r[a:z] * np.sin(b[a:z])
+        pts = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)
+        width = float(np.hypot(*(pts[-1] - pts[0])))
+        if width > cfg.max_body_width_m:
+            continue
+        share = float(np.mean(grid.violates(pts)))
+        out.append(_Segment(a, z, pts, width, share, bool(np.mean(in_camera[a:z]) >= 0.5)))
+    return out
+
+
+def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[int, int | None]]:
+    """Greedy nearest pairs of leg centres within ``leg_pair_max_m``; the rest alone."""
+    pairs = sorted(
+        (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
+        for i in range(len(legs)) for j in range(i + 1, len(legs))
+    )
+    used: set[int] = set()
+    out: list[tuple[int, int | None]] = []
+    for d, i, j in pairs:
+        if d > cfg.leg_pair_max_m or i in used or j in used:
+            continue
+        used |= {i, j}
+        out.append((i, j))
+    out += [(i, None) for i in range(len(legs)) if i not in used]
+    return out
+
+
+def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
+                   camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig) -> list[Body]:
+    """The moving-body candidates of one scan (world frame, placed with the matched laser pose)."""
+    sensor = (laser.x_m, laser.y_m)
+    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg)
+    legs, bodies = [], []
+    for sg in segs:
+        if sg.width_m <= cfg.max_leg_width_m:
+            lx, ly, _, _ = locate_body(sg.points, sensor, cfg.leg_radius_m, tracker_cfg)
+            legs.append((sg, lx, ly))
+        elif sg.free_share >= cfg.min_free_share or sg.camera:
+            cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
+            bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad))
+    for i, j in _pair_legs(legs, cfg):
+        group = [legs[i]] + ([legs[j]] if j is not None else [])
+        if not any(sg.free_share >= cfg.min_free_share or sg.camera for sg, _, _ in group):
+            continue
+        x = float(np.mean([g[1] for g in group]))
+        y = float(np.mean([g[2] for g in group]))
+        kind = "person" if j is not None else "leg"
+        bodies.append(_body(x, y, cfg.person_radius_m, False, kind, [g[0] for g in group], bearings_rad))
+    return bodies
+
+
+def _body(x: float, y: float, radius: float, fitted: bool, kind: str, segs: list[_Segment],
+          bearings_rad: np.ndarray) -> Body:
+    a = min(sg.start for sg in segs)
+    z = max(sg.stop for sg in segs)
+    n_pts = sum(sg.points.shape[0] for sg in segs)
+    share = sum(sg.free_share * sg.points.shape[0] for sg in segs) / max(n_pts, 1)
+    return Body(x, y, radius, fitted, kind, float(share), any(sg.camera for sg in segs), a, z,
+                float(bearings_rad[a]), float(bearings_rad[z - 1]))

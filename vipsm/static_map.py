@@ -1,0 +1,147 @@
+"""Static evidence: what the laser has recently seen free and seen occupied, in the estimator's frame.
+
+A bounded, short-lived grid (``size_m`` square around the robot, re-centred as it drives; cells of
+``cell_m``) holds two decaying counts per cell: how often a beam passed through it (free) and how
+often a beam ended in it (occupied). Both decay with time constant ``memory_s``, so the map forgets a
+person's trail and a moved chair within seconds.
+
+The question it answers (:meth:`FreeSpaceGrid.violates`): does a point lie where the laser recently
+saw free floor, with no occupied evidence in the cell or its 8 neighbours? A static object never does:
+its cells are occupied and the cells in front of it are only marked free up to ``free_margin_m``
+short of each return (the matched pose is good to centimetres, the cells are 10 cm). Something that
+moved into seen-free space does: that is the free-space violation that makes a segment a moving-body
+candidate. Unknown space (never seen, or occluded) is never a violation: a body that appears from
+behind furniture becomes a candidate only once it moves into space the laser has seen free.
+
+Cost: per scan one free-space ray march of the valid beams up to ``max_free_range_m`` at half-cell
+steps (a bincount over ~100 k cell indices) and one decay of the grid; memory is fixed by ``size_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StaticMapConfig:
+    cell_m: float = 0.10
+    size_m: float = 24.0
+    max_free_range_m: float = 8.0
+    #: free marking stops this short of every return (pose error + range noise + the cell size)
+    free_margin_m: float = 0.25
+    #: no free marking closer than this to the laser (the robot's own body, the laser's dead zone)
+    min_free_range_m: float = 0.15
+    memory_s: float = 6.0
+    #: a cell is "seen free" with at least this much (decayed) free evidence ...
+    min_free: float = 1.5
+    #: ... and "clear" with at most this much occupied evidence in its 3x3 neighbourhood
+    max_occupied: float = 0.5
+
+
+class FreeSpaceGrid:
+    def __init__(self, config: StaticMapConfig | None = None) -> None:
+        self.config = config or StaticMapConfig()
+        c = self.config
+        self.n = int(math.ceil(c.size_m / c.cell_m))
+        self.free = np.zeros((self.n, self.n), np.float32)
+        self.occ = np.zeros((self.n, self.n), np.float32)
+        self.last_free = np.zeros((self.n, self.n), bool)  # cells a beam crossed in the last scan
+        self.origin = np.zeros(2)  # world position of cell (0, 0)'s corner
+        self.stamp_s: float | None = None
+
+    # ---------------------------------------------------------------- cells
+    def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ij = np.floor((xy - self.origin) / self.config.cell_m).astype(np.int64)
+        inside = (ij[:, 0] >= 0) & (ij[:, 0] < self.n) & (ij[:, 1] >= 0) & (ij[:, 1] < self.n)
+        return ij[:, 0], ij[:, 1], inside
+
+    def _recentre(self, x_m: float, y_m: float) -> None:
+        """Keep the robot near the middle: shift the grid by whole cells when it has moved a quarter away."""
+        half = self.n * self.config.cell_m / 2
+        centre = self.origin + half
+        if self.stamp_s is not None and max(abs(x_m - centre[0]), abs(y_m - centre[1])) < half / 2:
+            return
+        new_origin = np.floor((np.array([x_m, y_m]) - half) / self.config.cell_m) * self.config.cell_m
+        shift = np.round((new_origin - self.origin) / self.config.cell_m).astype(int)
+        self.origin = new_origin
+        for name in ("free", "occ", "last_free"):
+            self.__dict__[name] = _shifted(self.__dict__[name], int(shift[0]), int(shift[1]))
+
+    # ---------------------------------------------------------------- queries
+    def violates(self, points_xy: np.ndarray) -> np.ndarray:
+        """Per point: inside cells recently seen free with no occupied evidence around (before the
+        current scan is integrated)."""
+        c = self.config
+        if points_xy.size == 0:
+            return np.zeros(0, bool)
+        i, j, inside = self._cells(points_xy)
+        out = np.zeros(points_xy.shape[0], bool)
+        if not inside.any():
+            return out
+        ii, jj = i[inside], j[inside]
+        seen_free = self.free[ii, jj] >= c.min_free
+        occ = np.zeros(ii.size, np.float32)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                a = np.clip(ii + di, 0, self.n - 1)
+                b = np.clip(jj + dj, 0, self.n - 1)
+                occ = np.maximum(occ, self.occ[a, b])
+        out[inside] = seen_free & (occ <= c.max_occupied)
+        return out
+
+    def seen_free_now(self, x_m: float, y_m: float) -> bool:
+        """Whether a beam of the last integrated scan crossed the cell of (x, y)."""
+        i, j, inside = self._cells(np.array([[x_m, y_m]]))
+        return bool(inside[0] and self.last_free[i[0], j[0]])
+
+    # ---------------------------------------------------------------- update
+    def integrate(self, stamp_s: float, laser_xy: tuple[float, float], laser_theta_rad: float,
+                  ranges_m: np.ndarray, bearings_rad: np.ndarray, skip: np.ndarray | None = None) -> None:
+        """Decay, then add one scan taken from the laser pose (world frame). Beams flagged in ``skip``
+        (the tracked moving bodies) mark free space up to them but no occupancy."""
+        c = self.config
+        self._recentre(*laser_xy)
+        if self.stamp_s is not None:
+            k = math.exp(-max(stamp_s - self.stamp_s, 0.0) / c.memory_s)
+            self.free *= np.float32(k)
+            self.occ *= np.float32(k)
+        self.stamp_s = stamp_s
+        r = np.asarray(ranges_m, float)
+        ok = np.isfinite(r)
+        ang = laser_theta_rad + np.asarray(bearings_rad, float)
+        ox, oy = laser_xy
+        # occupied: the returns
+        hit = ok if skip is None else ok & ~skip
+        pts = np.stack([ox + r[hit] * np.cos(ang[hit]), oy + r[hit] * np.sin(ang[hit])], axis=1)
+        i, j, inside = self._cells(pts)
+        occ_now = np.bincount(i[inside] * self.n + j[inside], minlength=self.n * self.n) > 0
+        self.occ += occ_now.reshape(self.n, self.n).astype(np.float32)
+        # free: the rays up to free_margin_m short of the return
+        reach = np.minimum(r[ok] - c.free_margin_m, c.max_free_range_m)
+        steps = np.arange(c.min_free_range_m, c.max_free_range_m, c.cell_m / 2)
+        s = steps[None, :]
+        use = s < reach[:, None]
+        d = np.broadcast_to(s, use.shape)[use]
+        a = np.broadcast_to(ang[ok][:, None], use.shape)[use]
+        fpts = np.stack([ox + d * np.cos(a), oy + d * np.sin(a)], axis=1)
+        i, j, inside = self._cells(fpts)
+        counts = np.bincount(i[inside] * self.n + j[inside], minlength=self.n * self.n)
+        crossed = (counts > 0).reshape(self.n, self.n)
+        self.free += crossed.astype(np.float32)
+        self.last_free = crossed
+
+
+def _shifted(a: np.ndarray, di: int, dj: int) -> np.ndarray:
+    """``a`` re-indexed so that new[i, j] = old[i + di, j + dj]; cells from outside are empty."""
+    out = np.zeros_like(a)
+    n0, n1 = a.shape
+    src_i = slice(max(di, 0), min(n0, n0 + di))
+    dst_i = slice(max(-di, 0), min(n0, n0 - di))
+    src_j = slice(max(dj, 0), min(n1, n1 + dj))
+    dst_j = slice(max(-dj, 0), min(n1, n1 - dj))
+    if src_i.start < src_i.stop and src_j.start < src_j.stop:
+        out[dst_i, dst_j] = a[src_i, src_j]
+    return out
