@@ -1,7 +1,8 @@
 """Body extraction: which segments of the scan may be moving bodies, and people as leg pairs.
 
 Each segment of the (pre-filtered) scan that is narrower than a body and stands in front of what lies
-beside it is a foreground segment. It becomes a **candidate** when it shows motion evidence:
+beside it is a foreground segment: a body. Only a body with motion evidence can start a track (any body
+can continue one, so a walker who pauses or a slow body inside its own footprint keeps its track):
 
 * **free-space violation** (:mod:`vipsm.static_map`): at least ``min_free_share`` of its points lie
   where the laser recently saw free floor and nothing occupied: something moved there;
@@ -56,10 +57,13 @@ class Body:
     kind: str  # "person", "leg" (a person with one leg seen) or "body"
     free_share: float  # share of its points in seen-free space
     camera: bool  # inside a camera motion interval
+    #: motion evidence (free-space violation or camera): only such a body can start a track; any
+    #: foreground body can continue one
     scan_index_start: int
     scan_index_stop: int
     bearing_min_rad: float
     bearing_max_rad: float
+    evidence: bool = True
 
 
 @dataclass(frozen=True)
@@ -149,7 +153,8 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
 
 def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                    camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig) -> list[Body]:
-    """The moving-body candidates of one scan (world frame, placed with the matched laser pose)."""
+    """The foreground bodies of one scan (world frame, placed with the matched laser pose), each with
+    its motion evidence."""
     sensor = (laser.x_m, laser.y_m)
     segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg)
     legs, bodies = [], []
@@ -157,25 +162,24 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
         if sg.width_m <= cfg.max_leg_width_m:
             lx, ly, _, _ = locate_body(sg.points, sensor, cfg.leg_radius_m, tracker_cfg)
             legs.append((sg, lx, ly))
-        elif sg.free_share >= cfg.min_free_share or sg.camera:
+        else:
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
-            bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad))
+            bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
     for i, j in _pair_legs(legs, cfg):
         group = [legs[i]] + ([legs[j]] if j is not None else [])
-        if not any(sg.free_share >= cfg.min_free_share or sg.camera for sg, _, _ in group):
-            continue
         x = float(np.mean([g[1] for g in group]))
         y = float(np.mean([g[2] for g in group]))
         kind = "person" if j is not None else "leg"
-        bodies.append(_body(x, y, cfg.person_radius_m, False, kind, [g[0] for g in group], bearings_rad))
+        bodies.append(_body(x, y, cfg.person_radius_m, False, kind, [g[0] for g in group], bearings_rad, cfg))
     return bodies
 
 
 def _body(x: float, y: float, radius: float, fitted: bool, kind: str, segs: list[_Segment],
-          bearings_rad: np.ndarray) -> Body:
+          bearings_rad: np.ndarray, cfg: BodiesConfig) -> Body:
     a = min(sg.start for sg in segs)
     z = max(sg.stop for sg in segs)
     n_pts = sum(sg.points.shape[0] for sg in segs)
     share = sum(sg.free_share * sg.points.shape[0] for sg in segs) / max(n_pts, 1)
+    evidence = any(sg.free_share >= cfg.min_free_share or sg.camera for sg in segs)
     return Body(x, y, radius, fitted, kind, float(share), any(sg.camera for sg in segs), a, z,
-                float(bearings_rad[a]), float(bearings_rad[z - 1]))
+                float(bearings_rad[a]), float(bearings_rad[z - 1]), evidence)

@@ -205,12 +205,14 @@ class Estimator:
                                    too_large or not scan_ok)
 
     def _update_static(self, scan: Scan, laser: Pose2D, bodies: list[Body]) -> None:
-        """Add the scan to the free/occupied grid (moving bodies add no occupancy) and drop coasting
+        """Add the scan to the free/occupied grid (the moving-body candidates add no occupancy, so a body
+        that moves on leaves no trail and its own earlier footprint never hides it) and drop coasting
         tracks whose space is now seen free."""
         skip = np.zeros(scan.ranges_m.size, bool)
         for b in bodies:
-            if b.free_share >= self.config.bodies.min_free_share:
+            if b.evidence:
                 skip[b.scan_index_start : b.scan_index_stop] = True
+        skip |= self._near_tracks(scan, laser)
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, scan.ranges_m,
                                scan.bearings_rad, skip)
         self._tracker.drop_seen_free(self._static.seen_free_now)
@@ -233,6 +235,23 @@ class Estimator:
         )
 
     # ------------------------------------------------------------------ helpers
+    def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
+        """Beams whose return lies on a live track with motion evidence (its radius plus the mask
+        margin around where it is now): a body that pauses in the candidate test for a cycle must not
+        write itself into the static map."""
+        live = [t for t in self._tracker.tracks if (t.confirmed or t.evidence >= 1) and t.missed <= 2]
+        out = np.zeros(scan.ranges_m.size, bool)
+        if not live:
+            return out
+        r = np.where(np.isfinite(scan.ranges_m), scan.ranges_m, np.inf)
+        ang = laser.theta_rad + scan.bearings_rad
+        x, y = laser.x_m + r * np.cos(ang), laser.y_m + r * np.sin(ang)
+        for t in live:
+            reach = t.radius_m + self.config.track_mask_margin_m
+            with np.errstate(invalid="ignore"):
+                out |= np.hypot(x - t.state[0], y - t.state[1]) <= reach
+        return out
+
     def _laser_to_robot_points(self, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
         ok = np.isfinite(ranges) & (ranges >= self.config.psm.min_range_m)
         r, b = ranges[ok], bearings[ok]
@@ -260,7 +279,7 @@ def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
 
 def _detection(b: Body) -> Detection:
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
-                     b.bearing_min_rad, b.bearing_max_rad, evidence=True, sigma_m=_SIGMA_M[b.kind], kind=b.kind)
+                     b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind], kind=b.kind)
 
 
 def _obstacle(t: Track, det: Detection | None, laser: Pose2D) -> Obstacle:

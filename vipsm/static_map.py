@@ -6,7 +6,9 @@ often a beam ended in it (occupied). Both decay with time constant ``memory_s``,
 person's trail and a moved chair within seconds.
 
 The question it answers (:meth:`FreeSpaceGrid.violates`): does a point lie where the laser recently
-saw free floor, with no occupied evidence in the cell or its 8 neighbours? A static object never does:
+saw free floor, in its cell and all 8 neighbours, with no occupied evidence there? A static object never
+does (a face first seen at grazing incidence has free-marked cells in front of it, but the cells behind
+it were never crossed):
 its cells are occupied and the cells in front of it are only marked free up to ``free_margin_m``
 short of each return (the matched pose is good to centimetres, the cells are 10 cm). Something that
 moved into seen-free space does: that is the free-space violation that makes a segment a moving-body
@@ -82,14 +84,15 @@ class FreeSpaceGrid:
         if not inside.any():
             return out
         ii, jj = i[inside], j[inside]
-        seen_free = self.free[ii, jj] >= c.min_free
+        free = np.full(ii.size, np.inf, np.float32)
         occ = np.zeros(ii.size, np.float32)
         for di in (-1, 0, 1):
             for dj in (-1, 0, 1):
                 a = np.clip(ii + di, 0, self.n - 1)
                 b = np.clip(jj + dj, 0, self.n - 1)
                 occ = np.maximum(occ, self.occ[a, b])
-        out[inside] = seen_free & (occ <= c.max_occupied)
+                free = np.minimum(free, self.free[a, b])
+        out[inside] = (free >= c.min_free) & (occ <= c.max_occupied)
         return out
 
     def seen_free_now(self, x_m: float, y_m: float) -> bool:

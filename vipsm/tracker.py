@@ -44,7 +44,11 @@ class TrackerConfig:
     merge_m: float = 0.25  # a younger track this close to an older one is dropped
     confirm_hits: int = 3
     confirm_evidence: int = 2
-    confirm_displacement_m: float = 0.08
+    #: over the last ``confirm_window`` detections the body moved at least this far ...
+    confirm_displacement_m: float = 0.06
+    confirm_window: int = 6
+    #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
+    confirm_straightness: float = 0.6
     #: confirmed tracks slower than this (a body that stopped) are not reported
     report_min_speed_mps: float = 0.08
     max_tracks: int = 24
@@ -156,7 +160,8 @@ class Track:
     age_cycles: int = 1
     last_detection: Detection | None = None
     camera_stamp_s: float = -math.inf  # last cycle a camera interval confirmed this track
-    history: list[tuple[float, float, float]] = field(default_factory=list)
+    #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0)
+    history: list[tuple[float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
     birth_xy: tuple[float, float] = (0.0, 0.0)
@@ -213,12 +218,26 @@ class Tracker:
                 track.radius_known = True
 
     def _confirm(self, t: Track, det: Detection) -> None:
+        """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
+        (net distance over the recent window, along a nearly straight path)."""
         c = self.config
         t.evidence += int(det.evidence)
         t.kind = det.kind
-        moved = math.hypot(float(t.state[0]) - t.birth_xy[0], float(t.state[1]) - t.birth_xy[1])
-        if t.hits >= c.confirm_hits and t.evidence >= c.confirm_evidence and moved >= c.confirm_displacement_m:
+        t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence)))
+        del t.history[: -c.confirm_window]
+        recent = sum(h[3] for h in t.history)
+        if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence or len(t.history) < 3:
+            return
+        xy = np.array([h[1:3] for h in t.history])
+        net = float(np.hypot(*(xy[-1] - xy[0])))
+        path = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
+        if net >= c.confirm_displacement_m and net >= c.confirm_straightness * path:
             t.confirmed = True
+
+    def _stale(self, t: Track) -> bool:
+        """An unconfirmed track whose recent detections all lacked motion evidence: a static thing."""
+        h = t.history
+        return not t.confirmed and len(h) >= self.config.confirm_window and not any(e for *_, e in h)
 
     def reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
@@ -262,8 +281,8 @@ class Tracker:
             else:
                 t.missed += 1
         for di, d in enumerate(detections):
-            if di in used_d:
-                continue
+            if di in used_d or not d.evidence:
+                continue  # only motion evidence starts a track
             sigma = self.config.meas_sigma_m if d.sigma_m is None else d.sigma_m
             p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
             self.tracks.append(
@@ -285,7 +304,7 @@ class Tracker:
         out: list[tuple[Track, Detection | None]] = []
         keep: list[Track] = []
         for ti, t in enumerate(self.tracks):
-            if t.missed > self.config.max_missed:
+            if t.missed > self.config.max_missed or self._stale(t):
                 continue
             if any(
                 math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < self.config.merge_m for k in keep
