@@ -33,13 +33,12 @@ from vipsm.types import Estimate
 from .config import Config
 from .errors import AppError
 from .evaluation.metrics import (
-    FALSE_TRACK_GATE_M,
     LOCATED_GATE_M,
     MIN_TRACK_AGE,
     FalseStopJudge,
     MethodLog,
     _assign,
-    moving_bodies_near,
+    count_reports,
 )
 from .evaluation.runner import _replace_fields, mount_values
 from .evaluation.scenarios import scenario_param_sets
@@ -186,9 +185,7 @@ class SimScorer:
         self._first_s = t if self._first_s is None else self._first_s
         truth = Truth(t, robot_est[0], robot_est[1], robot_est[2], v_true, 0.0, tuple(bodies))
         m = self.method
-        for eo in est.obstacles:
-            false = not moving_bodies_near(truth, eo.x_m, eo.y_m, FALSE_TRACK_GATE_M)
-            m.track_false[eo.track_id] = m.track_false.get(eo.track_id, False) or false
+        count_reports(m, truth, est.obstacles)
         stopped, false_stop = self.judge.update(
             t, (est.pose.x_m, est.pose.y_m, est.pose.theta_rad), v_true, est.obstacles, truth
         )

@@ -13,7 +13,8 @@ can continue one, so a walker who pauses or a slow body inside its own footprint
 At the laser's height a walking person is two legs (0.08-0.2 m wide) that scissor: leg-sized
 foreground segments within ``leg_pair_max_m`` of each other are one person, placed at the midpoint of
 the two leg centres (the pelvis); a lone leg (the other hidden) is a person at that leg. Wider
-segments (up to ``max_body_width_m``) are round bodies, centred by a circle fit. A pair counts as a
+segments (up to ``max_body_width_m``) are round bodies when a circle fits them (centre behind the
+points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
 candidate when either leg shows evidence: the stance leg stands still while the swing leg moves.
 """
 
@@ -164,7 +165,8 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
             legs.append((sg, lx, ly))
         else:
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
-            bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
+            if fitted:  # a round body; a wall piece or a room corner fits no circle behind its points
+                bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
     for i, j in _pair_legs(legs, cfg):
         group = [legs[i]] + ([legs[j]] if j is not None else [])
         x = float(np.mean([g[1] for g in group]))

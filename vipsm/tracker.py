@@ -49,8 +49,10 @@ class TrackerConfig:
     confirm_window: int = 6
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
-    #: confirmed tracks slower than this (a body that stopped) are not reported
+    #: confirmed tracks slower than this (a body that stopped) are not reported: both the filter's
+    #: speed and the net displacement of the detections over the last ``report_window`` of them
     report_min_speed_mps: float = 0.08
+    report_window: int = 10
     max_tracks: int = 24
 
 
@@ -164,6 +166,8 @@ class Track:
     history: list[tuple[float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
+    #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
+    recent: list[tuple[float, float, float]] = field(default_factory=list)
     birth_xy: tuple[float, float] = (0.0, 0.0)
     kind: str = "body"
 
@@ -223,6 +227,8 @@ class Tracker:
         c = self.config
         t.evidence += int(det.evidence)
         t.kind = det.kind
+        t.recent.append((t.stamp_s, det.x_m, det.y_m))
+        del t.recent[: -c.report_window]
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence)))
         del t.history[: -c.confirm_window]
         recent = sum(h[3] for h in t.history)
@@ -242,7 +248,10 @@ class Tracker:
     def reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
         c = self.config
-        return t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps
+        if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
+            return False
+        (t0, x0, y0), (t1, x1, y1) = t.recent[0], t.recent[-1]
+        return t1 - t0 < 0.5 or math.hypot(x1 - x0, y1 - y0) >= c.report_min_speed_mps * (t1 - t0)
 
     def drop_seen_free(self, seen_free: Any) -> None:
         """Drop coasting tracks whose predicted position a beam of the current scan passed through."""

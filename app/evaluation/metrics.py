@@ -58,6 +58,7 @@ METRIC_KEYS = (
     "false_tracks_per_min",
     "false_stop_cycles",
     "stop_cycles",
+    "static_report_cycles",
     "report_delay_max_s",
 )
 
@@ -144,8 +145,10 @@ class MethodLog:
     restored: list[tuple[tuple[int, int], ...]] = field(default_factory=list)
     final_pose_err_m: float = math.nan
     final_heading_err_deg: float = math.nan
-    #: track id -> whether it was ever reported with no true moving body within FALSE_TRACK_GATE_M
-    track_false: dict[int, bool] = field(default_factory=dict)
+    #: track id -> [cycles reported, of which with no true moving body within FALSE_TRACK_GATE_M]
+    track_reports: dict[int, list[int]] = field(default_factory=dict)
+    #: cycles with a reported obstacle near a true body that is not moving and no moving one near
+    static_report_cycles: int = 0
     stop_cycles: int = 0
     false_stop_cycles: int = 0
     #: per true body: time from the start of its motion to its first located report (s), None = never
@@ -154,7 +157,7 @@ class MethodLog:
 
     def metrics(self) -> dict[str, float | None]:
         e = np.asarray(self.errors_m)
-        n_false = sum(self.track_false.values())
+        n_false = sum(1 for n, bad in self.track_reports.values() if bad > 0.5 * n)
         delays = list(self.report_delays_s.values())
         return {
             "obstacle_err_mean_m": _num(e.mean()) if e.size else None,
@@ -169,6 +172,7 @@ class MethodLog:
             "false_tracks_per_min": _num(n_false / self.minutes) if self.minutes > 0 else None,
             "false_stop_cycles": self.false_stop_cycles,
             "stop_cycles": self.stop_cycles,
+            "static_report_cycles": self.static_report_cycles,
             "report_delay_max_s": (
                 None if not delays or None in delays else _num(max(d for d in delays if d is not None))
             ),
@@ -178,6 +182,21 @@ class MethodLog:
 def moving_bodies_near(truth: Truth, x_m: float, y_m: float, gate_m: float) -> bool:
     """Whether a true body that is moving at ``truth``'s instant lies within ``gate_m`` of (x, y)."""
     return any(o.moving and math.hypot(o.x_m - x_m, o.y_m - y_m) <= gate_m for o in truth.obstacles)
+
+
+def count_reports(mlog: MethodLog, truth: Truth, obstacles: Any) -> None:
+    """False moving obstacles: a reported track is false when in more than half of the cycles it was
+    reported no true moving body was within ``FALSE_TRACK_GATE_M`` (a phantom is never near one; a true
+    track that lingers a few cycles after its body stopped is not a phantom, but those cycles are
+    counted in ``static_report_cycles`` when a standing body is near)."""
+    for eo in obstacles:
+        supported = moving_bodies_near(truth, eo.x_m, eo.y_m, FALSE_TRACK_GATE_M)
+        n = mlog.track_reports.setdefault(eo.track_id, [0, 0])
+        n[0] += 1
+        n[1] += int(not supported)
+        near_static = any(not o.moving and math.hypot(o.x_m - eo.x_m, o.y_m - eo.y_m) <= FALSE_TRACK_GATE_M
+                          for o in truth.obstacles)
+        mlog.static_report_cycles += int(not supported and near_static)
 
 
 #: a true body predicted within this much of the stop zone justifies a stop (the prediction runs 2 s

@@ -23,7 +23,6 @@ from vipsm.types import Frame, Intrinsics, Odometry, Scan
 from ..errors import AppError
 from .metrics import (
     CYCLE_S,
-    FALSE_TRACK_GATE_M,
     LOCATED_GATE_M,
     MIN_BEAMS_IN_VIEW,
     MIN_TRACK_AGE,
@@ -31,7 +30,7 @@ from .metrics import (
     MethodLog,
     RunLog,
     _assign,
-    moving_bodies_near,
+    count_reports,
     obstacle_in_camera,
     target_misses,
     targets_for,
@@ -82,9 +81,7 @@ def _score_reports(
     mlog: MethodLog, judge: FalseStopJudge, e: Any, t: float, scenario: Scenario, t_est: Any, truth: Any, v_mps: float
 ) -> None:
     """False moving obstacles, false safety stops and the delay to the first report of each body."""
-    for eo in e.obstacles:
-        false = not moving_bodies_near(t_est, eo.x_m, eo.y_m, FALSE_TRACK_GATE_M)
-        mlog.track_false[eo.track_id] = mlog.track_false.get(eo.track_id, False) or false
+    count_reports(mlog, t_est, e.obstacles)
     stopped, false_stop = judge.update(t, (e.pose.x_m, e.pose.y_m, e.pose.theta_rad), v_mps, e.obstacles, truth)
     mlog.stop_cycles += int(stopped)
     mlog.false_stop_cycles += int(false_stop)
