@@ -45,6 +45,8 @@ class BodiesConfig:
     #: a foreground segment stands at least this far in front of its neighbours (or next to no return)
     foreground_m: float = 0.10
     neighbour_beams: int = 4
+    #: a return beside a straight segment this close to its line continues the same surface
+    surface_tol_m: float = 0.05
     min_free_share: float = 0.5
     person_radius_m: float = 0.25
 
@@ -107,12 +109,37 @@ def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> bool:
     occluded = 0
     for side in (r[max(a - cfg.neighbour_beams, 0) : a][::-1], r[z : z + cfg.neighbour_beams]):
         finite = side[np.isfinite(side)]
-        if not finite.size or finite[0] >= near + cfg.foreground_m:
+        if not finite.size:
+            continue
+        if finite[0] >= near + cfg.foreground_m:
             continue
         if finite[0] > near - cfg.foreground_m:
             return False
         occluded += 1
     return occluded < 2
+
+
+def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, z: int, laser: Pose2D,
+                         cfg: BodiesConfig) -> bool:
+    """The segment is a piece of a straight surface that goes on beside it (a wall seen at grazing
+    incidence breaks into short pieces with range jumps between them): the nearest return on either
+    side lies on the segment's own line."""
+    if pts.shape[0] < 3:
+        return False
+    centre = pts.mean(axis=0)
+    _, sv, vt = np.linalg.svd(pts - centre, full_matrices=False)
+    if sv[1] > 0.3 * sv[0]:  # not a line (a round body's short arc)
+        return False
+    normal = vt[-1]
+    c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
+    for j in (*range(a - 1, max(a - cfg.neighbour_beams, 0) - 1, -1), *range(z, min(z + cfg.neighbour_beams, r.size))):
+        if not np.isfinite(r[j]):
+            continue
+        xl, yl = r[j] * math.cos(b[j]), r[j] * math.sin(b[j])
+        p = np.array([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl])
+        if abs(float((p - centre) @ normal)) < cfg.surface_tol_m:
+            return True
+    return False
 
 
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
@@ -128,7 +155,7 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         xl, yl = r[a:z] * np.cos(b[a:z]), r[a:z] * np.sin(b[a:z])
         pts = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)
         width = float(np.hypot(*(pts[-1] - pts[0])))
-        if width > cfg.max_body_width_m:
+        if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
         share = float(np.mean(grid.violates(pts)))
         out.append(_Segment(a, z, pts, width, share, bool(np.mean(in_camera[a:z]) >= 0.5)))
