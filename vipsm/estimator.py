@@ -239,7 +239,8 @@ class Estimator:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
         margin around where it is now): a body that pauses in the candidate test for a cycle must not
         write itself into the static map."""
-        live = [t for t in self._tracker.tracks if (t.confirmed or t.evidence >= 1) and t.missed <= 2]
+        live = [t for t in self._tracker.tracks
+                if (self._tracker.reported(t) or (not t.confirmed and t.evidence >= 1)) and t.missed <= 2]
         out = np.zeros(scan.ranges_m.size, bool)
         if not live:
             return out

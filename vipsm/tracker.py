@@ -53,6 +53,10 @@ class TrackerConfig:
     #: speed and the net displacement of the detections over the last ``report_window`` of them
     report_min_speed_mps: float = 0.08
     report_window: int = 10
+    #: ... and the least-squares velocity of the detections over the window must reach this speed (a
+    #: standing person's detections jump by ~0.1-0.2 m between one leg and two, which a line fit
+    #: averages out; the slowest body of interest moves at 0.15 m/s)
+    report_window_speed_mps: float = 0.12
     max_tracks: int = 24
 
 
@@ -250,8 +254,13 @@ class Tracker:
         c = self.config
         if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
             return False
-        (t0, x0, y0), (t1, x1, y1) = t.recent[0], t.recent[-1]
-        return t1 - t0 < 0.5 or math.hypot(x1 - x0, y1 - y0) >= c.report_min_speed_mps * (t1 - t0)
+        rec = np.array(t.recent)
+        if rec[-1, 0] - rec[0, 0] < 0.5:
+            return True
+        tt = rec[:, 0] - rec[:, 0].mean()
+        vx = float(tt @ (rec[:, 1] - rec[:, 1].mean()) / (tt @ tt))
+        vy = float(tt @ (rec[:, 2] - rec[:, 2].mean()) / (tt @ tt))
+        return math.hypot(vx, vy) >= c.report_window_speed_mps
 
     def drop_seen_free(self, seen_free: Any) -> None:
         """Drop coasting tracks whose predicted position a beam of the current scan passed through."""
