@@ -91,6 +91,8 @@ def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig) -> list[tuple[int,
     brk = np.ones(n, bool)
     brk[1:] = ~valid[:-1] | (np.abs(rr[1:] - rr[:-1]) >= thr[1:])
     starts = np.flatnonzero(valid & brk)
+    if starts.size == 0:
+        return []
     stops = np.append(starts[1:], n)
     out = []
     for a, z in zip(starts, stops, strict=True):
