@@ -33,7 +33,8 @@ class TrackerConfig:
     accel_sigma_mps2: float = 0.5  # process noise of the constant-velocity model
     meas_sigma_m: float = 0.03  # position measurement noise
     init_speed_sigma_mps: float = 1.0
-    gate_m: float = 0.8  # association gate around the predicted position
+    #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
+    gate_m: float = 0.35
     max_missed: int = 10  # cycles without a detection before a track is dropped
     report_missed: int = 2  # tracks coasting for at most this many cycles are still reported
     default_radius_m: float = 0.30  # used before any fit gave a radius
@@ -49,6 +50,10 @@ class TrackerConfig:
     confirm_window: int = 6
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
+    #: detections of one body never jump faster than this plus ``step_noise_m`` between cycles (a flip
+    #: of the association between two nearby things, e.g. a chair's legs, does)
+    max_speed_mps: float = 2.5
+    step_noise_m: float = 0.1
     #: confirmed tracks slower than this (a body that stopped) are not reported: both the filter's
     #: speed and the net displacement of the detections over the last ``report_window`` of them
     report_min_speed_mps: float = 0.08
@@ -225,6 +230,13 @@ class Tracker:
                 track.radius_m = det.radius_m
                 track.radius_known = True
 
+    def _steady(self, pts: np.ndarray) -> bool:
+        """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker."""
+        if pts.shape[0] < 2:
+            return True
+        step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
+        return bool(np.all(step <= self.config.max_speed_mps * np.diff(pts[:, 0]) + self.config.step_noise_m))
+
     def _confirm(self, t: Track, det: Detection) -> None:
         """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
         (net distance over the recent window, along a nearly straight path)."""
@@ -238,10 +250,11 @@ class Tracker:
         recent = sum(h[3] for h in t.history)
         if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence or len(t.history) < 3:
             return
-        xy = np.array([h[1:3] for h in t.history])
+        hist = np.array(t.history)
+        xy = hist[:, 1:3]
         net = float(np.hypot(*(xy[-1] - xy[0])))
         path = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
-        if net >= c.confirm_displacement_m and net >= c.confirm_straightness * path:
+        if net >= c.confirm_displacement_m and net >= c.confirm_straightness * path and self._steady(hist):
             t.confirmed = True
 
     def _stale(self, t: Track) -> bool:
@@ -255,6 +268,8 @@ class Tracker:
         if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
             return False
         rec = np.array(t.recent)
+        if not self._steady(rec):
+            return False
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
         tt = rec[:, 0] - rec[:, 0].mean()

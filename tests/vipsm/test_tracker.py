@@ -80,3 +80,49 @@ def test_tracks_coast_then_drop() -> None:
     x_pred = tr.tracks[0].state[0]
     assert x_pred == pytest.approx(1.0 + 0.1 * 7, abs=0.1)  # coasted at ~1 m/s
     assert tr.step(0.8, []) == [] and tr.tracks == []
+
+
+# ------------------------------------------------------------------ confirmation (issue 11)
+def _det(x: float, y: float, evidence: bool = True, kind: str = "person") -> Detection:
+    return Detection(x, y, 0.25, False, 0, 3, 0.0, 0.1, evidence=evidence, sigma_m=0.06, kind=kind)
+
+
+def test_a_jittering_static_thing_with_evidence_never_becomes_a_reported_track() -> None:
+    rng = np.random.default_rng(3)
+    tr = Tracker(TrackerConfig())
+    for k in range(100):  # a chair leg whose detection jumps between two legs 0.4 m apart
+        x = 1.0 + (0.4 if rng.random() < 0.5 else 0.0) + rng.normal(0, 0.01)
+        for t, _ in tr.step(0.1 * k, [_det(x, 2.0, evidence=bool(rng.random() < 0.5))]):
+            assert not tr.reported(t)
+
+
+def test_a_walker_is_confirmed_quickly_with_converging_velocity_despite_gait_jitter() -> None:
+    tr = Tracker(TrackerConfig())
+    first = None
+    for k in range(40):
+        t = 0.1 * k
+        jitter = 0.06 * math.sin(2 * math.pi * t / 0.55)  # the leg-pair midpoint oscillates with the gait
+        out = tr.step(t, [_det(1.2 * t + jitter, 0.5)])
+        if first is None and any(tr.reported(tk) for tk, _ in out):
+            first = t
+    assert first is not None and first <= 0.5
+    track = tr.tracks[0]
+    assert abs(track.state[2] - 1.2) < 0.15 and abs(track.state[3]) < 0.1
+
+
+def test_only_motion_evidence_starts_a_track_and_their_number_is_bounded() -> None:
+    tr = Tracker(TrackerConfig(max_tracks=5))
+    tr.step(0.0, [_det(float(i), 0.0, evidence=False) for i in range(10)])
+    assert tr.tracks == []
+    tr.step(0.1, [_det(float(i), 0.0) for i in range(10)])
+    assert len(tr.tracks) == 5
+
+
+def test_a_coasting_track_dies_when_its_space_is_seen_free() -> None:
+    tr = Tracker(TrackerConfig())
+    for k in range(5):
+        tr.step(0.1 * k, [_det(0.1 * k, 0.0)])
+    tr.step(0.5, [])
+    assert tr.tracks and tr.tracks[0].missed == 1
+    tr.drop_seen_free(lambda x, y: abs(x - 0.5) < 0.2)
+    assert tr.tracks == []

@@ -1,0 +1,53 @@
+"""vipsm.bodies: leg pairs become one person, background between legs is no body, evidence."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vipsm.bodies import BodiesConfig, extract_bodies
+from vipsm.static_map import FreeSpaceGrid
+from vipsm.tracker import TrackerConfig
+from vipsm.types import Pose2D
+
+from .sim import Circle, box_room
+
+CFG = BodiesConfig()
+ORIGIN = Pose2D(0.0, 0.0, 0.0)
+
+
+def _seen_empty(world) -> FreeSpaceGrid:
+    grid = FreeSpaceGrid()
+    for k in range(10):
+        scan = world.scan(ORIGIN)
+        grid.integrate(0.1 * k, (0.0, 0.0), 0.0, scan.ranges_m, scan.bearings_rad)
+    return grid
+
+
+def test_a_leg_pair_is_one_person_at_the_pelvis() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+    world.circles = [Circle(2.5, 0.6, 0.06), Circle(2.7, 0.35, 0.06)]  # mid-stride, 0.32 m apart
+    scan = world.scan(ORIGIN)
+    bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig())
+    people = [b for b in bodies if b.kind == "person"]
+    assert len(people) == 1 and people[0].evidence
+    assert abs(people[0].x_m - 2.6) < 0.03 and abs(people[0].y_m - 0.475) < 0.03
+
+
+def test_wall_between_the_legs_is_no_body_and_a_resting_leg_has_no_evidence() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    world.circles = [Circle(1.5, 0.12, 0.06), Circle(1.5, -0.12, 0.06), Circle(3.0, -2.0, 0.0125)]
+    grid = _seen_empty(world)  # the legs and the chair leg stood there all along
+    scan = world.scan(ORIGIN)
+    bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig())
+    assert not any(abs(b.x_m - 6.0) < 0.2 for b in bodies)  # the wall seen between the legs
+    assert bodies and not any(b.evidence for b in bodies)  # standing things: no motion evidence
+
+
+def test_a_straight_wall_piece_is_no_body() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    world.walls = np.vstack([world.walls, [[2.0, 1.0, 2.4, 1.0]]])  # a 0.4 m box face, flat
+    grid = FreeSpaceGrid()
+    scan = world.scan(ORIGIN)
+    bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig())
+    assert not any(b.kind == "body" and abs(b.y_m - 1.0) < 0.4 for b in bodies)

@@ -1,0 +1,69 @@
+"""vipsm.static_map: free-space violations happen only where the laser saw free floor."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vipsm.static_map import FreeSpaceGrid, StaticMapConfig
+from vipsm.types import Pose2D
+
+from .sim import UTM_BEARINGS, Circle, box_room
+
+
+def _fill(grid: FreeSpaceGrid, world, pose: Pose2D, n: int, t0: float = 0.0) -> None:
+    for k in range(n):
+        scan = world.scan(pose, t_s=t0 + 0.1 * k)
+        grid.integrate(t0 + 0.1 * k, (pose.x_m, pose.y_m), pose.theta_rad, scan.ranges_m, scan.bearings_rad)
+
+
+def test_space_seen_free_is_violated_surfaces_and_unknown_space_are_not() -> None:
+    world = box_room(8.0, 6.0)
+    grid = FreeSpaceGrid()
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 10)
+    pts = np.array([[2.0, 0.5], [5.9, 0.0], [-3.0, 0.0], [8.0, 0.0]])
+    # open floor / the far wall (x = 6) / behind the left wall (never seen) / outside the grid's view
+    assert grid.violates(pts).tolist() == [True, False, False, False]
+
+
+def test_a_static_post_is_never_a_violation_from_any_viewpoint() -> None:
+    world = box_room(8.0, 6.0)
+    world.circles = [Circle(2.5, 1.0, 0.02)]  # a chair leg
+    grid = FreeSpaceGrid()
+    for k, x in enumerate(np.linspace(-1.0, 3.0, 30)):
+        pose = Pose2D(float(x), -1.0, 0.3)
+        scan = world.scan(pose)
+        ang = pose.theta_rad + scan.bearings_rad
+        pts = np.stack([x + scan.ranges_m * np.cos(ang), -1.0 + scan.ranges_m * np.sin(ang)], 1)
+        on_post = np.isfinite(scan.ranges_m) & (np.hypot(pts[:, 0] - 2.5, pts[:, 1] - 1.0) < 0.05)
+        if k > 3:
+            assert not grid.violates(pts[on_post]).any()
+        grid.integrate(0.1 * k, (float(x), -1.0), 0.3, scan.ranges_m, scan.bearings_rad)
+
+
+def test_a_body_walking_into_free_space_violates_it() -> None:
+    world = box_room(8.0, 6.0)
+    grid = FreeSpaceGrid()
+    pose = Pose2D(0.0, 0.0, 0.0)
+    _fill(grid, world, pose, 10)
+    world.circles = [Circle(3.0, 1.0, 0.06)]
+    scan = world.scan(pose)
+    ang = scan.bearings_rad
+    pts = np.stack([scan.ranges_m * np.cos(ang), scan.ranges_m * np.sin(ang)], 1)
+    leg = np.isfinite(scan.ranges_m) & (np.hypot(pts[:, 0] - 3.0, pts[:, 1] - 1.0) < 0.1)
+    assert leg.sum() >= 3 and grid.violates(pts[leg]).all()
+
+
+def test_evidence_decays_and_the_grid_follows_the_robot_with_bounded_memory() -> None:
+    world = box_room(30.0, 6.0, x0=-2.0)
+    cfg = StaticMapConfig(memory_s=1.0)
+    grid = FreeSpaceGrid(cfg)
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 5)
+    assert grid.violates(np.array([[2.0, 0.5]]))[0]
+    grid.integrate(10.0, (0.0, 0.0), 0.0, np.full(UTM_BEARINGS.size, np.nan), UTM_BEARINGS)
+    assert not grid.violates(np.array([[2.0, 0.5]]))[0]  # forgotten after 10 memory constants
+    shape = grid.free.shape
+    _fill(grid, world, Pose2D(15.0, 0.0, 0.0), 3, t0=11.0)
+    assert grid.free.shape == shape and grid.violates(np.array([[17.0, 0.5]]))[0]
+    assert math.isclose(float(grid.origin[0] + grid.n * cfg.cell_m / 2), 15.0, abs_tol=cfg.cell_m)
