@@ -214,3 +214,49 @@ def test_bad_inputs_never_raise() -> None:
     e5 = est.step(seq[5][0], seq[5][1])
     assert EstimateFlag.ODOMETRY_FALLBACK not in e5.flags
     assert abs(e5.pose.x_m - seq[5][3].x_m) < 0.02
+
+
+# ------------------------------------------------------------------ moving bodies in a furnished room (issue 11)
+@dataclasses.dataclass
+class _Leg(Circle):
+    """A leg that stands until ``start_s``, then walks at (vx, vy) with a scissoring swing."""
+
+    start_s: float = 0.0
+    phase: float = 0.0
+
+    def at(self, t_s: float) -> tuple[float, float]:
+        w = max(t_s - self.start_s, 0.0)
+        swing = 0.15 * math.sin(2 * math.pi * w / 1.1 + self.phase) if w > 0 else 0.0
+        speed = math.hypot(self.vx_mps, self.vy_mps) or 1.0
+        ux, uy = self.vx_mps / speed, self.vy_mps / speed
+        return self.x_m + self.vx_mps * w + swing * ux, self.y_m + self.vy_mps * w + swing * uy
+
+
+def _furnished(start_s: float | None) -> World:
+    world = box_room(9.0, 6.0, x0=-1.0, y0=-3.0)
+    legs = [(1.6, 1.2), (1.6, 1.6), (2.0, 1.2), (2.0, 1.6), (3.5, -1.5), (3.9, -1.5), (3.5, -1.9), (3.9, -1.9)]
+    world.circles = [Circle(x, y, 0.0125) for x, y in legs]  # two chairs
+    if start_s is not None:  # a person standing at (3.0, 1.8) who starts walking across at 1.2 m/s
+        world.circles += [_Leg(2.9, 1.8, 0.06, 0.0, -1.2, start_s=start_s),
+                          _Leg(3.1, 1.8, 0.06, 0.0, -1.2, start_s=start_s, phase=math.pi)]
+    return world
+
+
+def test_chair_legs_at_rest_never_become_obstacles_while_the_robot_drives() -> None:
+    seq = _sequence(_furnished(None), 60, frames=False, seed=4)
+    for est in (Estimator(CFG), Estimator(CFG, plain_psm=True)):
+        assert all(e.obstacles == () for e in _run(est, seq))
+
+
+def test_a_person_who_starts_walking_is_reported_within_half_a_second_and_not_before() -> None:
+    start_s = 2.0
+    seq = _sequence(_furnished(start_s), 40, frames=False, seed=5)
+    est = Estimator(CFG)
+    first = None
+    for (scan, odo, frame, _), e in zip(seq, _run(est, seq), strict=True):
+        if e.obstacles and first is None:
+            first = scan.stamp_s
+            ob = e.obstacles[0]
+            t = scan.stamp_s - start_s
+            assert abs(ob.x_m - 3.0) < 0.15 and abs(ob.y_m - (1.8 - 1.2 * t)) < 0.2  # the body centre
+    assert first is not None and start_s < first <= start_s + 0.5 + 1e-9
