@@ -378,4 +378,27 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         "estimator_step_cpu_ms_p99": round(float(np.percentile(step_cpu_ms, 99)), 3),
         "note": "wall-clock (perf_counter) and process CPU time (process_time; includes OpenCV worker threads)",
         "plain_psm_step_ms_median": round(statistics.median(plain_ms), 3),
+        **_realistic_suite_steps(),
+    }
+
+
+def _realistic_suite_steps(duration_s: float = 10.0) -> dict[str, Any]:
+    """The VIPSM step on every scenario of the realistic suite (first ``duration_s`` of each): people,
+    furniture, a real laser's artefacts; wall-clock per step, with the machine's load."""
+    import os
+
+    from app.evaluation.runner import run_scenario
+    from hil_fakes.world.scenarios import REALISTIC_SUITE, suite_scenario
+
+    steps: list[float] = []
+    for name in REALISTIC_SUITE:
+        log = run_scenario(suite_scenario(name, overrides={"duration_s": duration_s}))
+        steps += log.methods["vipsm"].step_s
+    ms = 1000.0 * np.asarray(steps)
+    return {
+        "realistic_suite_steps": int(ms.size),
+        "realistic_suite_step_ms_median": round(float(np.median(ms)), 3),
+        "realistic_suite_step_ms_p99": round(float(np.percentile(ms, 99)), 3),
+        "realistic_suite_step_ms_max": round(float(np.max(ms)), 3),
+        "load_average_1min": round(os.getloadavg()[0], 2),
     }

@@ -7,8 +7,12 @@ can continue one, so a walker who pauses or a slow body inside its own footprint
 * **free-space violation** (:mod:`vipsm.static_map`): at least ``min_free_share`` of its points lie
   where the laser recently saw free floor and nothing occupied: something moved there;
 * **camera**: it lies in a bearing interval where optical flow saw independent motion (the paper's
-  cue). The camera alone never confirms a track (:mod:`vipsm.tracker` also needs displacement), so a
-  flow error on furniture cannot make a phantom; it makes a slow body's confirmation faster.
+  cue), or, for a body wider than a leg, it stands clearly in front of what the keyframe saw in the
+  same direction (a body coming head-on along the beams, which the camera barely sees move and which
+  hits its own cells of the free-space grid all the time; thin furniture legs, which one scan sees and
+  another misses between two beams, are left out of this cue). The camera alone never confirms a
+  track (:mod:`vipsm.tracker` also needs displacement), so a flow error on furniture cannot make a
+  phantom; it makes a slow body's confirmation faster.
 
 At the laser's height a walking person is two legs (0.08-0.2 m wide) that scissor: leg-sized
 foreground segments within ``leg_pair_max_m`` of each other are one person, placed at the midpoint of
@@ -145,7 +149,7 @@ def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, 
 
 
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
-                        camera: list[BearingInterval], cfg: BodiesConfig) -> list[_Segment]:
+                        camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None) -> list[_Segment]:
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     in_camera = np.zeros(r.size, bool)
     for iv in camera:
@@ -160,7 +164,10 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
         share = float(np.mean(grid.violates(pts)))
-        out.append(_Segment(a, z, pts, width, share, bool(np.mean(in_camera[a:z]) >= 0.5)))
+        cue = bool(np.mean(in_camera[a:z]) >= 0.5)
+        if ahead is not None and width > cfg.max_leg_width_m:
+            cue = cue or bool(np.mean(ahead[a:z]) >= 0.6)
+        out.append(_Segment(a, z, pts, width, share, cue))
     return out
 
 
@@ -182,11 +189,13 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
 
 
 def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
-                   camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig) -> list[Body]:
+                   camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig,
+                   ahead: np.ndarray | None = None) -> list[Body]:
     """The foreground bodies of one scan (world frame, placed with the matched laser pose), each with
-    its motion evidence."""
+    its motion evidence. ``ahead`` (per beam, optional): the return stands clearly in front of what the
+    keyframe saw in that direction (counts like the camera's motion cue)."""
     sensor = (laser.x_m, laser.y_m)
-    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg)
+    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, ahead)
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:

@@ -74,6 +74,7 @@ class EstimatorConfig:
     keyframe_stale_dist_m: float = 0.60
     max_frame_age_s: float = 0.25  # a frame further than this from the scan's stamp is not used
     track_mask_margin_m: float = 0.15  # added to a track's radius for its predicted interval
+    ahead_min_m: float = 0.05  # a return this far in front of the keyframe's in its direction is motion evidence
     max_correction_m: float = 0.5  # a match further than this from the odometry prediction is refused
     max_correction_rad: float = math.radians(20.0)
     weak_info: float = 0.08  # normalised translation information below which odometry is blended in
@@ -133,7 +134,7 @@ class Estimator:
         match = self._match(scan, rest, predicted, scan_ok)
         laser = compose(match.pose, self.config.laser_mount)
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
-                                self.config.tracker)
+                                self.config.tracker, self._ahead_of_keyframe(scan, match))
         tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
         self._update_static(scan, laser, bodies)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
@@ -235,6 +236,32 @@ class Estimator:
         )
 
     # ------------------------------------------------------------------ helpers
+    def _ahead_of_keyframe(self, scan: Scan, match: MatchOutcome) -> np.ndarray | None:
+        """Per beam: the return stands at least ``ahead_min_m`` in front of what the keyframe (the
+        reference scan, taken up to ``keyframe_dist_m`` back) saw in that direction. A static scene
+        cannot do that (a new viewpoint only reveals surfaces behind what was seen); a body that
+        moved towards the laser does."""
+        kf = self._matcher.keyframe
+        if kf is None or EstimateFlag.ODOMETRY_FALLBACK in match.flags:
+            return None
+        cfg = self.config
+        rel = between(compose(kf.pose, cfg.laser_mount), compose(match.pose, cfg.laser_mount))
+        r, b = scan.ranges_m, scan.bearings_rad
+        valid = np.isfinite(r)
+        rr = np.where(valid, r, 0.0)
+        c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
+        x = rel.x_m + c * rr * np.cos(b) - s * rr * np.sin(b)
+        y = rel.y_m + s * rr * np.cos(b) + c * rr * np.sin(b)
+        phi, rho = np.arctan2(y, x), np.hypot(x, y)
+        kb = kf.prep.bearings_rad
+        if kb.size < 3:
+            return None
+        j = np.clip(np.searchsorted(kb, phi), 1, kb.size - 1)
+        j -= (np.abs(kb[j - 1] - phi) < np.abs(kb[j] - phi)).astype(np.intp)
+        kr = np.where(kf.prep.good, kf.prep.ranges_m, np.nan)[j]
+        with np.errstate(invalid="ignore"):
+            return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - cfg.ahead_min_m)
+
     def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
         margin around where it is now): a body that pauses in the candidate test for a cycle must not
