@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import signal
 import sys
 import threading
 import time
@@ -15,6 +13,7 @@ from typing import Any
 from .cli import emit
 from .config import Config, dump_toml, load_config
 from .errors import AppError
+from .runtime import Progress, install_signal_handlers, loop_summary
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -73,50 +72,6 @@ def cmd_dump_config(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------------------
 
 
-class Progress:
-    """A one-line progress display, only on a terminal."""
-
-    def __init__(self, total_s: float | None, enabled: bool) -> None:
-        self.total_s = total_s
-        self.enabled = enabled and sys.stderr.isatty()
-        self._last = 0.0
-
-    def __call__(self, text: str, done_s: float) -> None:
-        if not self.enabled or time.monotonic() - self._last < 0.25:
-            return
-        self._last = time.monotonic()
-        frac = f" {100 * done_s / self.total_s:5.1f}%" if self.total_s else ""
-        sys.stderr.write(f"\r{text}{frac}   ")
-        sys.stderr.flush()
-
-    def finish(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-
-
-def install_signal_handlers(stop: threading.Event) -> None:
-    def handler(signum: int, frame: Any) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGTERM, handler)
-    signal.signal(signal.SIGINT, handler)
-
-
-def process_usage() -> dict[str, float]:
-    import resource
-
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    rss_mb = 0.0
-    try:
-        with open(f"/proc/{os.getpid()}/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("VmRSS:"):
-                    rss_mb = int(line.split()[1]) / 1024.0
-    except OSError:
-        rss_mb = ru.ru_maxrss / 1024.0
-    return {"cpu_s": ru.ru_utime + ru.ru_stime, "rss_mb": rss_mb, "max_rss_mb": ru.ru_maxrss / 1024.0}
-
-
 def cmd_run(args: argparse.Namespace) -> int:
     from .devices import build_loop
     from .evaluation.runner import tune_allocator
@@ -133,35 +88,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = loop_summary(loop)
     emit(summary, args.json)
     return 0
-
-
-def loop_summary(loop: Any) -> dict[str, Any]:
-    s = loop.stats
-    out: dict[str, Any] = dict(loop.health.summary())
-    out.update(
-        {
-            "scans": s.scans_in,
-            "odometry_samples": s.odometry_in,
-            "frames": s.frames_in,
-            "frames_used": s.frames_used,
-            "estimates": s.estimates,
-            "plain_psm_cycles": s.plain_psm_cycles,
-            "odometry_fallback_cycles": s.fallback_cycles,
-            "device_stop_cycles": s.device_stop_cycles,
-            "safety_stop_cycles": s.safety_stop_cycles,
-            "log_path": loop.log.path if loop.log is not None else None,
-            "log_files": list(loop.log.stats.files) if loop.log is not None else [],
-            "log_messages": loop.log.stats.written if loop.log is not None else 0,
-            "log_dropped": loop.log.stats.dropped if loop.log is not None else 0,
-            "log_bad_messages": loop.log.stats.bad_messages if loop.log is not None else 0,
-            "log_error": loop.log.stats.error if loop.log is not None else None,
-            "events": list(s.state_changes)[-50:],
-        }
-    )
-    out["devices"] = loop.final_counters or {
-        name: dev.counters() for name in ("scanner", "base", "camera") if (dev := getattr(loop, name)) is not None
-    }
-    return out
 
 
 def cmd_sim(args: argparse.Namespace) -> int:

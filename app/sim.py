@@ -215,8 +215,8 @@ def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float, mod
 
 
 def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
-    from .cmd_daemon import Progress, loop_summary, process_usage
     from .devices import build_loop
+    from .runtime import Progress, loop_summary, process_usage
 
     params = scenario_param_sets(args, getattr(args, "scenario", None) or "1")[0]
     try:
@@ -250,7 +250,7 @@ def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
         loop = build_loop(cfg, log_path=log_path, truth=scorer.truth_for_log)
         loop.on_estimate = scorer.on_estimate
         stop = threading.Event()
-        from .cmd_daemon import install_signal_handlers
+        from .runtime import install_signal_handlers
 
         install_signal_handlers(stop)
         progress = Progress(duration_s, enabled=not args.no_progress)

@@ -64,3 +64,96 @@ def test_the_checker_catches_a_forbidden_import(tmp_path: Path) -> None:
     mods = [m for _, m in imported_top_levels(bad)]
     assert mods == ["socket", "drivers"]
     assert "socket" not in VIPSM_STDLIB and "drivers" not in RULES["vipsm"][0]
+
+
+# ------------------------------------------------------------------ no import circles
+PACKAGES = ("drivers", "vipsm", "hil_fakes", "app")
+
+
+def module_name(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph(root: Path, packages: tuple[str, ...] = PACKAGES) -> dict[str, set[str]]:
+    """Module -> the project modules it imports, every import counted: top-level, function-local and
+    under ``if TYPE_CHECKING:`` alike (a circle that only typing hides is still a circle in the design)."""
+    files = {module_name(p, root): p for pkg in packages for p in sorted((root / pkg).rglob("*.py"))}
+    graph: dict[str, set[str]] = {m: set() for m in files}
+
+    def resolve(base: str, name: str | None) -> str | None:
+        for cand in (f"{base}.{name}" if name else base, base):
+            if cand in files:
+                return cand
+        return None
+
+    for mod, path in files.items():
+        is_pkg = path.name == "__init__.py"
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        for node in ast.walk(tree):
+            targets: list[str | None] = []
+            if isinstance(node, ast.Import):
+                targets = [a.name if a.name in files else None for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    pkg = mod if is_pkg else mod.rpartition(".")[0]
+                    for _ in range(node.level - 1):
+                        pkg = pkg.rpartition(".")[0]
+                    base = f"{pkg}.{node.module}" if node.module else pkg
+                else:
+                    base = node.module or ""
+                targets = [resolve(base, a.name) for a in node.names]
+            graph[mod].update(t for t in targets if t and t != mod)
+    return graph
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    sys.setrecursionlimit(max(10000, sys.getrecursionlimit()))
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_circles_anywhere() -> None:
+    assert circles(import_graph(ROOT)) == []
+
+
+def test_the_circle_checker_finds_a_typing_only_circle(tmp_path: Path) -> None:
+    pkg = tmp_path / "drivers"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from .b import B\n")
+    (pkg / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from drivers.a import A\n")
+    (pkg / "c.py").write_text("def f():\n    from . import a\n")
+    graph = import_graph(tmp_path, ("drivers",))
+    assert graph["drivers.c"] == {"drivers.a"}
+    assert circles(graph) == [["drivers.a", "drivers.b"]]

@@ -8,10 +8,11 @@
 * :mod:`.errors` - :class:`ViscaError` and its specialisations
 """
 
-from .client import CommandHandle, PtzState, ViscaClient
+from .client import CommandHandle, ViscaClient
 from .config import CameraIntrinsics, HttpConfig, PtzCalibration, ViscaConfig
 from .errors import ViscaError
 from .frames import CameraFrame, MjpegFrameSource, fetch_oneshot, inquiry_system
+from .state import PtzState
 
 __all__ = [
     "CameraFrame",

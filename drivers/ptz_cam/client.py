@@ -51,6 +51,7 @@ from .errors import (
 )
 from .frames import CameraFrame, MjpegFrameSource, fetch_oneshot, inquiry_system
 from .http import HttpViscaPort
+from .state import PtzState
 
 __all__ = [
     "CameraFrame",
@@ -61,28 +62,6 @@ __all__ = [
     "fetch_oneshot",
     "inquiry_system",
 ]
-
-
-@dataclass(frozen=True)
-class PtzState:
-    """Pan/tilt/zoom in SI (pan left-positive, tilt up-positive) plus the raw device values."""
-
-    pan_rad: float
-    tilt_rad: float
-    zoom_position: int
-    hfov_rad: float
-    pan_counts: int
-    tilt_counts: int
-    stamp_s: float  # host monotonic time of the reading
-    moving: bool  # a pan/tilt/zoom command was in flight (or a drive active) at stamp_s
-
-    @property
-    def pan_deg(self) -> float:
-        return math.degrees(self.pan_rad)
-
-    @property
-    def tilt_deg(self) -> float:
-        return math.degrees(self.tilt_rad)
 
 
 class CommandHandle:

@@ -29,7 +29,7 @@ from .http import Endpoint, check_status, endpoint, get
 from .mjpeg import JpegPart, MjpegParser, TruncatedJpeg, boundary_from_content_type, is_complete_jpeg
 
 if TYPE_CHECKING:
-    from .client import PtzState
+    from .state import PtzState
 
 
 @dataclass(frozen=True)

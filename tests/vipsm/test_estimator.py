@@ -253,7 +253,7 @@ def test_a_person_who_starts_walking_is_reported_within_half_a_second_and_not_be
     seq = _sequence(_furnished(start_s), 40, frames=False, seed=5)
     est = Estimator(CFG)
     first = None
-    for (scan, odo, frame, _), e in zip(seq, _run(est, seq), strict=True):
+    for (scan, _odo, _frame, _), e in zip(seq, _run(est, seq), strict=True):
         if e.obstacles and first is None:
             first = scan.stamp_s
             ob = e.obstacles[0]
