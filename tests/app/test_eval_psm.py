@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app import cmd_estimator as ce
 from app.cli import main
+from app.evaluation import psm_real as ce
 from tests.vipsm.sim import box_room
 from vipsm.geometry import compose
 from vipsm.types import Pose2D
