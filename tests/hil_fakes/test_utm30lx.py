@@ -235,9 +235,10 @@ def test_crlf_and_cr_terminated_requests() -> None:
 
 
 def test_fake_does_not_import_the_driver() -> None:
-    source = Path(__file__).resolve().parents[2] / "hil_fakes" / "utm30lx.py"
-    assert "drivers" not in {line.split()[1].split(".")[0] for line in source.read_text().splitlines()
-                             if line.startswith(("import ", "from "))}
+    package = Path(__file__).resolve().parents[2] / "hil_fakes" / "utm30lx"
+    for source in package.glob("*.py"):
+        assert "drivers" not in {line.split()[1].split(".")[0] for line in source.read_text().splitlines()
+                                 if line.startswith(("import ", "from "))}
 
 
 def test_wire_helpers() -> None:

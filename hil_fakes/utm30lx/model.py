@@ -1,36 +1,4 @@
-"""A byte-level fake Hokuyo UTM-30LX (SCIP 2.0, firmware P.1.05), written from the fact sheet.
-
-This model does not import the driver: it is an independent reading of
-``shared/protocols/scip2_utm30lx.md`` and of the real recorded session, so a codec bug cannot hide
-behind the same bug in the fake.
-
-What it does, as the recorded firmware P.1.05 did:
-
-* VV/PP/II answer with the recorded text (II ``TIME`` is the fake's own 24-bit ms counter, in
-  upper-case hex), BM answers ``02`` when the laser is already on, ``CR`` answers ``04``, an
-  unknown command ``0E``; every reply is echo, status + sum, payload lines + sum, empty line.
-* The mirror spins on the fake's own clock: one scan every 60/SCAN s (25 ms), starting at the
-  moment the model first saw the clock; step 0 of scan k is latched at ``boot + k * period``.
-  A scan is sent when its sweep over the step window is complete. Each timestamp is computed once
-  from the scan's own start time and both its characters and its sum are built from that value.
-* MD/ME: acknowledgement (echo, ``00P``, empty line), then one frame per scan (respecting the
-  interval) whose echo carries the remaining count; ``count`` N stops after N frames (laser off),
-  ``00`` streams until QT. GD/GE answer with the first scan that starts after the request; status ``10`` when the laser
-  is off. TM0/TM1/TM2 with the SCIP statuses; in time-adjust mode every other command is refused
-  (``0E``, as urg_library expects of a sensor stuck there).
-* Ranges come from a pluggable :class:`RangeSource` (default :class:`FixedRoom`); NaN and values
-  beyond DMAX become error code 1, values below DMIN error code 2.
-
-Fault hooks beyond the transport's generic ones (:class:`hil_fakes.transport.FaultInjector`):
-:meth:`Utm30lxModel.inject_status` (a command answered with an error status),
-:meth:`Utm30lxModel.inject_frame_status` (stream frames replaced by an error status),
-:meth:`Utm30lxModel.inject_checksum_error` (a wrong status, timestamp or data sum),
-:meth:`Utm30lxModel.leave_streaming` (a previous client left MD running),
-:meth:`Utm30lxModel.enter_time_mode` (a previous client left it in time-adjust mode),
-:meth:`Utm30lxModel.power_cycle` (clock back to 0, laser off).
-
-Unverified device behaviour is a config value with a stated default (see :class:`Utm30lxConfig`).
-"""
+"""The fake UTM-30LX: the SCIP 2.0 command state machine, streaming, the time stamp counter and faults."""
 
 from __future__ import annotations
 
@@ -38,121 +6,12 @@ import math
 import threading
 from collections import deque
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
-from .transport import DeviceModel, DeviceServer, PtyEndpoint, TcpEndpoint
-
-_MASK24 = (1 << 24) - 1
-
-
-# --------------------------------------------------------------------------------------------
-# Range sources
-# --------------------------------------------------------------------------------------------
-
-
-class RangeSource(Protocol):
-    def sweep(self, t0_s: float, angles_rad: np.ndarray, beam_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """ranges_m (float64, NaN = no return) and intensities (float64 >= 0, unitless) for the beams at
-        angles_rad (sensor frame: 0 = front, counter-clockwise positive), beam i taken at t0_s + i*beam_dt_s."""
-        ...
-
-
-@dataclass(frozen=True)
-class FixedRoom:
-    """A rectangular room around a still sensor, with one round pillar; deterministic by default.
-
-    The sensor sits at the origin facing +x; walls at ``x_min_m``/``x_max_m``/``y_min_m``/``y_max_m``.
-    ``noise_sigma_m`` adds Gaussian range noise (seeded by the scan time, so reproducible).
-    """
-
-    x_min_m: float = -1.5
-    x_max_m: float = 6.5
-    y_min_m: float = -2.45
-    y_max_m: float = 2.45
-    pillar_x_m: float = 2.0
-    pillar_y_m: float = 1.0
-    pillar_radius_m: float = 0.2
-    noise_sigma_m: float = 0.0
-
-    def sweep(self, t0_s: float, angles_rad: np.ndarray, beam_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-        c = np.cos(angles_rad)
-        s = np.sin(angles_rad)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tx = np.where(c > 0, self.x_max_m / c, np.where(c < 0, self.x_min_m / c, np.inf))
-            ty = np.where(s > 0, self.y_max_m / s, np.where(s < 0, self.y_min_m / s, np.inf))
-        r = np.minimum(tx, ty)
-        # ray / circle: |t*d - p|^2 = R^2
-        px, py, rad = self.pillar_x_m, self.pillar_y_m, self.pillar_radius_m
-        b = c * px + s * py
-        disc = b * b - (px * px + py * py - rad * rad)
-        hit = disc >= 0
-        t_hit = np.where(hit, b - np.sqrt(np.where(hit, disc, 0.0)), np.inf)
-        t_hit = np.where(t_hit > 0, t_hit, np.inf)
-        r = np.minimum(r, t_hit)
-        if self.noise_sigma_m > 0:
-            rng = np.random.default_rng(int(t0_s * 1000) & 0x7FFFFFFF)
-            r = r + rng.normal(0.0, self.noise_sigma_m, r.shape)
-        r = np.where(np.isfinite(r), r, np.nan)
-        intensity = np.clip(9000.0 / np.maximum(r, 0.3) ** 1.2, 100.0, 16000.0)
-        return r, np.where(np.isnan(r), 0.0, intensity)
-
-
-# --------------------------------------------------------------------------------------------
-# Wire helpers (independent of the driver's codec)
-# --------------------------------------------------------------------------------------------
-
-
-def scip_sum(content: bytes) -> bytes:
-    """The one-byte SCIP checksum of ``content``."""
-    return bytes([(sum(content) & 0x3F) + 0x30])
-
-
-def encode(values: np.ndarray, width: int) -> bytes:
-    """``width`` characters per value, 6 bits each, most significant first (values must fit)."""
-    v = np.asarray(values, dtype=np.int64).reshape(-1, 1)
-    shifts = 6 * np.arange(width - 1, -1, -1, dtype=np.int64).reshape(1, -1)
-    return (((v >> shifts) & 0x3F) + 0x30).astype(np.uint8).tobytes()
-
-
-def data_block(chars: bytes) -> bytes:
-    """64-character lines, each with its sum and LF; the closing empty line is not included."""
-    n = len(chars)
-    if n == 0:
-        return b""
-    rows = -(-n // 64)
-    padded = np.zeros(rows * 64, dtype=np.uint8)
-    padded[:n] = np.frombuffer(chars, dtype=np.uint8)
-    grid = padded.reshape(rows, 64)
-    sums = ((grid.sum(axis=1, dtype=np.int64) & 0x3F) + 0x30).astype(np.uint8)
-    out = np.empty((rows, 66), dtype=np.uint8)
-    out[:, :64] = grid
-    out[:, 64] = sums
-    out[:, 65] = 0x0A
-    flat = out.reshape(-1).tobytes()
-    tail = n - (rows - 1) * 64
-    if tail == 64:
-        return flat
-    # the last line is shorter: rebuild it with its own sum
-    last = chars[(rows - 1) * 64 :]
-    return flat[: (rows - 1) * 66] + last + scip_sum(last) + b"\n"
-
-
-def status_line(code: str) -> bytes:
-    raw = code.encode("ascii")
-    return raw + scip_sum(raw) + b"\n"
-
-
-def info_line(key: str, value: str) -> bytes:
-    content = f"{key}:{value}".encode("ascii")
-    return content + b";" + scip_sum(content) + b"\n"
-
-
-def time_line(ms: int) -> bytes:
-    chars = encode(np.array([ms & _MASK24]), 4)
-    return chars + scip_sum(chars) + b"\n"
-
+from ..transport import DeviceModel
+from .protocol import data_block, encode, info_line, scip_sum, status_line, time_line
+from .source import _MASK24, FixedRoom, RangeSource
 
 # --------------------------------------------------------------------------------------------
 # The device
@@ -232,7 +91,11 @@ class _PendingSingle:
 
 
 _SS_RATES = frozenset({"019200", "038400", "057600", "115200", "250000", "500000", "750000"})
+
+
 _TAG_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789 ._+@")
+
+
 _MAX_CATCH_UP_SCANS = 8
 
 
@@ -769,18 +632,3 @@ class Utm30lxModel(DeviceModel):
         if st.count and st.remaining <= 0:
             self._stream = None
             self._laser_on = False  # the laser goes off after the last scan of a finite run [SPEC]
-
-
-# --------------------------------------------------------------------------------------------
-# Serving
-# --------------------------------------------------------------------------------------------
-
-
-def serve_pty(model: Utm30lxModel | None = None, link_path: str | None = None) -> DeviceServer:
-    """Start the fake on a pseudo-terminal (``server.address`` is the device path)."""
-    return DeviceServer(model or Utm30lxModel(), PtyEndpoint(link_path)).start()
-
-
-def serve_tcp(model: Utm30lxModel | None = None, host: str = "127.0.0.1", port: int = 0) -> DeviceServer:
-    """Start the fake on a loopback TCP port (``server.address`` is ``socket://host:port``)."""
-    return DeviceServer(model or Utm30lxModel(), TcpEndpoint(host, port)).start()

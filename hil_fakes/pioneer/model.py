@@ -1,212 +1,48 @@
-"""A byte-level fake Pioneer 3-DX running ARCOS, written from the fact sheet (protocols/arcos_p3dx.md).
-
-It is an independent model of the controller: it has its own framing, checksum and command parser
-and never imports the driver, so a codec bug cannot hide behind the same bug here.
-
-What it models:
-
-* the handshake SYNC0/SYNC1/SYNC2 (reply: name, class, subclass), restarting at SYNC0 when a SYNC
-  comes out of order (as real ARCOS does, fact sheet 1.4); OPEN starts a SIP every ``sip_cycle_s``;
-  CLOSE ends the session; OPEN/CLOSE with an argument are accepted;
-* CONFIG (CONFIGpac 0x20 in ARIA's field order), ENCODER (0x90 stream), IOREQUEST (0xF0), the velocity commands
-  (VEL, RVEL, ROTATE, VEL2, STOP, E_STOP), limits (SETV, SETA, SETRV, SETRA), ENABLE (motors start
-  disabled unless configured otherwise), SETO, SONAR, HOSTBAUD, RESET; other known commands are
-  accepted and counted; frames with a bad checksum are ignored and counted;
-* motion through a :class:`Plant` (default: :class:`hil_fakes.kinematics.Unicycle` advanced on the
-  fake's clock), odometry through :class:`hil_fakes.wheel_odometry.WheelOdometry` in the
-  controller's raw frame (optionally starting at a raw offset, so the 15-bit X/Y and the 12-bit
-  heading wrap in tests) sent as wrapping 16-bit counters (only the low 15 bits are valid);
-* 16 sonars at the p3dx.p poses, ray-cast in a :class:`SonarWorld` (default: a rectangular room);
-* the firmware watchdog: motion halts after ``watchdog_s`` without a command; when commands
-  return, the old setpoint resumes or not (``watchdog_resume``, unverified on hardware);
-* faults on top of the transport's: a reset packet, a stale open session, out-of-order SYNC
-  replies, junk before SIPs.
-
-``truth(now_s)`` gives the plant's ground truth and ``raw_odometry_pose()`` the controller's own
-odometry (equal to the truth, moved to the raw frame, when the odometry noise is zero).
-"""
+"""The fake Pioneer 3-DX: the controller's state machine, odometry, watchdog, sonar and the SIPs it
+sends."""
 
 from __future__ import annotations
 
-import argparse
 import math
-import signal
 import struct
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
-from .kinematics import Unicycle
-from .transport import DeviceModel, DeviceServer, PtyEndpoint, TcpEndpoint, wait_forever
-from .wheel_odometry import OdometryNoise, WheelOdometry
+from ..transport import DeviceModel
+from ..wheel_odometry import OdometryNoise, WheelOdometry
+from .plant import _ANGLE_UNIT_RAD, SONAR_POSES_MM_DEG, Plant, RectangularRoom, SonarWorld, UnicyclePlant
+from .protocol import (
+    _KNOWN_OTHERS,
+    BATTERYINFO,
+    CLOSE,
+    CONFIG,
+    DIST_CONV_MM,
+    E_STOP,
+    ENABLE,
+    ENCODER,
+    HOSTBAUD,
+    IOREQUEST,
+    OPEN,
+    PULSE,
+    RESET,
+    ROTATE,
+    RVEL,
+    SETA,
+    SETO,
+    SETRA,
+    SETRV,
+    SETV,
+    SONAR,
+    STOP,
+    SYNC0,
+    VEL,
+    VEL2,
+    _arg,
+    _HostFrames,
+    arcos_packet,
+)
 
-# ---------------------------------------------------------------------------------------------
-# interfaces (INTERFACES.md)
-
-
-class Plant(Protocol):
-    def command(self, v_mps: float, w_radps: float, now_s: float) -> None: ...
-
-    def e_stop(self, now_s: float) -> None: ...
-
-    def state(self, now_s: float) -> tuple[float, float, float, float, float]:
-        """true (x_m, y_m, theta_rad, v_mps, w_radps) advanced to now_s"""
-        ...
-
-
-class SonarWorld(Protocol):
-    def ray_range_m(self, x_m: float, y_m: float, angle_rad: float, max_range_m: float) -> float:
-        """distance to the first surface along the ray from (x, y) at world angle angle_rad; NaN if none"""
-        ...
-
-
-class UnicyclePlant:
-    """The standalone plant: a :class:`Unicycle` advanced lazily to each queried time (thread-safe)."""
-
-    def __init__(self, unicycle: Unicycle | None = None, max_step_s: float = 0.01) -> None:
-        self.unicycle = unicycle or Unicycle()
-        self._max_step_s = max_step_s
-        self._t_s: float | None = None
-        self._lock = threading.Lock()
-
-    def _advance(self, now_s: float) -> None:
-        if self._t_s is None:
-            self._t_s = now_s
-            return
-        while now_s > self._t_s:
-            dt = min(self._max_step_s, now_s - self._t_s)
-            self.unicycle.advance(dt)
-            self._t_s += dt
-
-    def command(self, v_mps: float, w_radps: float, now_s: float) -> None:
-        with self._lock:
-            self._advance(now_s)
-            self.unicycle.command(v_mps, w_radps)
-
-    def e_stop(self, now_s: float) -> None:
-        with self._lock:
-            self._advance(now_s)
-            self.unicycle.stop_now()
-
-    def set_accelerations(self, accel_mps2: float, rot_accel_radps2: float) -> None:
-        with self._lock:
-            self.unicycle.max_accel_mps2 = accel_mps2
-            self.unicycle.max_rot_accel_radps2 = rot_accel_radps2
-
-    def state(self, now_s: float) -> tuple[float, float, float, float, float]:
-        with self._lock:
-            self._advance(now_s)
-            u = self.unicycle
-            return (u.x_m, u.y_m, u.theta_rad, u.v_mps, u.w_radps)
-
-
-@dataclass(frozen=True)
-class RectangularRoom:
-    """Axis-aligned walls around the start pose (default: 8 m x 5 m, robot 2 m from the back wall)."""
-
-    x_min_m: float = -2.0
-    x_max_m: float = 6.0
-    y_min_m: float = -2.5
-    y_max_m: float = 2.5
-
-    def ray_range_m(self, x_m: float, y_m: float, angle_rad: float, max_range_m: float) -> float:
-        dx, dy = math.cos(angle_rad), math.sin(angle_rad)
-        best = math.inf
-        if dx > 1e-12:
-            best = min(best, (self.x_max_m - x_m) / dx)
-        elif dx < -1e-12:
-            best = min(best, (self.x_min_m - x_m) / dx)
-        if dy > 1e-12:
-            best = min(best, (self.y_max_m - y_m) / dy)
-        elif dy < -1e-12:
-            best = min(best, (self.y_min_m - y_m) / dy)
-        if best < 0 or best > max_range_m:
-            return math.nan
-        return best
-
-
-# ---------------------------------------------------------------------------------------------
-# wire format, written from the fact sheet section 1.2 (independent of drivers/p2os)
-
-_ANGLE_UNIT_RAD = 2.0 * math.pi / 4096.0
-
-# p3dx.p sonar poses (x mm, y mm, heading deg), fact sheet 1.9
-SONAR_POSES_MM_DEG: tuple[tuple[float, float, float], ...] = (
-    (69, 136, 90), (114, 119, 50), (148, 78, 30), (166, 27, 10),
-    (166, -27, -10), (148, -78, -30), (114, -119, -50), (69, -136, -90),
-    (-157, -136, -90), (-203, -119, -130), (-237, -78, -150), (-255, -27, -170),
-    (-255, 27, 170), (-237, 78, 150), (-203, 119, 130), (-157, 136, 90),
-)  # fmt: skip
-
-DIST_CONV_MM = {"p3dx": 0.485, "p3dx-sh": 1.0}
-
-
-def arcos_checksum(payload: bytes) -> int:
-    total = 0
-    pairs = len(payload) // 2
-    for k in range(pairs):
-        total += payload[2 * k] * 256 + payload[2 * k + 1]
-    total %= 65536
-    if len(payload) % 2:
-        total ^= payload[-1]
-    return total
-
-
-def arcos_packet(payload: bytes) -> bytes:
-    chk = arcos_checksum(payload)
-    return bytes([0xFA, 0xFB, len(payload) + 2]) + payload + bytes([chk // 256, chk % 256])
-
-
-class _HostFrames:
-    """The controller's receive side: header hunt, unsigned count, checksum; bad frames are counted."""
-
-    def __init__(self) -> None:
-        self.buf = bytearray()
-        self.bad_checksum = 0
-
-    def feed(self, data: bytes) -> list[bytes]:
-        self.buf.extend(data)
-        out: list[bytes] = []
-        while True:
-            i = self.buf.find(b"\xfa\xfb")
-            if i < 0:
-                del self.buf[: max(0, len(self.buf) - 1)]
-                return out
-            del self.buf[:i]
-            if len(self.buf) < 3:
-                return out
-            n = self.buf[2]
-            if n < 3:
-                del self.buf[:2]
-                continue
-            if len(self.buf) < n + 3:
-                return out
-            body = bytes(self.buf[3 : 3 + n - 2])
-            chk = self.buf[1 + n] * 256 + self.buf[2 + n]
-            if chk != arcos_checksum(body):
-                self.bad_checksum += 1
-                del self.buf[:2]
-                continue
-            del self.buf[: n + 3]
-            out.append(body)
-
-
-def _arg(body: bytes) -> int | None:
-    """The signed integer argument of a command body, None if it has none."""
-    if len(body) >= 4 and body[1] in (0x3B, 0x1B):
-        magnitude = body[2] | (body[3] << 8)
-        return magnitude if body[1] == 0x3B else -magnitude
-    return None
-
-
-# command numbers (fact sheet 1.5)
-SYNC0, SYNC1, SYNC2 = 0, 1, 2
-PULSE, OPEN, CLOSE = 0, 1, 2
-ENABLE, SETA, SETV, SETO, ROTATE, SETRV, VEL, CONFIG, ENCODER = 4, 5, 6, 7, 9, 10, 11, 18, 19
-RVEL, SETRA, SONAR, STOP, VEL2, HOSTBAUD, E_STOP, BATTERYINFO, RESET = 21, 23, 28, 29, 32, 50, 55, 62, 253
-IOREQUEST = 40
-_KNOWN_OTHERS = {3, 8, 12, 13, 15, 17, 22, 30, 44, 56, 58, 90, 92}
 _BAUDS = {0: 9600, 1: 19200, 2: 38400, 3: 57600, 4: 115200}
 
 
@@ -751,105 +587,3 @@ class FakePioneer(DeviceModel):
         p += struct.pack("<bHBHH", -128, 0, 0, 0, 0)  # HighTempShutdown .. SoCShutdown
         p += s("fake-boot-1.0") + struct.pack("<Ih", 0, 0)
         return bytes(p)
-
-
-# ---------------------------------------------------------------------------------------------
-# serving
-
-
-def serve(model: FakePioneer, *, tcp: str | None = None, pty: bool = False, link: str | None = None) -> DeviceServer:
-    """Start a fake on ``tcp`` (``HOST:PORT``) or a pty (optionally behind ``link``)."""
-    if tcp is not None:
-        host, _, port = tcp.rpartition(":")
-        endpoint: TcpEndpoint | PtyEndpoint = TcpEndpoint(host or "127.0.0.1", int(port))
-    elif pty:
-        endpoint = PtyEndpoint(link)
-        model.line_baud = lambda: pty_line_baud(endpoint)
-    else:
-        raise ValueError("serve needs tcp=HOST:PORT or pty=True")
-    return DeviceServer(model, endpoint).start()
-
-
-_ARCOS_RATES = (9600, 19200, 38400, 57600, 115200)
-
-
-def pty_line_baud(endpoint: PtyEndpoint) -> int | None:
-    """The rate the host set on its end of a pty; None when it is closed or the rate is not an ARCOS one."""
-    bps = endpoint.line_speed_bps()
-    return bps if bps in _ARCOS_RATES else None
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--tcp", metavar="HOST:PORT", help="serve on loopback TCP, e.g. 127.0.0.1:8101")
-    where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal")
-    parser.add_argument("--link", metavar="PATH", help="with --pty: stable symlink to the pty (like /dev/pioneer)")
-    parser.add_argument("--name", default="fakebot")
-    parser.add_argument("--subclass", default="p3dx", choices=sorted(DIST_CONV_MM))
-    parser.add_argument("--sip-cycle-s", type=float, default=0.1)
-    parser.add_argument("--watchdog-s", type=float, default=2.0)
-    parser.add_argument("--no-watchdog-resume", action="store_true", help="stay stopped after a watchdog stop")
-    parser.add_argument("--motors-enabled", action="store_true", help="start with motors enabled (AMRISim-like)")
-    parser.add_argument("--start-x-counts", type=int, default=0, help="raw X at power-up (15-bit counter)")
-    parser.add_argument("--start-y-counts", type=int, default=0)
-    parser.add_argument("--start-th-units", type=int, default=0, help="raw heading at power-up (4096ths)")
-    parser.add_argument("--heading-signed", action="store_true", help="send THPOS as -2048..2047")
-    parser.add_argument("--sigma-trans-frac", type=float, default=0.0, help="odometry distance noise per metre")
-    parser.add_argument("--sigma-rot-rad-per-m", type=float, default=0.0)
-    parser.add_argument("--scale-error", type=float, default=0.0)
-    parser.add_argument("--seed", type=int, default=None)
-    parser.add_argument("--start-open", action="store_true", help="start with a stale open session")
-    parser.add_argument("--junk-every", type=int, default=0, help="junk before every N-th SIP")
-    parser.add_argument(
-        "--host-baud",
-        type=int,
-        default=9600,
-        choices=sorted(_BAUDS.values()),
-        help="the controller's FLASH host rate (a pty client at another rate sees noise)",
-    )
-    parser.add_argument("--no-hostbaud", action="store_true", help="ignore HOSTBAUD (stay at --host-baud)")
-
-
-def config_from_args(args: argparse.Namespace) -> PioneerConfig:
-    return PioneerConfig(
-        name=args.name,
-        subclass=args.subclass,
-        sip_cycle_s=args.sip_cycle_s,
-        watchdog_s=args.watchdog_s,
-        watchdog_resume=not args.no_watchdog_resume,
-        motors_enabled_at_start=args.motors_enabled,
-        start_x_counts=args.start_x_counts,
-        start_y_counts=args.start_y_counts,
-        start_th_units=args.start_th_units,
-        heading_signed=args.heading_signed,
-        odometry_noise=OdometryNoise(
-            scale_error=args.scale_error,
-            sigma_trans_frac=args.sigma_trans_frac,
-            sigma_rot_rad_per_m=args.sigma_rot_rad_per_m,
-            seed=args.seed,
-        ),
-        start_open=args.start_open,
-        host_baud=args.host_baud,
-        hostbaud_supported=not args.no_hostbaud,
-    )
-
-
-def run_from_args(args: argparse.Namespace) -> int:
-    model = FakePioneer(config_from_args(args))
-    if args.junk_every:
-        model.junk_before_sips(args.junk_every)
-    server = serve(model, tcp=args.tcp, pty=args.pty, link=args.link)
-
-    def on_sigterm(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, on_sigterm)
-    try:
-        print(server.address, flush=True)
-        wait_forever([server])  # stops the server (and removes a --link) on Ctrl-C or SIGTERM
-    except KeyboardInterrupt:
-        pass  # the signal came before wait_forever was listening
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        server.stop()  # idempotent; covers the early-signal case
-    return 0
