@@ -169,8 +169,6 @@ class Track:
     hits: int = 1
     missed: int = 0
     age_cycles: int = 1
-    last_detection: Detection | None = None
-    camera_stamp_s: float = -math.inf  # last cycle a camera interval confirmed this track
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0)
     history: list[tuple[float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
@@ -309,7 +307,6 @@ class Tracker:
                 self._update(t, got[ti])
                 t.hits += 1
                 t.missed = 0
-                t.last_detection = got[ti]
                 self._confirm(t, got[ti])
             else:
                 t.missed += 1
@@ -326,7 +323,6 @@ class Tracker:
                     d.radius_m,
                     d.radius_fitted,
                     stamp_s,
-                    last_detection=d,
                     evidence=int(d.evidence),
                     birth_xy=(d.x_m, d.y_m),
                     kind=d.kind,
