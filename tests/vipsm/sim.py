@@ -44,7 +44,7 @@ class World:
         x0, y0, x1, y1 = (self.walls[:, k][None, :] for k in range(4))
         ex, ey = x1 - x0, y1 - y0
         den = dx * ey - dy * ex
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             t = ((x0 - ox) * ey - (y0 - oy) * ex) / den
             u = ((x0 - ox) * dy - (y0 - oy) * dx) / den
         hit = (np.abs(den) > 1e-12) & (t > 1e-9) & (u >= 0.0) & (u <= 1.0)
