@@ -47,6 +47,8 @@ class TrackerConfig:
     confirm_evidence: int = 2
     #: over the last ``confirm_window`` detections the body moved at least this far ...
     confirm_displacement_m: float = 0.06
+    #: ... or this far when every detection of the window (at least 4) showed motion evidence
+    confirm_displacement_sustained_m: float = 0.03
     confirm_window: int = 6
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
@@ -252,7 +254,9 @@ class Tracker:
         xy = hist[:, 1:3]
         net = float(np.hypot(*(xy[-1] - xy[0])))
         path = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
-        if net >= c.confirm_displacement_m and net >= c.confirm_straightness * path and self._steady(hist):
+        # every detection of the window with evidence: a smaller, still consistent displacement will do
+        needed = c.confirm_displacement_sustained_m if recent == len(t.history) >= 4 else c.confirm_displacement_m
+        if net >= needed and net >= c.confirm_straightness * path and self._steady(hist):
             t.confirmed = True
 
     def _stale(self, t: Track) -> bool:
