@@ -169,6 +169,8 @@ def parse_packet(packet: bytes) -> ReplyEvent | None:
     n = len(packet)
     if n < MIN_PACKET or n > MAX_PACKET or packet[-1] != TERMINATOR or TERMINATOR in packet[:-1]:
         return None
+    if any(b & 0x80 for b in packet[1:-1]):
+        return None  # reply bodies are nibbles and message codes below 0x80: a high byte is a new header
     header = packet[0]
     if not _is_reply_header(header):
         return None

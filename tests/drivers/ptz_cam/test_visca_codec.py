@@ -265,3 +265,23 @@ def test_client_reply_matching_survives_arbitrary_bytes(data: bytes, pending_kin
             held.wait(0)
         except ViscaError:
             pass
+
+
+# issue 12 row 6: an unterminated fragment must not swallow the next reply
+@pytest.mark.parametrize(
+    ("stream", "expected"),
+    [
+        ("90 50 90 51 FF", v.Completion(1, 1, bytes.fromhex("9051FF"))),
+        ("90 50 90 61 41 FF", v.ErrorReply(1, 1, v.ErrorCode(0x41), 0x41, bytes.fromhex("906141FF"))),
+        ("90 42 90 41 FF", v.Ack(1, 1, bytes.fromhex("9041FF"))),
+    ],
+)
+def test_a_reply_after_an_unterminated_fragment_is_kept(stream: str, expected: v.Event) -> None:
+    events = v.ViscaParser().feed(bytes.fromhex(stream))
+    assert events[-1] == expected
+    assert all(isinstance(e, v.Discarded) for e in events[:-1]) and events[:-1]
+
+
+def test_a_high_byte_inside_a_reply_body_is_a_new_header() -> None:
+    assert v.parse_packet(bytes.fromhex("9050905000FF")) is None
+    assert v.parse_packet(bytes.fromhex("905002FF")) == v.InquiryAnswer(1, b"\x02", bytes.fromhex("905002FF"))
