@@ -32,6 +32,8 @@ HEADER = b"\xfa\xfb"
 #: smallest and largest legal count byte (payload with at least the type byte, plus 2 checksum bytes)
 MIN_COUNT = 3
 MAX_COUNT = 255
+#: frames this short pass the checksum by chance easily; one that ends where a valid frame begins is junk
+TINY_COUNT = 4
 
 ARGINT = 0x3B  # non-negative integer, 2 bytes LE
 ARGNINT = 0x1B  # negative integer, 2 bytes LE magnitude
@@ -736,9 +738,36 @@ class Deframer:
                 )
                 del buf[:2]  # skip only the header: the claimed body may hold the next real frame
                 continue
+            straddle = self._straddles(total, count)
+            if straddle is None:
+                return out  # a tiny frame ending in 0xFA: wait for the bytes after it
+            if straddle:
+                self.stats.checksum_errors += 1
+                out.append(BadFrame(BadFrameKind.CHECKSUM, "tiny frame overlapping the next valid header",
+                                    bytes(buf[:total])))
+                del buf[:2]
+                continue
             self.stats.frames += 1
             out.append(RawFrame(payload))
             del buf[:total]
+
+    def _straddles(self, total: int, count: int) -> bool | None:
+        """Whether the checksum-valid frame ``buf[:total]`` is junk whose last byte is really the
+        first byte of the next frame's header: a tiny frame (``TINY_COUNT`` or less; ``FA FB 03 XX 00
+        XX`` always passes the checksum) ending in 0xFA, followed by 0xFB and a complete frame that
+        passes its own checksum. None: not decidable yet (the bytes after it have not arrived)."""
+        buf = self._buf
+        if count > TINY_COUNT or buf[total - 1] != 0xFA:
+            return False
+        nxt = buf[total - 1 :]
+        if len(nxt) < 3:
+            return None if len(nxt) < 2 or nxt[1] == 0xFB else False
+        if nxt[1] != 0xFB or nxt[2] < MIN_COUNT:
+            return False
+        end = nxt[2] + 3
+        if len(nxt) < end:
+            return None
+        return ((nxt[end - 2] << 8) | nxt[end - 1]) == checksum(bytes(nxt[3 : end - 2]))
 
     def expire_partial(self) -> list[RawFrame | BadFrame]:
         """Give up on the partial frame at the head of the buffer (skip its header) and rescan."""

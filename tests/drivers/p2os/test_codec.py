@@ -396,3 +396,25 @@ def test_strict_decode_frame_raises_only_typed_errors(wire: bytes) -> None:
         codec.decode_frame(wire)
     except ArcosError:
         pass
+
+
+# issue 12 row 10: a tiny junk frame must not swallow the next frame's header
+def _frame(payload: bytes) -> bytes:
+    c = codec.checksum(payload)
+    return b"\xfa\xfb" + bytes([len(payload) + 2]) + payload + bytes([c >> 8, c & 0xFF])
+
+
+@pytest.mark.parametrize("split", [None, 5, 6, 7, 8])
+def test_a_tiny_junk_frame_ending_in_fa_does_not_take_the_next_header(split: int | None) -> None:
+    good = _frame(bytes([0x32]) + bytes(range(20)))
+    stream = b"\x11\xfa\xfb\x03\xfa\x00" + good  # junk "FA FB 03 FA 00" + the frame's own 0xFA
+    d = codec.Deframer()
+    chunks = [stream] if split is None else [stream[:split], stream[split:]]
+    frames = [f for c in chunks for f in d.feed(c) if isinstance(f, codec.RawFrame)]
+    assert frames == [codec.RawFrame(good[3:-2])]
+
+
+def test_a_real_sync_reply_is_still_a_frame() -> None:
+    d = codec.Deframer()
+    out = d.feed(bytes.fromhex("FAFB03010001") + _frame(b"\x02abc"))
+    assert [f.payload for f in out if isinstance(f, codec.RawFrame)] == [b"\x01", b"\x02abc"]
