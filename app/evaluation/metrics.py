@@ -30,9 +30,10 @@ from typing import Any
 
 import numpy as np
 
-from hil_fakes.world import Scenario, Truth
+from hil_fakes.world import RobotMount, Scenario, Truth
 
 from ..health import SafetyMonitor
+from .traces import RunTrace, TrackPoint, method_trace
 
 CYCLE_S = 0.1
 
@@ -142,6 +143,7 @@ class MethodLog:
     step_s: list[float] = field(default_factory=list)
     poses: list[tuple[float, float, float]] = field(default_factory=list)
     obstacles: list[list[tuple[float, float]]] = field(default_factory=list)  # per cycle, estimated centres
+    tracks: list[tuple[TrackPoint, ...]] = field(default_factory=list)  # per cycle, estimated obstacles
     restored: list[tuple[tuple[int, int], ...]] = field(default_factory=list)
     final_pose_err_m: float = math.nan
     final_heading_err_deg: float = math.nan
@@ -194,8 +196,9 @@ def count_reports(mlog: MethodLog, truth: Truth, obstacles: Any) -> None:
         n = mlog.track_reports.setdefault(eo.track_id, [0, 0])
         n[0] += 1
         n[1] += int(not supported)
-        near_static = any(not o.moving and math.hypot(o.x_m - eo.x_m, o.y_m - eo.y_m) <= FALSE_TRACK_GATE_M
-                          for o in truth.obstacles)
+        near_static = any(
+            not o.moving and math.hypot(o.x_m - eo.x_m, o.y_m - eo.y_m) <= FALSE_TRACK_GATE_M for o in truth.obstacles
+        )
         mlog.static_report_cycles += int(not supported and near_static)
 
 
@@ -242,6 +245,11 @@ class RunLog:
     bearings_rad: np.ndarray | None = None
     methods: dict[str, MethodLog] = field(default_factory=dict)
     world_s: float = 0.0
+    mount: RobotMount = field(default_factory=RobotMount)
+
+    def traces(self) -> list[RunTrace]:
+        """Per-cycle data of every method (:mod:`app.evaluation.traces`), scans only if they were kept."""
+        return [method_trace(self, name) for name in self.methods]
 
 
 def obstacle_in_camera(

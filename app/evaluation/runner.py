@@ -35,6 +35,7 @@ from .metrics import (
     target_misses,
     targets_for,
 )
+from .traces import track_point
 
 
 # ---------------------------------------------------------------------------------------- estimator glue
@@ -157,7 +158,7 @@ def run_scenario(
     world = World(scenario, mount=mount)
     vipsm_est, plain_est = make_estimators(mount)
     methods = {"vipsm": (vipsm_est, MethodLog("vipsm")), "plain_psm": (plain_est, MethodLog("plain_psm"))}
-    log = RunLog(scenario, methods={k: v[1] for k, v in methods.items()})
+    log = RunLog(scenario, methods={k: v[1] for k, v in methods.items()}, mount=mount)
     hfov = math.radians(hfov_deg)
     w_px, h_px = world.camera.width_px, world.camera.height_px
     fx, fy, cx, cy = intrinsics(w_px, h_px, hfov)
@@ -221,6 +222,7 @@ def run_scenario(
             mlog.restored.append(tuple(e.restored_indices))
             est_xy = [(o.x_m, o.y_m) for o in e.obstacles]
             mlog.obstacles.append(est_xy)
+            mlog.tracks.append(tuple(track_point(o) for o in e.obstacles))
             t_est = world.truth(e.stamp_s) if abs(e.stamp_s - t) > 1e-9 else truth
             vis = [(i, o.x_m, o.y_m) for i, o in enumerate(t_est.obstacles) if views[i]]
             assigned = _assign(est_xy, vis)
