@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+#: where the shared data set lives (read in place, never copied into the repository)
+PEDESTRIAN_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "pedestrian_trajectories"
 #: frames per second of the files shipped in ``../shared/data/pedestrian_trajectories/`` (PROVENANCE.md)
 FRAME_RATE_HZ: dict[str, float] = {"eth_hotel.csv": 15.0, "ucy_zara01.csv": 2.5}
 
@@ -65,3 +67,22 @@ def load_paths(path: str | Path, frame_rate_hz: float | None = None, min_samples
     if not out:
         raise TrajectoryFileError(f"{p}: no pedestrian with at least {min_samples} samples")
     return out
+
+
+def fitted_waypoints(
+    rec: RecordedPath, start_xy: tuple[float, float], end_xy: tuple[float, float], max_points: int = 200
+) -> tuple[tuple[float, float], ...]:
+    """``rec``'s shape rotated and uniformly scaled so it runs from ``start_xy`` to ``end_xy`` (its curves
+    and detours keep their proportions), thinned to at most ``max_points`` waypoints."""
+    pts = rec.xy_m - rec.xy_m[0]
+    chord = pts[-1]
+    chord_m = float(np.hypot(*chord))
+    if chord_m < 0.5:
+        raise TrajectoryFileError(f"pedestrian {rec.ped_id} ends {chord_m:.2f} m from where it starts (< 0.5 m)")
+    target = np.asarray(end_xy, float) - np.asarray(start_xy, float)
+    k = float(np.hypot(*target)) / chord_m
+    rot = np.arctan2(target[1], target[0]) - np.arctan2(chord[1], chord[0])
+    c, s = np.cos(rot), np.sin(rot)
+    out = k * (pts @ np.array([[c, s], [-s, c]])) + np.asarray(start_xy, float)
+    idx = np.unique(np.linspace(0, len(out) - 1, min(len(out), max(2, max_points))).round().astype(int))
+    return tuple((float(x), float(y)) for x, y in out[idx])

@@ -44,6 +44,7 @@ from .camera_effects import IDEAL_CAMERA, CameraEffects
 from .clutter import Clutter, furnish
 from .geometry import Gait, ObstaclePath, Wall
 from .laser_effects import IDEAL_LASER, LaserEffects
+from .pedestrians import PEDESTRIAN_DATA_DIR, TrajectoryFileError, fitted_waypoints, load_paths
 
 ROOM_LENGTH_M = 8.0
 ROOM_WIDTH_M = 4.9
@@ -109,6 +110,7 @@ PARAMS: dict[str, Param] = {
     "person_leg_diameter_m": Param(float, 0.12, 0.06, 0.25, "m", "leg (shin) diameter at the laser's height"),
     "step_aside_m": Param(float, 0.0, -2.0, 2.0, "m", "head-on walker: sidestep (left +) when step_aside_gap_m away"),
     "step_aside_gap_m": Param(float, 2.5, 1.0, 6.0, "m", "head-on walker: distance to the robot at the sidestep"),
+    "person_path_id": Param(int, 0, 0, None, "", "recorded pedestrian id in person_path_source (0: the first usable)"),
     # static clutter
     "clutter": Param(int, 0, 0, 3, "", "furniture: 0 none, 1-3 chairs, tables, boxes, a bin, a post per level"),
     # the realistic world's effects (ignored by the ideal world); defaults from datasheets and physics
@@ -139,6 +141,8 @@ PARAMS: dict[str, Param] = {
 CHOICES: dict[str, tuple[str, ...]] = {
     "world": ("realistic", "ideal"),
     "obstacle_kind": ("cylinder", "person"),
+    #: "scripted": straight lines; else the shape of a real recorded path (ETH/UCY) between the same ends
+    "person_path_source": ("scripted", "eth_hotel", "ucy_zara01"),
 }
 #: the realistic world's effect parameters: the ideal world ignores them
 EFFECT_KEYS = tuple(k for k in PARAMS if k.startswith(("laser_", "camera_"))) + ("odom_wheelbase_error", "sip_delay_s")
@@ -224,6 +228,8 @@ def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
         if spec.hi is not None and value > spec.hi:
             raise ScenarioError(key, f"must be <= {spec.hi}{' ' + spec.unit if spec.unit else ''}, got {value}")
         out[key] = value
+    if out["person_path_source"] != "scripted" and out["obstacle_kind"] != "person":
+        raise ScenarioError("person_path_source", "a recorded path is walked by a person: needs obstacle_kind person")
     if out["camera_latency_min_s"] > out["camera_latency_max_s"]:
         raise ScenarioError("camera_latency_min_s", "must be <= camera_latency_max_s")
     min_ca = body_diameter_m(out) / 2 + ROBOT_RADIUS_M + 0.05
@@ -328,7 +334,36 @@ def _obstacle_path(prm: dict[str, Any], side: float, t_ca: float, key: str) -> O
     waypoints = [(float(p_start[0]), float(p_start[1])), (float(p_end[0]), float(p_end[1]))]
     if prm["step_aside_m"] != 0.0:
         waypoints = _with_sidestep(prm, waypoints, t_move, float(lo[1]), float(hi[1]))
-    return _body(prm, tuple(waypoints), float(t_move))
+    if prm["person_path_source"] == "scripted":
+        return _body(prm, tuple(waypoints), float(t_move))
+    body = _body(prm, _recorded_waypoints(prm, waypoints[0], waypoints[-1], lo, hi), float(t_move))
+    t = np.linspace(body.start_s, body.end_s, max(2, int((body.end_s - body.start_s) * 20)))
+    xy = body.positions(t)
+    robot_x = np.array([robot_x_at(float(ti), ROBOT_START[0], prm["robot_speed_mps"]) for ti in t])
+    gap_m = np.hypot(xy[:, 0] - robot_x, xy[:, 1] - ROBOT_START[1])
+    if float(np.min(gap_m)) < body.radius_m + ROBOT_RADIUS_M + 0.05:
+        raise ScenarioError("person_path_id", f"pedestrian {prm['person_path_id']}'s fitted path would hit the robot")
+    return body
+
+
+def _recorded_waypoints(
+    prm: dict[str, Any], start: tuple[float, float], end: tuple[float, float], lo: np.ndarray, hi: np.ndarray
+) -> tuple[tuple[float, float], ...]:
+    """The chosen recorded pedestrian's path shape between the scripted path's ends (inside the room)."""
+    key = "person_path_source"
+    try:
+        paths = load_paths(PEDESTRIAN_DATA_DIR / f"{prm[key]}.csv", min_samples=10)
+    except TrajectoryFileError as exc:
+        raise ScenarioError(key, str(exc)) from exc
+    usable = sorted(pid for pid, p in paths.items() if float(np.hypot(*(p.xy_m[-1] - p.xy_m[0]))) >= 2.0)
+    pid = prm["person_path_id"] or (usable[0] if usable else -1)
+    if pid not in usable:
+        raise ScenarioError("person_path_id", f"no pedestrian {pid} walking >= 2 m in {prm[key]} (e.g. {usable[:5]})")
+    pts = fitted_waypoints(paths[pid], start, end)
+    arr = np.asarray(pts)
+    if np.any(arr < lo - 1e-9) or np.any(arr > hi + 1e-9):
+        raise ScenarioError("person_path_id", f"pedestrian {pid}'s path leaves the room when fitted to this crossing")
+    return pts
 
 
 def _body(prm: dict[str, Any], waypoints: tuple[tuple[float, float], ...], start_s: float) -> ObstaclePath:

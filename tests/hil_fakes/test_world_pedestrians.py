@@ -5,7 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hil_fakes.world.pedestrians import TrajectoryFileError, load_paths
+from hil_fakes.world.pedestrians import RecordedPath, TrajectoryFileError, fitted_waypoints, load_paths
+from hil_fakes.world.scenarios import ScenarioError, build_scenario, suite_scenario
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "pedestrian_trajectories"
 
@@ -44,3 +45,38 @@ def test_eth_hotel_walking_speeds_are_human():
     assert len(paths) > 300
     speeds = np.array([p.mean_speed_mps() for p in paths.values() if p.t_s[-1] > 2.0])
     assert 0.4 < float(np.median(speeds)) < 1.6
+
+
+def test_fitted_waypoints_keep_the_shape_between_the_new_ends():
+    rec = RecordedPath(5, np.array([0.0, 1.0, 2.0]), np.array([[10.0, 10.0], [12.0, 11.0], [14.0, 10.0]]))
+    pts = np.array(fitted_waypoints(rec, (1.0, 1.0), (1.0, 3.0)))
+    np.testing.assert_allclose(pts[0], [1.0, 1.0], atol=1e-12)
+    np.testing.assert_allclose(pts[-1], [1.0, 3.0], atol=1e-12)
+    # chord 4 m -> 2 m (scale 0.5), rotated +90 deg: the apex 1 m left of the chord is now 0.5 m to -x
+    np.testing.assert_allclose(pts[1], [0.5, 2.0], atol=1e-12)
+    with pytest.raises(TrajectoryFileError, match="ends"):
+        fitted_waypoints(RecordedPath(1, np.array([0.0, 1.0]), np.array([[0.0, 0.0], [0.1, 0.0]])), (0, 0), (1, 0))
+
+
+def test_a_recorded_path_needs_a_person():
+    with pytest.raises(ScenarioError, match="person_path_source"):
+        build_scenario({"person_path_source": "eth_hotel", "obstacle_kind": "cylinder"})
+
+
+@pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/pedestrian_trajectories absent")
+@pytest.mark.parametrize("source", ["eth_hotel", "ucy_zara01"])
+def test_a_person_walks_a_recorded_path_between_the_scripted_ends(source):
+    scripted = suite_scenario("cross_90").obstacles[0]
+    rec = suite_scenario("cross_90", overrides={"person_path_source": source}).obstacles[0]
+    assert len(rec.waypoints) > 2 and rec.gait is not None
+    np.testing.assert_allclose(rec.waypoints[0], scripted.waypoints[0], atol=1e-9)
+    np.testing.assert_allclose(rec.waypoints[-1], scripted.waypoints[-1], atol=1e-9)
+    assert rec.length_m > scripted.length_m  # a real path is never straighter than its chord
+    with pytest.raises(ScenarioError, match="person_path_id"):
+        suite_scenario("cross_90", overrides={"person_path_source": source, "person_path_id": 10**6})
+
+
+def test_default_is_the_scripted_line():
+    a = suite_scenario("cross_90").obstacles
+    b = suite_scenario("cross_90", overrides={"person_path_source": "scripted"}).obstacles
+    assert a == b and len(a[0].waypoints) == 2
