@@ -41,8 +41,10 @@ enables it (``status.allow_stop_coil``); otherwise they are refused with Modbus 
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import logging
 import math
+import sys
 import threading
 from dataclasses import dataclass, field
 
@@ -160,6 +162,18 @@ def decode_int32(hi: int, lo: int) -> int:
     return x - 0x100000000 if x & 0x80000000 else x
 
 
+def exposure_warning(host: str, allow_stop_coil: bool) -> str:
+    """A warning when the registers (and maybe the stop coil) are reachable from other hosts; '' if not."""
+    try:
+        loopback = host == "localhost" or ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = False  # a host name: it may resolve to any interface
+    if loopback:
+        return ""
+    coil = "and the stop coil is honoured" if allow_stop_coil else "(stop coil writes refused)"
+    return f"status.host = {host!r}: the Modbus status registers are reachable from the network {coil}"
+
+
 class StatusServer:
     """Serves the registers on its own thread (an asyncio loop); ``publish`` never blocks."""
 
@@ -247,7 +261,12 @@ class StatusServer:
         if not self._ready.wait(timeout_s):
             raise AppError(f"status server on {self.host}:{self.port} did not start within {timeout_s} s")
         if self.error is not None:
-            raise AppError(f"status server on {self.host}:{self.port} failed: {self.error}")
+            # pymodbus hides the OSError: name the usual cause (a second instance) and the settings
+            hint = " (port in use by another instance? set status.port, 0 = any free port, or status.enabled = false)"
+            raise AppError(f"status server on {self.host}:{self.port} failed: {self.error}{hint}")
+        warning = exposure_warning(self.host, self.allow_stop_coil)
+        if warning:
+            print(f"vipsm-robot: warning: {warning}", file=sys.stderr, flush=True)
         return self
 
     async def _serve(self) -> None:

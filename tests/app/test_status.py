@@ -8,7 +8,14 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from app.errors import AppError
-from app.status import ObstacleStatus, StatusServer, StatusSnapshot, decode_int32, encode_registers
+from app.status import (
+    ObstacleStatus,
+    StatusServer,
+    StatusSnapshot,
+    decode_int32,
+    encode_registers,
+    exposure_warning,
+)
 
 
 def free_port() -> int:
@@ -23,10 +30,17 @@ def signed16(v: int) -> int:
 
 def test_register_image_scales_and_signs() -> None:
     snap = StatusSnapshot(
-        cycle=70000, x_m=-1.234, y_m=2.0, theta_rad=-0.5, sigma_m=0.012,
+        cycle=70000,
+        x_m=-1.234,
+        y_m=2.0,
+        theta_rad=-0.5,
+        sigma_m=0.012,
         obstacles=(ObstacleStatus(3, 1.5, -2.25, 0.1, -0.15, 0.4),),
-        flags=frozenset({"scanner_ok", "loop_healthy"}), scanner_state="ok", battery_v=12.6,
-        mission_state="safety_stop", deadline_misses=70000,
+        flags=frozenset({"scanner_ok", "loop_healthy"}),
+        scanner_state="ok",
+        battery_v=12.6,
+        mission_state="safety_stop",
+        deadline_misses=70000,
     )
     r = encode_registers(snap)
     assert r[0] == (1 << 0) | (1 << 7)
@@ -71,5 +85,22 @@ def test_port_in_use_is_a_clear_error() -> None:
         s.bind(("127.0.0.1", 0))
         s.listen()
         port = s.getsockname()[1]
-        with pytest.raises(AppError, match=str(port)):
+        with pytest.raises(AppError, match=str(port)) as info:
             StatusServer(port=port).start(timeout_s=5)
+    assert "status.port" in str(info.value)  # the hint names the setting that resolves it
+
+
+@pytest.mark.parametrize(
+    ("host", "allow", "words"),
+    [
+        ("127.0.0.1", True, ""),
+        ("::1", True, ""),
+        ("localhost", True, ""),
+        ("0.0.0.0", False, "reachable from the network (stop coil writes refused)"),
+        ("0.0.0.0", True, "stop coil is honoured"),
+        ("robot.lan", False, "reachable from the network"),
+    ],
+)
+def test_a_status_server_reachable_from_the_network_is_warned_about(host: str, allow: bool, words: str) -> None:
+    warning = exposure_warning(host, allow)
+    assert (warning == "") if not words else (words in warning and host in warning)
