@@ -49,12 +49,18 @@ import threading
 from dataclasses import dataclass, field
 
 from pymodbus.constants import ExcCodes
+from pymodbus.pdu import ModbusPDU
+from pymodbus.pdu.other_message import ReportDeviceIdResponse
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .errors import AppError
 
 N_INPUT_REGISTERS = 52
+#: write single register, write multiple registers, mask write, read/write multiple: all refused
+HOLDING_WRITE_FUNCTIONS = (6, 16, 22, 23)
+#: what Report Server ID (FC 17) answers, instead of the library's name
+SERVER_ID = b"vipsm-robot"
 MAX_OBSTACLES = 4
 
 DEVICE_STATES = {"absent": 0, "connecting": 1, "ok": 2, "stalled": 3, "failed": 4}
@@ -162,6 +168,13 @@ def decode_int32(hi: int, lo: int) -> int:
     return x - 0x100000000 if x & 0x80000000 else x
 
 
+def _own_server_id(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
+    """Report Server ID (FC 17) answers with the product's name, never the library's."""
+    if sending and isinstance(pdu, ReportDeviceIdResponse):
+        pdu.identifier = SERVER_ID
+    return pdu
+
+
 def exposure_warning(host: str, allow_stop_coil: bool) -> str:
     """A warning when the registers (and maybe the stop coil) are reachable from other hosts; '' if not."""
     try:
@@ -218,6 +231,9 @@ class StatusServer:
             for i in range(len(current_registers)):
                 a = start_address + i
                 current_registers[i] = regs[a] if 0 <= a < len(regs) else 0
+        elif function_code in HOLDING_WRITE_FUNCTIONS:
+            self.refused_writes += 1  # nothing here is writable but the stop coil
+            return ExcCodes.ILLEGAL_FUNCTION
         elif function_code in (5, 15) and set_values is not None:
             if not self.allow_stop_coil:
                 self.refused_writes += 1
@@ -271,7 +287,7 @@ class StatusServer:
 
     async def _serve(self) -> None:
         # the server must be built inside the running loop
-        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port))
+        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id)
         task = asyncio.ensure_future(self._server.serve_forever())
         for _ in range(200):
             if self._server.transport is not None or task.done():

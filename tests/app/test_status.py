@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+import struct
 
 import pytest
 from pymodbus.client import ModbusTcpClient
@@ -104,3 +105,38 @@ def test_port_in_use_is_a_clear_error() -> None:
 def test_a_status_server_reachable_from_the_network_is_warned_about(host: str, allow: bool, words: str) -> None:
     warning = exposure_warning(host, allow)
     assert (warning == "") if not words else (words in warning and host in warning)
+
+
+def _raw_request(port: int, pdu: bytes) -> bytes:
+    """One Modbus TCP request on a raw socket; returns the response PDU (after the MBAP header)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(struct.pack(">HHHB", 7, 0, len(pdu) + 1, 1) + pdu)
+        header = s.recv(7)
+        _, _, length, _ = struct.unpack(">HHHB", header)
+        body = b""
+        while len(body) < length - 1:
+            chunk = s.recv(length - 1 - len(body))
+            assert chunk, "server closed mid-response"
+            body += chunk
+        return body
+
+
+@pytest.mark.parametrize("allow", [False, True])
+def test_holding_register_writes_are_refused_and_the_server_names_itself(allow: bool) -> None:
+    port = free_port()
+    server = StatusServer(port=port, allow_stop_coil=allow).start()
+    try:
+        writes = {
+            6: bytes.fromhex("0600000007"),
+            16: bytes.fromhex("1000000001020007"),
+            22: bytes.fromhex("1600000000ffff"),
+            23: bytes.fromhex("17000000010000000102000a"),
+        }
+        for code, pdu in writes.items():
+            assert _raw_request(port, pdu) == bytes([0x80 | code, 1]), code  # exception 1: illegal function
+        assert server.refused_writes == len(writes)
+        assert _raw_request(port, bytes.fromhex("0300000001")) == bytes.fromhex("03020000")  # still 0
+        report = _raw_request(port, b"\x11")
+        assert report[0] == 0x11 and b"vipsm-robot" in report and b"ymodbus" not in report
+    finally:
+        server.stop()
