@@ -204,7 +204,10 @@ class StatusServer:
         self.error: BaseException | None = None
         #: coil writes refused because the config does not allow them
         self.refused_writes = 0
-        logging.getLogger("pymodbus").setLevel(logging.ERROR)
+        # pymodbus logs every junk frame a client sends at ERROR level (">>>>> recv ...", "Invalid Modbus
+        # protocol id"): a remote client could flood the journal. Start failures still surface as
+        # exceptions (start() raises AppError).
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL + 1)
 
     @property
     def stop_requested(self) -> bool:

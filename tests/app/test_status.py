@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import socket
 import struct
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from pymodbus.client import ModbusTcpClient
@@ -140,3 +143,35 @@ def test_holding_register_writes_are_refused_and_the_server_names_itself(allow: 
         assert report[0] == 0x11 and b"vipsm-robot" in report and b"ymodbus" not in report
     finally:
         server.stop()
+
+
+_JUNK_SCRIPT = """
+import socket
+from app.status import StatusServer
+server = StatusServer(port=0).start()
+port = server._server.transport.sockets[0].getsockname()[1]
+junk = [b"GET / HTTP/1.0\\r\\n\\r\\n", bytes.fromhex("0001000700ff01") + b"x" * 20, bytes(6), bytes(range(256))]
+for data in junk:
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(data)
+        s.settimeout(0.2)
+        try:
+            s.recv(64)
+        except (TimeoutError, ConnectionError):
+            pass
+with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+    s.sendall(bytes.fromhex("000700000006010400000001"))
+    print(s.recv(64).hex())
+server.stop()
+"""
+
+
+def test_junk_from_clients_prints_nothing_and_the_server_keeps_answering() -> None:
+    # a separate process: pytest's own log capture would hide what pymodbus prints to stderr
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", _JUNK_SCRIPT], cwd=root, capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().endswith("04020000")
+    assert ">>>>>" not in done.stderr and "Invalid Modbus" not in done.stderr
