@@ -111,6 +111,9 @@ def _cmd_probe(args: argparse.Namespace, modules: dict[str, ModuleType]) -> int:
 
 def _cmd_bench(args: argparse.Namespace, modules: dict[str, ModuleType]) -> int:
     wanted = set(args.only.split(",")) if args.only else None
+    known = sorted(name.removeprefix("app.cmd_") for name, mod in modules.items() if hasattr(mod, "bench"))
+    if wanted is not None and not wanted <= set(known):
+        raise AppError(f"unknown bench area(s) {', '.join(sorted(wanted - set(known)))}; known: {', '.join(known)}")
     result: dict[str, object] = {}
     for name, mod in modules.items():
         area = name.removeprefix("app.cmd_")
@@ -139,7 +142,7 @@ def build_parser(modules: dict[str, ModuleType]) -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="run the benchmarks and print figures")
     bench.add_argument("--only", metavar="AREAS", help="comma list of areas (scanner,robot,camera,estimator,...)")
-    bench.add_argument("--json", action="store_true")
+    bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.set_defaults(func=lambda a: _cmd_bench(a, modules))
 
     fake = sub.add_parser("fake", help="serve a byte-level fake device until interrupted")

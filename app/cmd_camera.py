@@ -167,7 +167,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--speed", type=float, default=1.0, help="fraction of max pan/tilt speed, (0, 1]")
     p.add_argument("--baud", type=int, default=9600, choices=(9600, 38400))
     p.add_argument("--timeout-s", type=float, default=5.0, help="ACK/inquiry timeout cap")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_ptz)
 
 

@@ -54,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("replay", help="run the estimator on a field log as fast as possible")
     p.add_argument("log", metavar="LOG.mcap")
     p.add_argument("--plain-psm", action="store_true", help="replay with the plain-PSM baseline")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots of the replayed run")
     _add_config_args(p)
     p.set_defaults(func=cmd_replay)

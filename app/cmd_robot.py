@@ -184,7 +184,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--switch-baud", type=int, help="switch the port to this rate with HOSTBAUD after CONFIG")
     p.add_argument("--hunt-bauds", metavar="RATES", help="if nothing answers, try these rates, e.g. 38400,19200")
     p.add_argument("--subclass-fallback", help="conversion table for an unknown subclass (p3dx or p3dx-sh)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_drive)
 
 

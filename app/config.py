@@ -26,6 +26,9 @@ from vipsm.estimator import EstimatorConfig
 
 from .errors import ConfigError
 
+#: no setting (a URL, a path, a host) is longer than this; longer is a mistake or an attack
+MAX_STRING_CHARS = 4096
+
 
 def _f(default: Any, doc: str, **meta: Any) -> Any:
     return field(default=default, metadata={"doc": doc, **meta})
@@ -78,7 +81,7 @@ class LogConfig:
     rotate_bytes: int = _f(512 * 1024 * 1024, "start a new file past this size", min=1024 * 1024)
     rotate_s: float = _f(3600.0, "start a new file after this long", min=1.0)
     flush_s: float = _f(0.5, "close a chunk at least this often (bounds the loss on power cut)", min=0.05, max=1.0)
-    queue_size: int = _f(512, "messages buffered for the writer thread; more are dropped and counted", min=8)
+    queue_size: int = _f(512, "messages buffered for the writer thread; more are dropped and counted", min=8, max=65536)
     frames: bool = _f(True, "record camera frames (JPEG)")
 
 
@@ -136,6 +139,8 @@ def _check_scalar(key: str, value: Any, hint: Any, meta: typing.Mapping[str, Any
     elif hint is str:
         if not isinstance(value, str):
             raise ConfigError(key, f"expected a string, got {value!r}")
+        if len(value) > MAX_STRING_CHARS:
+            raise ConfigError(key, f"longer than {MAX_STRING_CHARS} characters ({len(value)})")
     if "choices" in meta and value not in meta["choices"]:
         raise ConfigError(key, f"must be one of {', '.join(map(str, meta['choices']))}; got {value!r}")
     if "min" in meta and value < meta["min"]:

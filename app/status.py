@@ -41,18 +41,26 @@ enables it (``status.allow_stop_coil``); otherwise they are refused with Modbus 
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import logging
 import math
+import sys
 import threading
 from dataclasses import dataclass, field
 
 from pymodbus.constants import ExcCodes
+from pymodbus.pdu import ModbusPDU
+from pymodbus.pdu.other_message import ReportDeviceIdResponse
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .errors import AppError
 
 N_INPUT_REGISTERS = 52
+#: write single register, write multiple registers, mask write, read/write multiple: all refused
+HOLDING_WRITE_FUNCTIONS = (6, 16, 22, 23)
+#: what Report Server ID (FC 17) answers, instead of the library's name
+SERVER_ID = b"vipsm-robot"
 MAX_OBSTACLES = 4
 
 DEVICE_STATES = {"absent": 0, "connecting": 1, "ok": 2, "stalled": 3, "failed": 4}
@@ -160,6 +168,25 @@ def decode_int32(hi: int, lo: int) -> int:
     return x - 0x100000000 if x & 0x80000000 else x
 
 
+def _own_server_id(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
+    """Report Server ID (FC 17) answers with the product's name, never the library's."""
+    if sending and isinstance(pdu, ReportDeviceIdResponse):
+        pdu.identifier = SERVER_ID
+    return pdu
+
+
+def exposure_warning(host: str, allow_stop_coil: bool) -> str:
+    """A warning when the registers (and maybe the stop coil) are reachable from other hosts; '' if not."""
+    try:
+        loopback = host == "localhost" or ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = False  # a host name: it may resolve to any interface
+    if loopback:
+        return ""
+    coil = "and the stop coil is honoured" if allow_stop_coil else "(stop coil writes refused)"
+    return f"status.host = {host!r}: the Modbus status registers are reachable from the network {coil}"
+
+
 class StatusServer:
     """Serves the registers on its own thread (an asyncio loop); ``publish`` never blocks."""
 
@@ -177,7 +204,10 @@ class StatusServer:
         self.error: BaseException | None = None
         #: coil writes refused because the config does not allow them
         self.refused_writes = 0
-        logging.getLogger("pymodbus").setLevel(logging.ERROR)
+        # pymodbus logs every junk frame a client sends at ERROR level (">>>>> recv ...", "Invalid Modbus
+        # protocol id"): a remote client could flood the journal. Start failures still surface as
+        # exceptions (start() raises AppError).
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL + 1)
 
     @property
     def stop_requested(self) -> bool:
@@ -204,6 +234,9 @@ class StatusServer:
             for i in range(len(current_registers)):
                 a = start_address + i
                 current_registers[i] = regs[a] if 0 <= a < len(regs) else 0
+        elif function_code in HOLDING_WRITE_FUNCTIONS:
+            self.refused_writes += 1  # nothing here is writable but the stop coil
+            return ExcCodes.ILLEGAL_FUNCTION
         elif function_code in (5, 15) and set_values is not None:
             if not self.allow_stop_coil:
                 self.refused_writes += 1
@@ -247,12 +280,17 @@ class StatusServer:
         if not self._ready.wait(timeout_s):
             raise AppError(f"status server on {self.host}:{self.port} did not start within {timeout_s} s")
         if self.error is not None:
-            raise AppError(f"status server on {self.host}:{self.port} failed: {self.error}")
+            # pymodbus hides the OSError: name the usual cause (a second instance) and the settings
+            hint = " (port in use by another instance? set status.port, 0 = any free port, or status.enabled = false)"
+            raise AppError(f"status server on {self.host}:{self.port} failed: {self.error}{hint}")
+        warning = exposure_warning(self.host, self.allow_stop_coil)
+        if warning:
+            print(f"vipsm-robot: warning: {warning}", file=sys.stderr, flush=True)
         return self
 
     async def _serve(self) -> None:
         # the server must be built inside the running loop
-        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port))
+        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id)
         task = asyncio.ensure_future(self._server.serve_forever())
         for _ in range(200):
             if self._server.transport is not None or task.done():

@@ -32,8 +32,9 @@ HEADER = b"\xfa\xfb"
 #: smallest and largest legal count byte (payload with at least the type byte, plus 2 checksum bytes)
 MIN_COUNT = 3
 MAX_COUNT = 255
-#: frames this short pass the checksum by chance easily; one that ends where a valid frame begins is junk
-TINY_COUNT = 4
+#: frames this short carry a checksum equal to their own payload (``FA FB 03 XX 00 XX``), so the
+#: checksum proves nothing: such a frame is refused when a checksum-valid frame starts inside it
+WEAK_COUNT = 4
 
 ARGINT = 0x3B  # non-negative integer, 2 bytes LE
 ARGNINT = 0x1B  # negative integer, 2 bytes LE magnitude
@@ -294,6 +295,7 @@ class BadFrameKind(enum.Enum):
     COUNT = "count"  # count byte below 3
     TRUNCATED = "truncated"  # header seen, body never completed (expired by the caller)
     PAYLOAD = "payload"  # checksum fine, payload does not fit its packet type
+    OVERLAP = "overlap"  # a tiny frame whose bytes hold the header of a checksum-valid frame
 
 
 @dataclass(frozen=True)
@@ -674,6 +676,26 @@ class DeframerStats:
     checksum_errors: int = 0
     count_errors: int = 0
     truncated: int = 0
+    overlap_rejects: int = 0
+
+
+def _embedded_frame(buf: bytearray, total: int) -> bool | None:
+    """Does a checksum-valid frame start inside ``buf[1:total]``? None: not enough bytes yet to tell."""
+    if len(buf) == total and buf[total - 1] == HEADER[0]:
+        return None  # the last byte may be the first half of a header
+    h = buf.find(HEADER, 1)
+    while 0 < h < total:
+        if h + 3 > len(buf):
+            return None
+        end = h + buf[h + 2] + 3
+        if buf[h + 2] >= MIN_COUNT:
+            if end > len(buf):
+                return None
+            body = bytes(buf[h + 3 : end - 2])
+            if checksum(body) == (buf[end - 2] << 8) | buf[end - 1]:
+                return True
+        h = buf.find(HEADER, h + 1)
+    return False
 
 
 class Deframer:
@@ -738,41 +760,41 @@ class Deframer:
                 )
                 del buf[:2]  # skip only the header: the claimed body may hold the next real frame
                 continue
-            straddle = self._straddles(total, count)
-            if straddle is None:
-                return out  # a tiny frame ending in 0xFA: wait for the bytes after it
-            if straddle:
-                self.stats.checksum_errors += 1
-                out.append(BadFrame(BadFrameKind.CHECKSUM, "tiny frame overlapping the next valid header",
-                                    bytes(buf[:total])))
-                del buf[:2]
-                continue
+            if count <= WEAK_COUNT:
+                embedded = _embedded_frame(buf, total)
+                if embedded is None:
+                    return out
+                if embedded:
+                    self.stats.overlap_rejects += 1
+                    out.append(
+                        BadFrame(BadFrameKind.OVERLAP, "tiny frame holds a valid frame's header", bytes(buf[:total]))
+                    )
+                    del buf[:2]
+                    continue
             self.stats.frames += 1
             out.append(RawFrame(payload))
             del buf[:total]
 
-    def _straddles(self, total: int, count: int) -> bool | None:
-        """Whether the checksum-valid frame ``buf[:total]`` is junk whose last byte is really the
-        first byte of the next frame's header: a tiny frame (``TINY_COUNT`` or less; ``FA FB 03 XX 00
-        XX`` always passes the checksum) ending in 0xFA, followed by 0xFB and a complete frame that
-        passes its own checksum. None: not decidable yet (the bytes after it have not arrived)."""
+    def _release_held_tiny_frame(self) -> RawFrame | None:
+        """A complete tiny frame held back while a header inside it waited for its body: accept it."""
         buf = self._buf
-        if count > TINY_COUNT or buf[total - 1] != 0xFA:
-            return False
-        nxt = buf[total - 1 :]
-        if len(nxt) < 3:
-            return None if len(nxt) < 2 or nxt[1] == 0xFB else False
-        if nxt[1] != 0xFB or nxt[2] < MIN_COUNT:
-            return False
-        end = nxt[2] + 3
-        if len(nxt) < end:
+        if len(buf) < 3 or not MIN_COUNT <= buf[2] <= WEAK_COUNT or len(buf) < buf[2] + 3:
             return None
-        return ((nxt[end - 2] << 8) | nxt[end - 1]) == checksum(bytes(nxt[3 : end - 2]))
+        total = buf[2] + 3
+        payload = bytes(buf[3 : total - 2])
+        if checksum(payload) != (buf[total - 2] << 8) | buf[total - 1]:
+            return None
+        self.stats.frames += 1
+        del buf[:total]
+        return RawFrame(payload)
 
     def expire_partial(self) -> list[RawFrame | BadFrame]:
         """Give up on the partial frame at the head of the buffer (skip its header) and rescan."""
         if len(self._buf) < 2 or self._buf[:2] != HEADER:
             return []
+        held = self._release_held_tiny_frame()
+        if held is not None:
+            return [held, *self._scan()]
         self.stats.truncated += 1
         bad = BadFrame(BadFrameKind.TRUNCATED, f"frame body incomplete ({len(self._buf)} bytes held)", bytes(self._buf))
         del self._buf[:2]
@@ -801,6 +823,19 @@ class ArcosDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         return self._decode(self.deframer.feed(data))
+
+    def _release_held_tiny_frame(self) -> RawFrame | None:
+        """A complete tiny frame held back while a header inside it waited for its body: accept it."""
+        buf = self._buf
+        if len(buf) < 3 or not MIN_COUNT <= buf[2] <= WEAK_COUNT or len(buf) < buf[2] + 3:
+            return None
+        total = buf[2] + 3
+        payload = bytes(buf[3 : total - 2])
+        if checksum(payload) != (buf[total - 2] << 8) | buf[total - 1]:
+            return None
+        self.stats.frames += 1
+        del buf[:total]
+        return RawFrame(payload)
 
     def expire_partial(self) -> list[Event]:
         return self._decode(self.deframer.expire_partial())

@@ -208,8 +208,9 @@ class ViscaParser:
 
     Resynchronisation: a terminated chunk that is not a valid reply is searched for the first
     reply header from which the rest parses; the bytes before it become a :class:`Discarded`
-    event. More than 16 bytes without a terminator cannot be one packet, so all but the last 15
-    are discarded. Counters ``packets`` and ``discarded_bytes`` say what happened.
+    event. A reply header byte (0x88, 0x90..0xF0) arriving inside an unterminated packet starts a
+    new packet: the fragment before it is discarded. More than 16 bytes without a terminator cannot
+    be one packet, so all but the last 15 are discarded. Counters ``packets`` and ``discarded_bytes`` say what happened.
     """
 
     def __init__(self) -> None:
@@ -234,6 +235,11 @@ class ViscaParser:
             self._buf.append(byte)
             if byte == TERMINATOR:
                 self._frame(events)
+            elif _is_reply_header(byte) and len(self._buf) > 1:
+                # reply data bytes are below 0x80: a header byte starts a new reply, so an unterminated
+                # fragment before it is dropped and cannot swallow the reply that follows
+                self._discard(events, bytes(self._buf[:-1]), "unterminated fragment before a reply header")
+                del self._buf[:-1]
             elif len(self._buf) > MAX_PACKET - 1:
                 # no terminator within a packet's length: keep only what could still start one
                 cut = len(self._buf) - (MAX_PACKET - 1)
@@ -314,8 +320,12 @@ class Request:
     @property
     def idempotent(self) -> bool:
         """Safe to re-send after a lost reply (never a relative move or a continuous drive)."""
-        return self.kind is ReplyKind.INQUIRY or self.motion in (Motion.PAN_TILT_ABSOLUTE, Motion.PAN_TILT_HOME) or (
-            self.name in ("zoom_direct", "zoom_stop", "pan_tilt_stop", "focus_auto", "focus_manual", "digital_zoom")
+        return (
+            self.kind is ReplyKind.INQUIRY
+            or self.motion in (Motion.PAN_TILT_ABSOLUTE, Motion.PAN_TILT_HOME)
+            or (
+                self.name in ("zoom_direct", "zoom_stop", "pan_tilt_stop", "focus_auto", "focus_manual", "digital_zoom")
+            )
         )
 
 
@@ -417,35 +427,81 @@ def pan_tilt_stop(pan_speed: int = 1, tilt_speed: int = 1, *, address: int = 1) 
 
 
 def _position(
-    name: str, sub: int, motion: Motion, pan_counts: int, tilt_counts: int, pan_speed: int, tilt_speed: int,
-    address: int, pan_max: int, tilt_max: int,
+    name: str,
+    sub: int,
+    motion: Motion,
+    pan_counts: int,
+    tilt_counts: int,
+    pan_speed: int,
+    tilt_speed: int,
+    address: int,
+    pan_max: int,
+    tilt_max: int,
 ) -> Request:
     vv, ww = _speeds(pan_speed, tilt_speed, pan_max, tilt_max)
     _check_int("pan_counts", pan_counts, -0x8000, 0x7FFF)
     _check_int("tilt_counts", tilt_counts, -0x8000, 0x7FFF)
     body = [0x06, sub, vv, ww, *nibbles(pan_counts, 4), *nibbles(tilt_counts, 4)]
     return _command(
-        name, address, body, motion=motion, pan_counts=pan_counts, tilt_counts=tilt_counts, pan_speed=vv,
+        name,
+        address,
+        body,
+        motion=motion,
+        pan_counts=pan_counts,
+        tilt_counts=tilt_counts,
+        pan_speed=vv,
         tilt_speed=ww,
     )
 
 
 def pan_tilt_absolute(
-    pan_counts: int, tilt_counts: int, pan_speed: int = PAN_SPEED_MAX, tilt_speed: int = TILT_SPEED_MAX, *,
-    address: int = 1, pan_max: int = PAN_SPEED_MAX, tilt_max: int = TILT_SPEED_MAX,
+    pan_counts: int,
+    tilt_counts: int,
+    pan_speed: int = PAN_SPEED_MAX,
+    tilt_speed: int = TILT_SPEED_MAX,
+    *,
+    address: int = 1,
+    pan_max: int = PAN_SPEED_MAX,
+    tilt_max: int = TILT_SPEED_MAX,
 ) -> Request:
     """Absolute position, RZ50 layout: 16-bit two's-complement pan and tilt in 4 nibbles each."""
-    return _position("pan_tilt_absolute", 0x02, Motion.PAN_TILT_ABSOLUTE, pan_counts, tilt_counts, pan_speed,
-                     tilt_speed, address, pan_max, tilt_max)
+    return _position(
+        "pan_tilt_absolute",
+        0x02,
+        Motion.PAN_TILT_ABSOLUTE,
+        pan_counts,
+        tilt_counts,
+        pan_speed,
+        tilt_speed,
+        address,
+        pan_max,
+        tilt_max,
+    )
 
 
 def pan_tilt_relative(
-    pan_counts: int, tilt_counts: int, pan_speed: int = PAN_SPEED_MAX, tilt_speed: int = TILT_SPEED_MAX, *,
-    address: int = 1, pan_max: int = PAN_SPEED_MAX, tilt_max: int = TILT_SPEED_MAX,
+    pan_counts: int,
+    tilt_counts: int,
+    pan_speed: int = PAN_SPEED_MAX,
+    tilt_speed: int = TILT_SPEED_MAX,
+    *,
+    address: int = 1,
+    pan_max: int = PAN_SPEED_MAX,
+    tilt_max: int = TILT_SPEED_MAX,
 ) -> Request:
     """Relative move by a delta, same encoding as :func:`pan_tilt_absolute`. Never retried blindly."""
-    return _position("pan_tilt_relative", 0x03, Motion.PAN_TILT_RELATIVE, pan_counts, tilt_counts, pan_speed,
-                     tilt_speed, address, pan_max, tilt_max)
+    return _position(
+        "pan_tilt_relative",
+        0x03,
+        Motion.PAN_TILT_RELATIVE,
+        pan_counts,
+        tilt_counts,
+        pan_speed,
+        tilt_speed,
+        address,
+        pan_max,
+        tilt_max,
+    )
 
 
 def pan_tilt_home(address: int = 1) -> Request:
@@ -483,8 +539,9 @@ def zoom_wide(address: int = 1, speed: int | None = None) -> Request:
 def zoom_direct(position: int, address: int = 1) -> Request:
     """Zoom to a position: 0x0000 wide .. 0x4000 optical tele (above: digital zoom)."""
     _check_int("zoom position", position, 0, 0xFFFF)
-    return _command("zoom_direct", address, [0x04, 0x47, *nibbles(position, 4)], motion=Motion.ZOOM,
-                    zoom_position=position)
+    return _command(
+        "zoom_direct", address, [0x04, 0x47, *nibbles(position, 4)], motion=Motion.ZOOM, zoom_position=position
+    )
 
 
 def digital_zoom(on: bool, address: int = 1) -> Request:

@@ -22,7 +22,9 @@ def test_defaults_dump_and_load_back_exactly(tmp_path: Path) -> None:
 
 def test_file_and_overrides(tmp_path: Path) -> None:
     path = tmp_path / "c.toml"
-    path.write_text('[mission]\nmode = "cruise"\ncruise_speed_mps = 0.3\n[devices]\nscanner_url = "socket://127.0.0.1:10940"\n')
+    path.write_text(
+        '[mission]\nmode = "cruise"\ncruise_speed_mps = 0.3\n[devices]\nscanner_url = "socket://127.0.0.1:10940"\n'
+    )
     cfg = load_config(path, ["loop.period_s=0.05", "devices.camera_http_url=http://cam", "status.enabled=false"])
     assert cfg.mission.mode == "cruise" and cfg.mission.cruise_speed_mps == 0.3
     assert cfg.devices.scanner_url == "socket://127.0.0.1:10940"
@@ -41,6 +43,8 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("loop.nope=1", "loop.nope", "unknown key"),
         ("nope=1", "nope", "unknown key"),
         ("loop=3", "loop", "expected a table"),
+        ("log.queue_size=10000000000", "log.queue_size", "<= 65536"),
+        pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )
 def test_bad_values_name_their_key(override: str, key: str, words: str) -> None:
@@ -70,7 +74,9 @@ def test_override_values_are_toml_else_strings() -> None:
 def test_cli_prints_one_line_error_naming_the_key() -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "app", "dump-config", "--set", "loop.period_s=-1"],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()

@@ -3,12 +3,23 @@
 from __future__ import annotations
 
 import socket
+import struct
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from pymodbus.client import ModbusTcpClient
 
 from app.errors import AppError
-from app.status import ObstacleStatus, StatusServer, StatusSnapshot, decode_int32, encode_registers
+from app.status import (
+    ObstacleStatus,
+    StatusServer,
+    StatusSnapshot,
+    decode_int32,
+    encode_registers,
+    exposure_warning,
+)
 
 
 def free_port() -> int:
@@ -23,10 +34,17 @@ def signed16(v: int) -> int:
 
 def test_register_image_scales_and_signs() -> None:
     snap = StatusSnapshot(
-        cycle=70000, x_m=-1.234, y_m=2.0, theta_rad=-0.5, sigma_m=0.012,
+        cycle=70000,
+        x_m=-1.234,
+        y_m=2.0,
+        theta_rad=-0.5,
+        sigma_m=0.012,
         obstacles=(ObstacleStatus(3, 1.5, -2.25, 0.1, -0.15, 0.4),),
-        flags=frozenset({"scanner_ok", "loop_healthy"}), scanner_state="ok", battery_v=12.6,
-        mission_state="safety_stop", deadline_misses=70000,
+        flags=frozenset({"scanner_ok", "loop_healthy"}),
+        scanner_state="ok",
+        battery_v=12.6,
+        mission_state="safety_stop",
+        deadline_misses=70000,
     )
     r = encode_registers(snap)
     assert r[0] == (1 << 0) | (1 << 7)
@@ -71,5 +89,89 @@ def test_port_in_use_is_a_clear_error() -> None:
         s.bind(("127.0.0.1", 0))
         s.listen()
         port = s.getsockname()[1]
-        with pytest.raises(AppError, match=str(port)):
+        with pytest.raises(AppError, match=str(port)) as info:
             StatusServer(port=port).start(timeout_s=5)
+    assert "status.port" in str(info.value)  # the hint names the setting that resolves it
+
+
+@pytest.mark.parametrize(
+    ("host", "allow", "words"),
+    [
+        ("127.0.0.1", True, ""),
+        ("::1", True, ""),
+        ("localhost", True, ""),
+        ("0.0.0.0", False, "reachable from the network (stop coil writes refused)"),
+        ("0.0.0.0", True, "stop coil is honoured"),
+        ("robot.lan", False, "reachable from the network"),
+    ],
+)
+def test_a_status_server_reachable_from_the_network_is_warned_about(host: str, allow: bool, words: str) -> None:
+    warning = exposure_warning(host, allow)
+    assert (warning == "") if not words else (words in warning and host in warning)
+
+
+def _raw_request(port: int, pdu: bytes) -> bytes:
+    """One Modbus TCP request on a raw socket; returns the response PDU (after the MBAP header)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(struct.pack(">HHHB", 7, 0, len(pdu) + 1, 1) + pdu)
+        header = s.recv(7)
+        _, _, length, _ = struct.unpack(">HHHB", header)
+        body = b""
+        while len(body) < length - 1:
+            chunk = s.recv(length - 1 - len(body))
+            assert chunk, "server closed mid-response"
+            body += chunk
+        return body
+
+
+@pytest.mark.parametrize("allow", [False, True])
+def test_holding_register_writes_are_refused_and_the_server_names_itself(allow: bool) -> None:
+    port = free_port()
+    server = StatusServer(port=port, allow_stop_coil=allow).start()
+    try:
+        writes = {
+            6: bytes.fromhex("0600000007"),
+            16: bytes.fromhex("1000000001020007"),
+            22: bytes.fromhex("1600000000ffff"),
+            23: bytes.fromhex("17000000010000000102000a"),
+        }
+        for code, pdu in writes.items():
+            assert _raw_request(port, pdu) == bytes([0x80 | code, 1]), code  # exception 1: illegal function
+        assert server.refused_writes == len(writes)
+        assert _raw_request(port, bytes.fromhex("0300000001")) == bytes.fromhex("03020000")  # still 0
+        report = _raw_request(port, b"\x11")
+        assert report[0] == 0x11 and b"vipsm-robot" in report and b"ymodbus" not in report
+    finally:
+        server.stop()
+
+
+_JUNK_SCRIPT = """
+import socket
+from app.status import StatusServer
+server = StatusServer(port=0).start()
+port = server._server.transport.sockets[0].getsockname()[1]
+junk = [b"GET / HTTP/1.0\\r\\n\\r\\n", bytes.fromhex("0001000700ff01") + b"x" * 20, bytes(6), bytes(range(256))]
+for data in junk:
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(data)
+        s.settimeout(0.2)
+        try:
+            s.recv(64)
+        except (TimeoutError, ConnectionError):
+            pass
+with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+    s.sendall(bytes.fromhex("000700000006010400000001"))
+    print(s.recv(64).hex())
+server.stop()
+"""
+
+
+def test_junk_from_clients_prints_nothing_and_the_server_keeps_answering() -> None:
+    # a separate process: pytest's own log capture would hide what pymodbus prints to stderr
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", _JUNK_SCRIPT], cwd=root, capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().endswith("04020000")
+    assert ">>>>>" not in done.stderr and "Invalid Modbus" not in done.stderr

@@ -342,7 +342,11 @@ def test_deframer_finds_every_frame_in_random_junk(chunks: list[tuple[bytes, byt
         wire += codec.frame(payload)
         expected.append(payload)
     wire += tail.replace(b"\xfa", b"\x00")
-    items = Deframer().feed(bytes(wire))
+    deframer = Deframer()
+    items = deframer.feed(bytes(wire))
+    # a tiny frame ending in 0xFA at the very end is held for the next byte (it may open a header)
+    # until the client, seeing no progress, calls expire_partial
+    items += deframer.expire_partial()
     found = [i.payload for i in items if isinstance(i, RawFrame)]
     it = iter(found)
     assert all(any(p == f for f in it) for p in expected)
