@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .distortion import distort, undistort
 from .geometry import between, inverse, transform_point
 from .restore import BearingInterval
 from .types import Frame, Odometry, Pose2D
@@ -92,10 +93,11 @@ def _grey(frame: Frame, max_width: int) -> tuple[np.ndarray, float]:
     return np.ascontiguousarray(img), scale
 
 
-def _rays(us: np.ndarray, vs: np.ndarray, fx: float, fy: float, cx: float, cy: float, pan: float, tilt: float):
-    """Unit-free ray directions (robot frame, z up) through pixels (u, v)."""
-    a = -(us - cx) / fx  # left component
-    b = -(vs - cy) / fy  # up component
+def _rays(us, vs, fx, fy, cx, cy, pan, tilt, dist=(0.0, 0.0, 0.0, 0.0)):
+    """Unit-free ray directions (robot frame, z up) through pixels (u, v), undistorted first."""
+    xn, yn = undistort((us - cx) / fx, (vs - cy) / fy, *dist)
+    a = -xn  # left component
+    b = -yn  # up component
     ct, st = math.cos(tilt), math.sin(tilt)
     fwd_x = ct - st * b
     up_z = st + ct * b
@@ -105,8 +107,8 @@ def _rays(us: np.ndarray, vs: np.ndarray, fx: float, fy: float, cx: float, cy: f
     return rx, ry, up_z
 
 
-def _project(px, py, pz, fx, fy, cx, cy, pan, tilt):
-    """Pixels of camera-relative points (robot frame axes) for a camera with pan/tilt."""
+def _project(px, py, pz, fx, fy, cx, cy, pan, tilt, dist=(0.0, 0.0, 0.0, 0.0)):
+    """Pixels (with lens distortion) of camera-relative points (robot frame axes) for a camera with pan/tilt."""
     cp, sp = math.cos(pan), math.sin(pan)
     xf = cp * px + sp * py  # forward (horizontal) after undoing pan
     yl = -sp * px + cp * py
@@ -114,9 +116,8 @@ def _project(px, py, pz, fx, fy, cx, cy, pan, tilt):
     f = ct * xf + st * pz
     up = -st * xf + ct * pz
     with np.errstate(divide="ignore", invalid="ignore"):
-        u = cx - fx * yl / f
-        v = cy - fy * up / f
-    return u, v, f
+        xd, yd = distort(-yl / f, -up / f, *dist)
+    return cx + fx * xd, cy + fy * yd, f
 
 
 def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: FlowConfig) -> tuple[float, float]:
@@ -212,8 +213,11 @@ class FlowDetector:
             if dt <= cfg.baseline_s + 1e-6 and (best is None or item[2].stamp_s < best[2].stamp_s):
                 best = item
         if best is None:  # nothing inside the baseline: the newest older frame within the gap
-            older = [it for it in self._history if it[0].shape == shape
-                     and 0.0 < stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s]
+            older = [
+                it
+                for it in self._history
+                if it[0].shape == shape and 0.0 < stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s
+            ]
             if older:
                 best = max(older, key=lambda it: it[2].stamp_s)
         return best
@@ -236,9 +240,7 @@ class FlowDetector:
         grey, scale = _grey(frame, cfg.max_width_px)
         old = self._pick_old(frame.stamp_s, grey.shape)
         self._history.append((grey, scale, frame, odom_pose_at_frame))
-        self._history = [
-            it for it in self._history if frame.stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s + 1e-9
-        ][-8:]
+        self._history = [it for it in self._history if frame.stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s + 1e-9][-8:]
         self._last_result = None
         if old is None:
             return None
@@ -254,12 +256,12 @@ class FlowDetector:
         fl = flow[0:h:st, 0:w:st].astype(np.float64)
         # ---- predicted static-scene flow (the viewing geometry is cached per camera state)
         m = self.mount
-        geo_key = (h, w, st, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad, m.z_m)
+        geo_key = (h, w, st, fx, fy, cx, cy, k.distortion, frame.pan_rad, frame.tilt_rad, m.z_m)
         if self._geo is None or self._geo[0] != geo_key:
             vs, us = np.mgrid[0:h:st, 0:w:st]
             us = us.astype(np.float64) + 0.5 * (st - 1)
             vs = vs.astype(np.float64) + 0.5 * (st - 1)
-            rx, ry, rz = _rays(us, vs, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad)
+            rx, ry, rz = _rays(us, vs, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad, k.distortion)
             hn = np.hypot(rx, ry)
             az = np.arctan2(ry, rx)
             slope = rz / np.maximum(hn, 1e-9)
@@ -292,7 +294,7 @@ class FlowDetector:
         c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
         qx = rel.x_m + c * px - s * py - m.x_m
         qy = rel.y_m + s * px + c * py - m.y_m
-        u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad)
+        u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad, ko.distortion)
         valid &= f2 > 1e-3
         bd = cfg.border_px
         with np.errstate(invalid="ignore"):
@@ -303,9 +305,11 @@ class FlowDetector:
         ru = fl[..., 0] - pred_u
         rv = fl[..., 1] - pred_v
         # ---- threshold (eq. 1: grows with the robot's speed)
-        alpha = cfg.alpha_base_px + cfg.alpha_v_px_per_m * abs(speed_mps) * dt + cfg.alpha_w_px_per_rad * abs(
-            turn_radps
-        ) * dt
+        alpha = (
+            cfg.alpha_base_px
+            + cfg.alpha_v_px_per_m * abs(speed_mps) * dt
+            + cfg.alpha_w_px_per_rad * abs(turn_radps) * dt
+        )
         alpha = min(alpha, cfg.alpha_max_px)
         gx = cv2.Sobel(grey, cv2.CV_16S, 1, 0, ksize=3)
         gy = cv2.Sobel(grey, cv2.CV_16S, 0, 1, ksize=3)
@@ -382,7 +386,15 @@ class FlowDetector:
         for u0, u1, v0, v1 in merged:
             vc = 0.5 * (v0 + v1)
             rxa, rya, _ = _rays(
-                np.array([u0 - 0.5, u1 - 0.5]), np.array([vc, vc]), fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad
+                np.array([u0 - 0.5, u1 - 0.5]),
+                np.array([vc, vc]),
+                fx,
+                fy,
+                cx,
+                cy,
+                frame.pan_rad,
+                frame.tilt_rad,
+                frame.intrinsics.distortion,
             )
             b = np.arctan2(rya, rxa)
             intervals.append(BearingInterval(float(b.min()), float(b.max()), m.x_m, m.y_m, "camera"))
@@ -395,9 +407,7 @@ class FlowDetector:
         return self._last_result
 
 
-def interval_to_laser(
-    iv: BearingInterval, robot_rel_frame_to_scan: Pose2D, laser_mount: Pose2D
-) -> BearingInterval:
+def interval_to_laser(iv: BearingInterval, robot_rel_frame_to_scan: Pose2D, laser_mount: Pose2D) -> BearingInterval:
     """Re-express a robot-frame interval seen at the frame's stamp (origin = camera) in the laser
     frame at the scan's stamp. ``robot_rel_frame_to_scan`` is the robot pose at the scan's stamp in
     the robot frame at the frame's stamp (from odometry)."""
@@ -407,9 +417,7 @@ def interval_to_laser(
     hi = iv.bearing_max_rad - robot_rel_frame_to_scan.theta_rad
     lm_inv = inverse(laser_mount)
     lx, ly = transform_point(lm_inv, ox, oy)
-    return BearingInterval(
-        lo - laser_mount.theta_rad, hi - laser_mount.theta_rad, lx, ly, iv.source, iv.track_id
-    )
+    return BearingInterval(lo - laser_mount.theta_rad, hi - laser_mount.theta_rad, lx, ly, iv.source, iv.track_id)
 
 
 __all__ = ["FlowConfig", "CameraMount", "FlowDetector", "FlowResult", "pose_at", "interval_to_laser"]

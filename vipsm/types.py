@@ -74,6 +74,16 @@ class Intrinsics:
     cy_px: float
     width_px: int
     height_px: int
+    #: lens distortion (Brown-Conrady, normalised coordinates); 0 = pinhole. Flow points are
+    #: undistorted with these before bearings are computed (:mod:`vipsm.distortion`).
+    k1: float = 0.0
+    k2: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+
+    @property
+    def distortion(self) -> tuple[float, float, float, float]:
+        return (self.k1, self.k2, self.p1, self.p2)
 
 
 @dataclass(frozen=True)
