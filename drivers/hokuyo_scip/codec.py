@@ -849,6 +849,14 @@ class ScipDecoder:
             err = ScipProtocolError(f"{len(junk)} bytes of garbage before the echo {echo[:20]!r}", raw=junk)
             events.append(DecodeError(DecodeErrorKind.GARBAGE, err, junk))
             lines[0] = echo
+        # A reply that lost its closing empty line runs into the next one; its echo line can pass as a
+        # checksummed payload line (1 in 64), so split at every full echo followed by a valid status.
+        cuts = [i for i in range(2, len(lines)) if _ECHO_RE.fullmatch(lines[i]) and _looks_like_reply_start(lines, i)]
+        for a, b in zip([0, *cuts], [*cuts, len(lines)], strict=True):
+            if a < b:
+                self._decode_lines(lines[a:b], events)
+
+    def _decode_lines(self, lines: list[bytes], events: list[Event]) -> None:
         start = 0
         while start < len(lines):
             try:

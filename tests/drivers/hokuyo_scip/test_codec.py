@@ -128,12 +128,12 @@ def test_value_count_must_match_the_request() -> None:
     assert isinstance(ev, DecodeError) and "expected 1081" in ev.message
 
 
-def test_lost_blank_line_merges_two_frames_and_the_second_is_recovered() -> None:
-    first = md_frame(FULL, ts=1)[:-1]  # no closing empty line
+def test_lost_blank_line_merges_two_frames_and_both_are_recovered() -> None:
+    first = md_frame(FULL, ts=1)[:-1]  # no closing empty line: the decoder splits at the second echo
     events = ScipDecoder().feed(first + md_frame(FULL, ts=2))
-    assert isinstance(events[0], DecodeError)
+    assert not any(isinstance(e, DecodeError) for e in events)
     frames = [e for e in events if isinstance(e, ScanFrame)]
-    assert [f.timestamp_ms for f in frames] == [2]
+    assert [f.timestamp_ms for f in frames] == [1, 2]
 
 
 def test_garbage_before_an_echo_is_skipped() -> None:
@@ -262,3 +262,26 @@ def test_short_ii_and_vv_of_other_models_parse_by_key() -> None:
     assert vv.info.serial == "H1" and vv.info.firmware == ""  # type: ignore[union-attr]
     [bad] = ScipDecoder().feed(_info_reply(b"PP", [("DMIN", "23")]))
     assert isinstance(bad, DecodeError) and "lacks the" in bad.message  # PP values are needed to scan
+
+
+# issue 12 row 9: a reply that lost its empty line must not absorb the next reply
+def _echo_that_passes_as_a_payload_line() -> bytes:
+    """An MD echo with a tag whose last character happens to be the checksum of the rest (1 in 64)."""
+    for a in b"abcdefghijklmnopqrstuvwxyz":
+        for b in b"ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789":
+            echo = b"MD0000108001000;t" + bytes([a, b])
+            if checksum(echo[:-1]) == echo[-1]:
+                return echo
+    raise AssertionError("no such tag")
+
+
+@pytest.mark.parametrize("split", [None, 7, 12, 40])
+def test_a_reply_without_its_empty_line_does_not_swallow_the_next_scan(split: int | None) -> None:
+    echo = _echo_that_passes_as_a_payload_line()
+    stream = b"CR00\n" + b"00" + bytes([checksum(b"00")]) + b"\n" + md_frame(FULL, echo=echo)
+    dec = ScipDecoder()
+    chunks = [stream] if split is None else [stream[:split], stream[split:]]
+    events = [e for c in chunks for e in dec.feed(c)]
+    scans = [e for e in events if isinstance(e, ScanFrame)]
+    assert len(scans) == 1 and np.array_equal(scans[0].distances, FULL)
+    assert any(isinstance(e, StatusReply) and e.command == "CR" for e in events)
