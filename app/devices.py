@@ -359,14 +359,20 @@ def build_loop(
     field_log = None
     if path:
         lc = config.log
-        field_log = FieldLog(
-            path,
-            compression=lc.compression,
-            rotate_bytes=lc.rotate_bytes,
-            rotate_s=lc.rotate_s,
-            flush_s=lc.flush_s,
-            queue_size=lc.queue_size,
-        ).start()
+        try:
+            field_log = FieldLog(
+                path,
+                compression=lc.compression,
+                rotate_bytes=lc.rotate_bytes,
+                rotate_s=lc.rotate_s,
+                flush_s=lc.flush_s,
+                queue_size=lc.queue_size,
+            ).start()
+        except OSError as exc:  # unwritable folder, name too long, no such folder, disk full
+            for dev in (scanner, base, camera):
+                if dev is not None:
+                    dev.close()
+            raise AppError(f"config key 'log.path': cannot open {path!r} for writing: {exc.strerror or exc}") from exc
     status = None
     if config.status.enabled:
         s = config.status
