@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import threading
 import time
 from collections import deque
@@ -307,7 +308,9 @@ class ControlLoop:
         return t_mono_s + self._wall_offset
 
     def say(self, level: str, message: str, now_s: float) -> None:
+        """A state change: one line on stderr (the journal under systemd), on ``/log`` and in the summary."""
         self.stats.state_changes.append(message)
+        print(f"vipsm-robot: {level}: {message}", file=sys.stderr, flush=True)
         if self.log is not None:
             self.log.log(
                 "/log",
@@ -326,9 +329,11 @@ class ControlLoop:
         old = self._states.get(device)
         if old != state:
             self._states[device] = state
-            if old is not None:
-                level = "info" if state == "ok" else "warning"
-                self.say(level, f"{device}: {old} -> {state}", now_s)
+            dev = getattr(self, device, None)
+            detail = dev.detail() if dev is not None and hasattr(dev, "detail") else ""
+            level = "info" if state in ("ok", "absent") else "warning"
+            change = state if old is None else f"{old} -> {state}"
+            self.say(level, f"{device}: {change}" + (f" ({detail})" if detail else ""), now_s)
 
     # -- one cycle ------------------------------------------------------------------------------
 

@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
+from urllib.parse import urlsplit, urlunsplit
 
 from drivers.common import Backoff
 from drivers.errors import DriverError
@@ -115,11 +116,17 @@ def drain(get: Callable[[float], T]) -> list[T]:
 class ClientAdapter(Generic[C]):
     """What the scanner and base adapters share: the opener, counters, state mapping, close."""
 
+    url: str = ""
     STAT_KEYS: tuple[str, ...] = ()
     OK: tuple[Any, ...] = ()
     CONNECTING: tuple[Any, ...] = ()
     FAILED: tuple[Any, ...] = ()
     opener: Opener[C]
+
+    def detail(self) -> str:
+        """The device's URL and the last reason it could not be opened (for the state-change lines)."""
+        err = self.opener.last_error
+        return self.url + (f"; last error: {err}" if err and self.opener.client is None else "")
 
     def state(self) -> str:
         """The loop's device state from the client's connection state; a failed client is reopened."""
@@ -171,6 +178,7 @@ class ScannerAdapter(ClientAdapter[Utm30lxClient]):
     FAILED = (ScipState.FAILED,)
 
     def __init__(self, url: str, intensity: bool, max_backoff_s: float) -> None:
+        self.url = url
         self.intensity = intensity
 
         def open_fn() -> Utm30lxClient:
@@ -211,6 +219,7 @@ class BaseAdapter(ClientAdapter[ArcosClient]):
     FAILED = (ArcosState.LOST,)
 
     def __init__(self, url: str, baudrate: int, command_timeout_s: float, max_backoff_s: float) -> None:
+        self.url = url
         def open_fn() -> ArcosClient:
             client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate, command_timeout_s=command_timeout_s))
             client.connect()
@@ -293,6 +302,7 @@ class CameraAdapter:
             c = self.visca.client if self.visca is not None else None
             return c.last_state if c is not None else None
 
+        self._http_url = d.camera_http_url
         http_cfg = HttpConfig(base_url=d.camera_http_url, frame_rate=d.camera_fps)
         self.source = MjpegFrameSource(http_cfg, ptz=ptz).start()
 
@@ -301,6 +311,15 @@ class CameraAdapter:
             f, self._visca_cfg.calibration, fallback_ptz=(self._fixed_pan, self._fixed_tilt, self._zoom), grey=True
         )
         return FrameSample(frame, f.jpeg, f.ptz.zoom_position if f.ptz is not None else self._zoom)
+
+    def detail(self) -> str:
+        """The frame URL without its password, and the last error while not connected."""
+        parts = urlsplit(self._http_url)
+        host = parts.hostname or ""
+        netloc = (f"{parts.username}:***@" if parts.password else "") + host + (f":{parts.port}" if parts.port else "")
+        url = urlunsplit((parts.scheme, netloc, parts.path, "", ""))
+        err = self.source.last_error
+        return url + (f"; last error: {err}" if err is not None and not self.source.connected else "")
 
     def state(self) -> str:
         if self.source.last_error is not None and not self.source.connected:

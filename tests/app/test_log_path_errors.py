@@ -23,3 +23,16 @@ def test_a_log_path_that_cannot_be_opened_is_a_one_line_error(kind: str, tmp_pat
     code = main(["run", *NO_DEVICES, "--log", str(path), "--duration", "0.2"])
     err = capsys.readouterr().err
     assert code == 2 and "log.path" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_run_names_each_device_its_url_and_why_it_is_not_there(capsys: pytest.CaptureFixture[str]) -> None:
+    """issue 12 row 13: a wrong device path is named on stderr, with the reason, from the start."""
+    args = ["--set", "devices.scanner_url='/dev/vipsm-nosuch'", "--set", "devices.robot_url=''",
+            "--set", "devices.camera_url=''", "--set", "devices.camera_http_url=''", "--set", "status.enabled=false",
+            "--set", "log.path=''"]
+    code = main(["run", *args, "--duration", "1.0"])
+    err = capsys.readouterr().err
+    assert code == 0
+    lines = [ln for ln in err.splitlines() if ln.startswith("vipsm-robot: ") and "scanner:" in ln]
+    assert lines and "/dev/vipsm-nosuch" in lines[0]
+    assert any("last error" in ln for ln in lines) or "connecting" in lines[0]
