@@ -53,6 +53,9 @@ class DevicesConfig:
     camera_tilt_deg: float = _f(0.0, "tilt set at start-up (up positive)", min=-25.0, max=90.0)
     camera_zoom: int = _f(0, "zoom position set at start-up (0 = wide)", min=0, max=0x4000)
     reconnect_max_s: float = _f(2.0, "longest wait between reconnect attempts", min=0.05)
+    startup_wait_s: float = _f(
+        10.0, "at start-up, wait this long at most for the devices to open before the loop runs", min=0.0, max=600.0
+    )
 
 
 @dataclass(frozen=True)

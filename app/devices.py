@@ -11,6 +11,7 @@ formula replay uses), ``OdometrySample`` -> ``Odometry``, ``CameraFrame`` (JPEG)
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -366,7 +367,7 @@ def build_loop(
     *,
     log_path: str | None = None,
     truth: TruthFn | None = None,
-    wait_for_devices_s: float = 10.0,
+    wait_for_devices_s: float | None = None,
 ) -> ControlLoop:
     """Devices, estimator, field log, status server and systemd notifier, wired into one loop."""
     deterministic_opencv()
@@ -416,9 +417,15 @@ def build_loop(
         truth=truth,
     )
     # give the devices a moment to open so the first cycles are not spent in device_stop
-    deadline = time.monotonic() + wait_for_devices_s
+    wait_s = config.devices.startup_wait_s if wait_for_devices_s is None else wait_for_devices_s
+    deadline = time.monotonic() + wait_s
+    said = False
     while time.monotonic() < deadline:
         if all(dev is None or dev.state() == "ok" for dev in (scanner, base, camera)):
             break
+        if not said:
+            print(f"vipsm-robot: info: waiting up to {wait_s:g} s for the devices to open "
+                  "(devices.startup_wait_s)", file=sys.stderr, flush=True)
+            said = True
         time.sleep(0.05)
     return loop

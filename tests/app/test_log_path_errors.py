@@ -29,10 +29,11 @@ def test_run_names_each_device_its_url_and_why_it_is_not_there(capsys: pytest.Ca
     """issue 12 row 13: a wrong device path is named on stderr, with the reason, from the start."""
     args = ["--set", "devices.scanner_url='/dev/vipsm-nosuch'", "--set", "devices.robot_url=''",
             "--set", "devices.camera_url=''", "--set", "devices.camera_http_url=''", "--set", "status.enabled=false",
-            "--set", "log.path=''"]
+            "--set", "log.path=''", "--set", "devices.startup_wait_s=0.5"]
     code = main(["run", *args, "--duration", "1.0"])
     err = capsys.readouterr().err
     assert code == 0
     lines = [ln for ln in err.splitlines() if ln.startswith("vipsm-robot: ") and "scanner:" in ln]
     assert lines and "/dev/vipsm-nosuch" in lines[0]
     assert any("last error" in ln for ln in lines) or "connecting" in lines[0]
+    assert "waiting up to 0.5 s for the devices to open (devices.startup_wait_s)" in err
