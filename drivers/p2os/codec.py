@@ -824,19 +824,6 @@ class ArcosDecoder:
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         return self._decode(self.deframer.feed(data))
 
-    def _release_held_tiny_frame(self) -> RawFrame | None:
-        """A complete tiny frame held back while a header inside it waited for its body: accept it."""
-        buf = self._buf
-        if len(buf) < 3 or not MIN_COUNT <= buf[2] <= WEAK_COUNT or len(buf) < buf[2] + 3:
-            return None
-        total = buf[2] + 3
-        payload = bytes(buf[3 : total - 2])
-        if checksum(payload) != (buf[total - 2] << 8) | buf[total - 1]:
-            return None
-        self.stats.frames += 1
-        del buf[:total]
-        return RawFrame(payload)
-
     def expire_partial(self) -> list[Event]:
         return self._decode(self.deframer.expire_partial())
 
