@@ -107,7 +107,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     from .daemon import estimate_to_dict
     from .fieldlog import encode_json
-    from .replay import run_replay
+    from .replay import recorded_log_version, run_replay
 
     # the estimator configuration recorded in the log, unless one is given here
     estimator_config = _config(args).estimator if (args.config or args.set) else None
@@ -133,6 +133,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
         "plain_psm": bool(args.plain_psm),
         "identical_to_recorded": identical,
         "ms_per_cycle": round(1e3 * elapsed / len(results), 3),
+        "log_version": recorded_log_version(path),
+        "bad_messages": read.bad_messages,
+        "bad_message_reasons": read.bad,
     }
     truths = [(cyc.truth, est) for cyc, est in results if cyc.truth is not None]
     if truths:
@@ -147,4 +150,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
         summary["plots"] = plot_replay(results, Path(args.plots))
     emit(summary, args.json)
+    if read.bad_messages:
+        print(f"vipsm-robot: warning: {path}: {read.bad_messages} malformed message(s) skipped, the first: "
+              f"{read.bad[0]}", file=sys.stderr)
+        return 3
     return 0

@@ -27,12 +27,14 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+from foxglove.messages import LaserScan
 
 from vipsm.estimator import Estimator
 from vipsm.types import Estimate, EstimateFlag, Frame, Obstacle, Odometry, Scan
 
+from . import logmessages as lm
 from .config import Config
-from .fieldlog import LOG_LEVELS, FieldLog, b64, stamp, yaw_quaternion
+from .fieldlog import FieldLog
 from .health import LoopHealth, OdometryHistory, SafetyMonitor
 from .sdnotify import SystemdNotifier
 from .status import ObstacleStatus, StatusServer, StatusSnapshot
@@ -45,6 +47,9 @@ from .status import ObstacleStatus, StatusServer, StatusSnapshot
 class ScanSample:
     scan: Scan
     device_stamp_ms: int | None = None
+    #: the ranges with REP 117's meanings for invalid readings (+inf, -inf, NaN), for ``/scan``;
+    #: None: the scan's NaN stands for every invalid reading
+    rep117_ranges_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -92,66 +97,17 @@ TruthFn = Callable[[float], dict[str, Any] | None]
 # log payloads (built on the writer thread)
 
 
-def scan_message(scan: Scan, wall_s: float) -> dict[str, Any]:
-    r = scan.ranges_m
-    ranges = [None if not math.isfinite(v) else float(v) for v in r.tolist()]
-    msg: dict[str, Any] = {
-        "timestamp": stamp(wall_s),
-        "frame_id": "laser",
-        "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": yaw_quaternion(0.0)},
-        "start_angle": float(scan.bearings_rad[0]) if len(r) else 0.0,
-        "end_angle": float(scan.bearings_rad[-1]) if len(r) else 0.0,
-        "ranges": ranges,
-        "intensities": [] if scan.intensities is None else [float(v) for v in scan.intensities.tolist()],
-        "seq": scan.seq,
-    }
-    return msg
+def scan_message(sample: ScanSample, wall_s: float) -> LaserScan:
+    scan = sample.scan
+    ranges = scan.ranges_m if sample.rep117_ranges_m is None else sample.rep117_ranges_m
+    b = scan.bearings_rad
+    intensities = None if scan.intensities is None else scan.intensities.tolist()
+    return lm.laser_scan(ranges.tolist(), float(b[0]) if len(b) else 0.0, float(b[-1]) if len(b) else 0.0,
+                         intensities, wall_s)
 
 
-def image_message(fs: FrameSample, wall_s: float) -> dict[str, Any]:
-    f = fs.frame
-    return {
-        "timestamp": stamp(wall_s), "frame_id": "camera", "format": "jpeg", "data": b64(fs.jpeg),
-        "seq": f.seq, "pan_rad": f.pan_rad, "tilt_rad": f.tilt_rad, "zoom_pos": fs.zoom_pos,
-    }
-
-
-def pose_message(x: float, y: float, th: float, wall_s: float, frame_id: str) -> dict[str, Any]:
-    return {
-        "timestamp": stamp(wall_s),
-        "frame_id": frame_id,
-        "pose": {"position": {"x": x, "y": y, "z": 0.0}, "orientation": yaw_quaternion(th)},
-    }
-
-
-def obstacles_message(obstacles: tuple[Obstacle, ...], wall_s: float) -> dict[str, Any]:
-    ents = []
-    for ob in obstacles:
-        ents.append(
-            {
-                "timestamp": stamp(wall_s),
-                "frame_id": "odom",
-                "id": f"obstacle-{ob.track_id}",
-                "lifetime": {"sec": 0, "nsec": 300_000_000},
-                "frame_locked": False,
-                "metadata": [
-                    {"key": "vx_mps", "value": f"{ob.vx_mps:.3f}"},
-                    {"key": "vy_mps", "value": f"{ob.vy_mps:.3f}"},
-                ],
-                "cylinders": [
-                    {
-                        "pose": {"position": {"x": ob.x_m, "y": ob.y_m, "z": 0.5}, "orientation": yaw_quaternion(0.0)},
-                        "size": {"x": 2 * ob.radius_m, "y": 2 * ob.radius_m, "z": 1.0},
-                        "bottom_scale": 1.0,
-                        "top_scale": 1.0,
-                        "color": {"r": 1.0, "g": 0.3, "b": 0.1, "a": 0.7},
-                    }
-                ],
-                "arrows": [],
-                "texts": [],
-            }
-        )
-    return {"deletions": [], "entities": ents}
+def obstacle_views(obstacles: tuple[Obstacle, ...]) -> list[lm.ObstacleView]:
+    return [lm.ObstacleView(o.track_id, o.x_m, o.y_m, o.vx_mps, o.vy_mps, o.radius_m) for o in obstacles]
 
 
 def estimate_to_dict(est: Estimate) -> dict[str, Any]:
@@ -186,10 +142,10 @@ def estimate_to_dict(est: Estimate) -> dict[str, Any]:
 
 
 def cycle_message(
-    cycle: int, scan: Scan, odom: Odometry, frame: Frame | None, frame_seq: int | None, est: Estimate
+    cycle: int, scan: Scan, odom: Odometry, frame: Frame | None, image_wall_s: float | None, est: Estimate
 ) -> dict[str, Any]:
     """Everything the estimator took and gave in one cycle: ``replay`` runs from this alone
-    (plus the JPEG on ``/camera/image`` with the same ``seq``)."""
+    (plus the JPEG on ``/camera/image`` logged at ``image_log_time_ns``)."""
     b = scan.bearings_rad
     return {
         "cycle": cycle,
@@ -212,7 +168,7 @@ def cycle_message(
         "frame": None
         if frame is None
         else {
-            "seq": frame_seq,
+            "seq": frame.seq,
             "stamp_s": frame.stamp_s,
             "pan_rad": frame.pan_rad,
             "tilt_rad": frame.tilt_rad,
@@ -224,6 +180,7 @@ def cycle_message(
                 frame.intrinsics.width_px,
                 frame.intrinsics.height_px,
             ],
+            "image_log_time_ns": lm.stamp_ns(image_wall_s) if image_wall_s is not None else -1,
         },
         "estimate": estimate_to_dict(est),
     }
@@ -295,8 +252,12 @@ class ControlLoop:
         self._ready_sent = False
         self._last_watchdog_s = -1e9
         self.cycle = 0
+        e = config.estimator
+        self._mounts = lm.Mounts(e.laser_x_m, e.laser_y_m, e.laser_theta_rad, e.camera_x_m, e.camera_y_m, e.camera_z_m)
+        self._last_pan_tilt = (0.0, 0.0)
         if field_log is not None:
-            field_log.log("/vipsm/config", wall_clock(), dataclasses.asdict(config))
+            field_log.on_event = lambda level, message: self.say(level, message, self.clock())
+            field_log.log("/vipsm/config", wall_clock(), {"log_version": lm.LOG_VERSION, **dataclasses.asdict(config)})
         #: device counters taken at shutdown (the clients are closed afterwards)
         self.final_counters: dict[str, dict[str, int]] = {}
         #: per-cycle records for the run summary: (stamp_s, estimate, truth)
@@ -312,18 +273,7 @@ class ControlLoop:
         self.stats.state_changes.append(message)
         print(f"vipsm-robot: {level}: {message}", file=sys.stderr, flush=True)
         if self.log is not None:
-            self.log.log(
-                "/log",
-                self.wall(now_s),
-                {
-                    "timestamp": stamp(self.wall(now_s)),
-                    "level": LOG_LEVELS[level],
-                    "message": message,
-                    "name": "vipsm-robot",
-                    "file": "",
-                    "line": 0,
-                },
-            )
+            self.log.log("/log", self.wall(now_s), lm.log_line(level, message, self.wall(now_s)))
 
     def _track_state(self, device: str, state: str, now_s: float) -> None:
         old = self._states.get(device)
@@ -348,27 +298,23 @@ class ControlLoop:
                 self.stats.scans_in += 1
                 self.last_scan = s
                 if self.log is not None:
-                    sc, w = s.scan, self.wall(s.scan.stamp_s)
-                    self.log.log("/scan", w, lambda sc=sc, w=w: scan_message(sc, w))
+                    w = self.wall(s.scan.stamp_s)
+                    self.log.log("/scan", w, lambda s=s, w=w: scan_message(s, w))
         if self.base is not None:
             for o in self.base.poll():
                 self.stats.odometry_in += 1
                 self.odom.add(o.odometry)
                 self.last_odom_sample = o
                 if self.log is not None:
-                    od = o.odometry
-                    self.log.log(
-                        "/odom",
-                        self.wall(od.stamp_s),
-                        pose_message(od.x_m, od.y_m, od.theta_rad, self.wall(od.stamp_s), "odom"),
-                    )
+                    od, w = o.odometry, self.wall(o.odometry.stamp_s)
+                    self.log.log("/odom", w, lm.pose_in_frame(od.x_m, od.y_m, od.theta_rad, w))
         frame_sample = self.camera.latest() if self.camera is not None else None
         if frame_sample is not None:
             self.stats.frames_in += 1
             self.last_frame = frame_sample
             if self.log is not None and self.config.log.frames:
                 fs, fw = frame_sample, self.wall(frame_sample.frame.stamp_s)
-                self.log.log("/camera/image", fw, lambda fs=fs, fw=fw: image_message(fs, fw))
+                self.log.log("/camera/image", fw, lambda fs=fs, fw=fw: lm.compressed_image(fs.jpeg, fw))
 
         scanner_state = self.scanner.state() if self.scanner is not None else "absent"
         base_state = self.base.state() if self.base is not None else "absent"
@@ -456,15 +402,21 @@ class ControlLoop:
 
     def _log_estimate(self, est: Estimate, scan: Scan, odom: Odometry, frame: Frame | None, wall: float) -> None:
         assert self.log is not None
-        frame_seq = frame.seq if frame is not None else None
-        self.log.log("/pose", wall, pose_message(est.pose.x_m, est.pose.y_m, est.pose.theta_rad, wall, "odom"))
-        self.log.log("/obstacles", wall, lambda: obstacles_message(est.obstacles, wall))
+        p = est.pose
+        self.log.log("/pose", wall, lm.pose_in_frame(p.x_m, p.y_m, p.theta_rad, wall))
+        life_s = max(3 * self.config.loop.period_s, 0.3)
+        views = obstacle_views(est.obstacles)
+        self.log.log("/obstacles", wall, lambda: lm.scene_update(views, wall, life_s))
         cycle = self.cycle
-        self.log.log("/vipsm/cycle", wall, lambda: cycle_message(cycle, scan, odom, frame, frame_seq, est))
-        if self.truth is not None:
-            truth = self.truth(scan.stamp_s)
-            if truth is not None:
-                self.log.log("/truth", wall, {"stamp_s": scan.stamp_s, **truth})
+        image_wall = self.wall(frame.stamp_s) if frame is not None else None
+        self.log.log("/vipsm/cycle", wall, lambda: cycle_message(cycle, scan, odom, frame, image_wall, est))
+        truth = self.truth(scan.stamp_s) if self.truth is not None else None
+        if truth is not None:
+            self.log.log("/truth", wall, {"stamp_s": scan.stamp_s, **truth})
+        pan_tilt = (frame.pan_rad, frame.tilt_rad) if frame is not None else self._last_pan_tilt
+        self._last_pan_tilt = pan_tilt
+        pose = (p.x_m, p.y_m, p.theta_rad)
+        self.log.log("/tf", wall, lambda: lm.robot_transforms(pose, self._mounts, pan_tilt, wall, truth))
 
     def _publish(
         self,
@@ -492,7 +444,10 @@ class ControlLoop:
             flags.add("safety_stop")
         if coil:
             flags.add("coil_stop")
-        if healthy:
+        log_failed = self.log is not None and (self.log.stats.state == "disk_error" or self.log.stats.error is not None)
+        if log_failed:
+            flags.add("log_error")
+        if healthy and not log_failed:
             flags.add("loop_healthy")
         if self.truth is not None:
             flags.add("simulated")
@@ -507,6 +462,7 @@ class ControlLoop:
             "camera": camera_state,
             "mission": self.mission_state,
             "log_dropped": self.log.stats.dropped if self.log is not None else 0,
+            "log_state": self.log.stats.state if self.log is not None else "off",
             "flags": sorted(flags),
         }
         if self.log is not None:

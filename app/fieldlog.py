@@ -1,170 +1,83 @@
-"""The field log: MCAP files with Foxglove schemas in JSON encoding, written by their own thread.
+"""The field log: MCAP files written with the Foxglove SDK by their own thread, and the same channels
+served live (``app.liveview``).
 
-Channels (topic: schema):
+Channels (topic: schema, encoding):
 
-===========================  =========================  =====================================================
-``/scan``                    ``foxglove.LaserScan``     every scan the driver delivered (invalid ranges: null)
-``/odom``                    ``foxglove.PoseInFrame``   wheel odometry, every sample
-``/pose``                    ``foxglove.PoseInFrame``   the estimator's matched pose, every cycle
-``/camera/image``            ``foxglove.CompressedImage``  every frame used, JPEG as the camera sent it
-``/obstacles``               ``foxglove.SceneUpdate``   tracked obstacles (cylinders + velocity text)
-``/diagnostics``             ``vipsm.LoopDiagnostics``  loop health and device states, every cycle
-``/log``                     ``foxglove.Log``           daemon log lines (degraded modes, reconnects, faults)
-``/truth``                   ``vipsm.GroundTruth``      simulated runs only: the world's true robot/obstacles
-``/vipsm/cycle``             ``vipsm.Cycle``            the estimator's exact inputs and outputs (for replay)
-``/vipsm/config``            ``vipsm.Config``           the whole configuration, once at start (for replay)
-===========================  =========================  =====================================================
+===================  ============================  ==========================================================
+``/scan``            ``foxglove.LaserScan`` pb     every scan the driver delivered (REP 117: +inf no return)
+``/odom``            ``foxglove.PoseInFrame`` pb   wheel odometry, every sample (frame ``odom``)
+``/pose``            ``foxglove.PoseInFrame`` pb   the estimator's matched pose, every cycle (frame ``odom``)
+``/tf``              ``foxglove.FrameTransforms``  odom -> base_link -> laser, camera (+ world, truth in sim)
+``/camera/image``    ``foxglove.CompressedImage``  every frame used, JPEG as the camera sent it
+``/obstacles``       ``foxglove.SceneUpdate`` pb   tracked obstacles: cylinder, velocity arrow, speed text
+``/log``             ``foxglove.Log`` pb           daemon log lines (state changes, degraded modes, faults)
+``/diagnostics``     ``vipsm.LoopDiagnostics``     loop health and device states, every cycle (JSON)
+``/truth``           ``vipsm.GroundTruth``         simulated runs only: the world's true robot/obstacles (JSON)
+``/vipsm/cycle``     ``vipsm.Cycle``               the estimator's exact inputs and outputs, for replay (JSON)
+``/vipsm/config``    ``vipsm.Config``              the whole configuration and ``log_version``, once (JSON)
+===================  ============================  ==========================================================
+
+The ``foxglove.*`` channels are the SDK's typed channels (official protobuf schemas by
+construction); the project's channels carry complete JSON schemas (:mod:`app.logschemas`).
 
 The control loop only enqueues (``log``); a bounded queue drops and counts what the writer cannot
-take, so the loop never blocks on the disk. Chunks are closed and the file flushed and fsynced at
-least every ``flush_s`` seconds, so a process killed with SIGKILL (or a power cut) loses at most that
-much; a log closed normally (SIGTERM) gets its summary and index. Files rotate by size or age.
+take, so the loop never blocks on the disk. A chunk is closed and the file flushed and fsynced once
+its oldest message is ``0.6 * flush_s`` old, so a process killed with SIGKILL (or a power cut) loses
+at most ``flush_s`` (the rest is the flush's own time). A log closed normally gets its summary and
+index. Files rotate by size or age. A failed write (disk full, I/O error) ends that file where it
+stands (readable up to its last complete chunk), is reported once through ``on_event``, and a new
+file is tried every ``retry_s``; messages in between still reach the live view and are counted as
+``lost_to_disk``.
 """
 
 from __future__ import annotations
 
-import base64
 import json
 import math
 import os
 import queue
-import struct
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mcap.exceptions import McapError
-from mcap.records import Channel, Message, Schema
-from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, Writer
 
 from .errors import LogFormatError
+from .logread import LogMessage, LogReadResult, read_log  # noqa: F401 - the log's reader lives beside it
+from .logschemas import CYCLE, DIAGNOSTICS, GROUND_TRUTH, config_schema
 
-_TIME = {
-    "type": "object",
-    "properties": {"sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0}},
-}
-_VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
-_QUAT = {"type": "object", "properties": {k: {"type": "number"} for k in "xyzw"}}
-_POSE = {"type": "object", "properties": {"position": _VEC3, "orientation": _QUAT}}
-_COLOR = {"type": "object", "properties": {k: {"type": "number"} for k in "rgba"}}
-
-SCHEMAS: dict[str, dict[str, Any]] = {
-    "foxglove.LaserScan": {
-        "type": "object",
-        "properties": {
-            "timestamp": _TIME,
-            "frame_id": {"type": "string"},
-            "pose": _POSE,
-            "start_angle": {"type": "number"},
-            "end_angle": {"type": "number"},
-            "ranges": {"type": "array", "items": {"type": ["number", "null"]}},
-            "intensities": {"type": "array", "items": {"type": "number"}},
-        },
-    },
-    "foxglove.PoseInFrame": {
-        "type": "object",
-        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "pose": _POSE},
-    },
-    "foxglove.CompressedImage": {
-        "type": "object",
-        "properties": {
-            "timestamp": _TIME,
-            "frame_id": {"type": "string"},
-            "data": {"type": "string", "contentEncoding": "base64"},
-            "format": {"type": "string"},
-        },
-    },
-    "foxglove.SceneUpdate": {
-        "type": "object",
-        "properties": {
-            "deletions": {"type": "array", "items": {"type": "object"}},
-            "entities": {
-                "type": "array",
-                "items": {
-                    "type": "object",
-                    "properties": {
-                        "timestamp": _TIME,
-                        "frame_id": {"type": "string"},
-                        "id": {"type": "string"},
-                        "lifetime": _TIME,
-                        "frame_locked": {"type": "boolean"},
-                        "metadata": {"type": "array", "items": {"type": "object"}},
-                        "cylinders": {
-                            "type": "array",
-                            "items": {
-                                "type": "object",
-                                "properties": {
-                                    "pose": _POSE,
-                                    "size": _VEC3,
-                                    "bottom_scale": {"type": "number"},
-                                    "top_scale": {"type": "number"},
-                                    "color": _COLOR,
-                                },
-                            },
-                        },
-                        "arrows": {"type": "array", "items": {"type": "object"}},
-                        "texts": {"type": "array", "items": {"type": "object"}},
-                    },
-                },
-            },
-        },
-    },
-    "foxglove.Log": {
-        "type": "object",
-        "properties": {
-            "timestamp": _TIME,
-            "level": {"type": "integer", "description": "1 debug, 2 info, 3 warning, 4 error, 5 fatal"},
-            "message": {"type": "string"},
-            "name": {"type": "string"},
-            "file": {"type": "string"},
-            "line": {"type": "integer"},
-        },
-    },
-    "vipsm.LoopDiagnostics": {"type": "object", "description": "loop health and device states per cycle"},
-    "vipsm.GroundTruth": {"type": "object", "description": "the simulated world's truth at the cycle's time"},
-    "vipsm.Cycle": {"type": "object", "description": "the estimator's exact inputs and outputs for one cycle"},
-    "vipsm.Config": {"type": "object", "description": "the daemon's whole configuration at start"},
+#: the project's JSON channels: topic -> (schema name, schema factory)
+JSON_TOPICS: dict[str, tuple[str, Callable[[], dict[str, Any]]]] = {
+    "/diagnostics": ("vipsm.LoopDiagnostics", lambda: DIAGNOSTICS),
+    "/truth": ("vipsm.GroundTruth", lambda: GROUND_TRUTH),
+    "/vipsm/cycle": ("vipsm.Cycle", lambda: CYCLE),
+    "/vipsm/config": ("vipsm.Config", config_schema),
 }
 
-TOPIC_SCHEMAS: dict[str, str] = {
-    "/scan": "foxglove.LaserScan",
-    "/odom": "foxglove.PoseInFrame",
-    "/pose": "foxglove.PoseInFrame",
-    "/camera/image": "foxglove.CompressedImage",
-    "/obstacles": "foxglove.SceneUpdate",
-    "/diagnostics": "vipsm.LoopDiagnostics",
-    "/log": "foxglove.Log",
-    "/truth": "vipsm.GroundTruth",
-    "/vipsm/cycle": "vipsm.Cycle",
-    "/vipsm/config": "vipsm.Config",
+#: the Foxglove channels: topic -> name of the SDK's typed channel class in ``foxglove.channels``
+FOXGLOVE_TOPICS: dict[str, str] = {
+    "/scan": "LaserScanChannel",
+    "/odom": "PoseInFrameChannel",
+    "/pose": "PoseInFrameChannel",
+    "/tf": "FrameTransformsChannel",
+    "/camera/image": "CompressedImageChannel",
+    "/obstacles": "SceneUpdateChannel",
+    "/log": "LogChannel",
 }
 
-LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "error": 4, "fatal": 5}
+TOPICS = (*FOXGLOVE_TOPICS, *JSON_TOPICS)
 
 
 def schema_for(topic: str) -> str:
-    if topic in TOPIC_SCHEMAS:
-        return TOPIC_SCHEMAS[topic]
+    """The schema name a topic carries (``foxglove.LaserScan``, ``vipsm.Cycle``, ...)."""
+    if topic in JSON_TOPICS:
+        return JSON_TOPICS[topic][0]
+    if topic in FOXGLOVE_TOPICS:
+        return "foxglove." + FOXGLOVE_TOPICS[topic].removesuffix("Channel")
     raise LogFormatError(f"no schema for topic {topic!r}")
-
-
-def stamp(t_wall_s: float) -> dict[str, int]:
-    """A foxglove Time from seconds since the epoch."""
-    ns = int(round(t_wall_s * 1e9))
-    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
-
-
-def yaw_quaternion(theta_rad: float) -> dict[str, float]:
-    return {"x": 0.0, "y": 0.0, "z": math.sin(theta_rad / 2.0), "w": math.cos(theta_rad / 2.0)}
-
-
-def b64(data: bytes) -> str:
-    return base64.b64encode(data).decode("ascii")
 
 
 @dataclass
@@ -177,6 +90,13 @@ class FieldLogStats:
     #: messages that could not be encoded (counted and skipped; the writer carries on)
     bad_messages: int = 0
     last_bad_message: str | None = None
+    #: "ok", "off" (live view only), or "disk_error" (a write failed; retrying)
+    state: str = "ok"
+    #: messages not written to a file because the disk had failed (they still went to the live view)
+    lost_to_disk: int = 0
+    disk_errors: int = 0
+    last_disk_error: str | None = None
+    #: an unexpected failure of the writer thread (it stopped); None while it runs
     error: str | None = None
 
 
@@ -212,20 +132,79 @@ def encode_json(payload: Any) -> bytes:
     return text.encode()
 
 
-_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+class _GuardedFile:
+    """The file the SDK's MCAP writer writes to. A failed write (ENOSPC, EIO) is recorded and the
+    rest of the file's bytes are discarded, so the writer never sees an error (it would print one per
+    message) and the file ends at the failure, readable up to its last complete chunk. After a
+    failure, positions are kept as if the writes had happened (the writer seeks back to patch chunk
+    headers and checks where it is)."""
+
+    def __init__(self, path: str) -> None:
+        self.file = open(path, "wb")  # noqa: SIM115 - closed by close()
+        self.bytes = 0  # bytes actually written
+        self._pos = 0  # the writer's position, real or (after a failure) virtual
+        self._size = 0
+        self.failure: OSError | None = None
+
+    def write(self, data: bytes) -> int:
+        if self.failure is None:
+            try:
+                self.file.write(data)
+                self.bytes = max(self.bytes, self._pos + len(data))
+            except OSError as exc:
+                self.failure = exc
+        self._pos += len(data)
+        self._size = max(self._size, self._pos)
+        return len(data)
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        base = {0: 0, 1: self._pos, 2: self._size}[whence]
+        self._pos = base + offset
+        if self.failure is None:
+            try:
+                self.file.seek(self._pos)
+            except OSError as exc:
+                self.failure = exc
+        return self._pos
+
+    def tell(self) -> int:
+        return self._pos
+
+    def flush(self) -> None:
+        self.sync(fsync=False)
+
+    def sync(self, fsync: bool) -> None:
+        if self.failure is not None:
+            return
+        try:
+            self.file.flush()
+            if fsync:
+                os.fsync(self.file.fileno())
+        except OSError as exc:
+            self.failure = exc
+
+    def close(self) -> None:
+        try:
+            self.file.close()
+        except OSError as exc:  # the buffered tail could not be written: the file ends before it
+            self.failure = self.failure or exc
+
+
 _STOP = object()
 
 
 class FieldLog:
-    """Writes messages to MCAP on a background thread; ``log`` never blocks.
+    """Writes messages to MCAP (and the live view) on a background thread; ``log`` never blocks.
 
-    ``log(topic, t_wall_s, payload)``: ``payload`` is a JSON-able dict, or a callable returning one
-    (evaluated on the writer thread, so building large messages costs the loop nothing).
+    ``log(topic, t_wall_s, payload)``: ``payload`` is a Foxglove SDK message for a ``foxglove.*``
+    topic or a JSON-able dict for a project topic, or a callable returning one (evaluated on the
+    writer thread, so building large messages costs the loop nothing). ``path_pattern`` None: no
+    file, the channels only feed a live view started on :attr:`context`.
     """
 
     def __init__(
         self,
-        path_pattern: str,
+        path_pattern: str | None,
         *,
         compression: str = "zstd",
         rotate_bytes: int = 512 * 1024 * 1024,
@@ -233,26 +212,34 @@ class FieldLog:
         flush_s: float = 0.5,
         queue_size: int = 512,
         fsync: bool = True,
+        retry_s: float = 5.0,
         wall_clock: Callable[[], float] = time.time,
+        on_event: Callable[[str, str], None] | None = None,
     ) -> None:
-        if compression not in _COMPRESSION:
+        import foxglove
+
+        if compression not in ("zstd", "lz4", "none"):
             raise LogFormatError(f"unknown compression {compression!r}")
         self._pattern = path_pattern
-        self._compression = _COMPRESSION[compression]
+        self._compression = compression
         self._rotate_bytes = rotate_bytes
         self._rotate_s = rotate_s
         self._flush_s = flush_s
         self._fsync = fsync
+        self._retry_s = retry_s
         self._wall = wall_clock
+        self.on_event = on_event
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
-        self.stats = FieldLogStats()
+        self.stats = FieldLogStats(state="ok" if path_pattern else "off")
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
-        self._file: Any = None
-        self._writer: Writer | None = None
-        self._channels: dict[str, int] = {}
-        self._schemas: dict[str, int] = {}
+        #: the SDK context binding the channels to their sinks (the MCAP file, a live view)
+        self.context = foxglove.Context()
+        self._channels: dict[str, Any] = {}
+        self._file: _GuardedFile | None = None
+        self._writer: Any = None
         self._opened_at = 0.0
+        self._retry_at = math.inf
 
     @property
     def path(self) -> str | None:
@@ -260,18 +247,21 @@ class FieldLog:
         return self.stats.files[-1] if self.stats.files else None
 
     def start(self) -> FieldLog:
-        self._open_file()
+        """Opens the first file (``OSError`` if it cannot be created) and starts the writer."""
+        if self._pattern:
+            self._open_file()
         self._thread = threading.Thread(target=self._run, name="field-log", daemon=True)
         self._thread.start()
         return self
 
-    def log(self, topic: str, t_wall_s: float, payload: dict[str, Any] | Callable[[], dict[str, Any]]) -> bool:
-        """Queue one message; False (and counted) when the queue is full or the writer failed."""
+    def log(self, topic: str, t_wall_s: float, payload: Any) -> bool:
+        """Queue one message; False (and counted) when the queue is full or the writer stopped."""
         if self.stats.error is not None:
-            self.stats.dropped += 1
+            with self._lock:
+                self.stats.dropped += 1
             return False
         try:
-            self._queue.put_nowait((topic, t_wall_s, payload))
+            self._queue.put_nowait((topic, t_wall_s, payload, time.monotonic()))
         except queue.Full:
             with self._lock:
                 self.stats.dropped += 1
@@ -281,7 +271,8 @@ class FieldLog:
         return True
 
     def close(self, timeout_s: float = 10.0) -> None:
-        """Write what is queued, the summary and the index; idempotent."""
+        """Write what is queued, the summary and the index; idempotent; never raises for the disk
+        (a failure is in ``stats``)."""
         if self._thread is None:
             return
         deadline = time.monotonic() + timeout_s
@@ -296,11 +287,11 @@ class FieldLog:
         self._thread = None
         self._finish_file()
 
-    # -- writer thread ------------------------------------------------------------------------
+    # -- files ---------------------------------------------------------------------------------
 
     def _new_path(self) -> str:
-        base = time.strftime(self._pattern, time.localtime(self._wall()))
-        path = Path(base)
+        assert self._pattern
+        path = Path(time.strftime(self._pattern, time.localtime(self._wall())))
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
         n = 1
@@ -311,148 +302,141 @@ class FieldLog:
         return str(candidate)
 
     def _open_file(self) -> None:
+        import foxglove
+        from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+
         path = self._new_path()
-        self._file = open(path, "wb")  # noqa: SIM115 - owned until _finish_file
-        self._writer = Writer(self._file, compression=self._compression, chunk_size=1024 * 1024)
-        self._writer.start(profile="", library="vipsm-robot")
-        self._channels.clear()
-        self._schemas.clear()
+        self._file = _GuardedFile(path)
+        compression = {"zstd": MCAPCompression.Zstd, "lz4": MCAPCompression.Lz4, "none": None}[self._compression]
+        options = MCAPWriteOptions(compression=compression, compression_threads=0, profile="",
+                                   chunk_size=1024 * 1024)
+        self._writer = foxglove.open_mcap(self._file, context=self.context, writer_options=options)  # type: ignore[arg-type]
         self._opened_at = time.monotonic()
         self.stats.files.append(path)
 
     def _finish_file(self) -> None:
-        if self._writer is None:
+        """Summary and index written, the file synced and closed (a failure is recorded, not raised)."""
+        if self._writer is None or self._file is None:
             return
+        writer, f = self._writer, self._file
+        self._writer = self._file = None
         try:
-            self._writer.finish()
-            self._file.flush()
-            os.fsync(self._file.fileno())
-        finally:
-            self._file.close()
-            self._writer = None
-            self._file = None
+            writer.close()
+        except RuntimeError as exc:  # the SDK's error for a failed write the guard let through
+            f.failure = f.failure or OSError(str(exc))
+        f.sync(fsync=self._fsync)
+        f.close()
+        if f.failure is not None:
+            self._note_failure(f.failure)
 
-    def _channel(self, topic: str) -> int:
-        cid = self._channels.get(topic)
-        if cid is not None:
-            return cid
-        assert self._writer is not None
-        name = schema_for(topic)
-        sid = self._schemas.get(name)
-        if sid is None:
-            sid = self._writer.register_schema(name, "jsonschema", json.dumps(SCHEMAS[name]).encode())
-            self._schemas[name] = sid
-        cid = self._writer.register_channel(topic, "json", sid)
-        self._channels[topic] = cid
-        return cid
+    def _note_failure(self, exc: OSError) -> None:
+        self.stats.disk_errors += 1
+        self.stats.last_disk_error = str(exc.strerror or exc)
+        self.stats.state = "disk_error"
+        self._retry_at = time.monotonic() + self._retry_s
+        if self.on_event is not None:
+            self.on_event("error", f"field log: writing failed: {exc.strerror or exc}; messages are lost until "
+                                    f"a new file can be written (retry every {self._retry_s:g} s)")
+
+    def _check_disk(self) -> None:
+        """A failed file is ended; after ``retry_s`` a new file is tried."""
+        f = self._file
+        if f is not None and f.failure is not None:
+            path = self.path
+            self._finish_file()
+            if self.on_event is not None:
+                self.on_event("warning", f"field log: {path} ends at the failure (readable up to it)")
+        if self._file is None and self._pattern and time.monotonic() >= self._retry_at:
+            try:
+                self._open_file()
+            except OSError as exc:
+                self._note_failure(exc)
+                return
+            self.stats.state = "ok"
+            self._retry_at = math.inf
+            if self.on_event is not None:
+                self.on_event("info", f"field log: writing again, to {self.path}")
+
+    # -- writer thread ------------------------------------------------------------------------
+
+    def _channel(self, topic: str) -> Any:
+        ch = self._channels.get(topic)
+        if ch is not None:
+            return ch
+        import foxglove
+        import foxglove.channels
+
+        if topic in JSON_TOPICS:
+            name, schema = JSON_TOPICS[topic]
+            sch = foxglove.Schema(name=name, encoding="jsonschema", data=json.dumps(schema()).encode())
+            ch = foxglove.Channel(topic, schema=sch, message_encoding="json", context=self.context)
+        elif topic in FOXGLOVE_TOPICS:
+            ch = getattr(foxglove.channels, FOXGLOVE_TOPICS[topic])(topic, context=self.context)
+        else:
+            raise TypeError(f"no channel for topic {topic!r}")
+        self._channels[topic] = ch
+        return ch
 
     def _write(self, topic: str, t_wall_s: float, payload: Any) -> None:
-        assert self._writer is not None
         try:
             if callable(payload):
                 payload = payload()
-            data = encode_json(payload)
-        except (TypeError, ValueError, ArithmeticError) as exc:
+            channel = self._channel(topic)
+            ns = int(round(t_wall_s * 1e9))
+            data = encode_json(payload) if topic in JSON_TOPICS else payload
+            channel.log(data, log_time=ns)
+        except (TypeError, ValueError, ArithmeticError, OverflowError) as exc:
             self.stats.bad_messages += 1
             self.stats.last_bad_message = f"{topic}: {type(exc).__name__}: {exc}"
             return
-        ns = int(round(t_wall_s * 1e9))
-        self._writer.add_message(self._channel(topic), log_time=ns, publish_time=ns, data=data)
+        if self._file is None:
+            if self._pattern:
+                self.stats.lost_to_disk += 1
+            return
         self.stats.written += 1
-        self.stats.bytes_written += len(data)
+        self.stats.bytes_written = self._file.bytes
 
     def _flush(self) -> None:
-        assert self._writer is not None
-        self._writer.flush()
-        if self._fsync:
-            os.fsync(self._file.fileno())
+        if self._writer is None or self._file is None:
+            return
+        try:
+            self._writer.flush()
+        except RuntimeError as exc:
+            self._file.failure = self._file.failure or OSError(str(exc))
+        self._file.sync(fsync=self._fsync)
 
     def _run(self) -> None:
-        last_flush = time.monotonic()
+        oldest: float | None = None  # enqueue time of the oldest message not yet flushed
+        flush_after = 0.6 * self._flush_s
         try:
             while True:
-                timeout = max(0.0, self._flush_s - (time.monotonic() - last_flush))
+                wait = self._retry_s if oldest is None else max(0.0, oldest + flush_after - time.monotonic())
                 try:
-                    item = self._queue.get(timeout=timeout)
+                    item = self._queue.get(timeout=min(wait, self._retry_s))
                 except queue.Empty:
                     item = None
                 if item is _STOP:
                     self._flush()
                     return
                 if item is not None:
-                    self._write(*item)
-                now = time.monotonic()
-                if now - last_flush >= self._flush_s:
+                    self._write(*item[:3])
+                    oldest = item[3] if oldest is None else oldest
+                if oldest is not None and time.monotonic() - oldest >= flush_after:
                     self._flush()
-                    last_flush = now
-                    if self._file.tell() >= self._rotate_bytes or now - self._opened_at >= self._rotate_s:
-                        self._finish_file()
-                        self._open_file()
+                    oldest = None
+                    self._rotate_if_due()
+                self._check_disk()
         except BaseException as exc:  # noqa: BLE001 - surfaced through stats.error and the daemon's status
             self.stats.error = f"{type(exc).__name__}: {exc}"
 
-
-# ---------------------------------------------------------------------------------------------
-# reading
-
-
-@dataclass(frozen=True)
-class LogMessage:
-    topic: str
-    log_time_ns: int
-    data: dict[str, Any]
-
-
-@dataclass
-class LogReadResult:
-    truncated: bool = False
-    reason: str = ""
-
-
-def read_log(path: str | Path, result: LogReadResult | None = None) -> Iterator[LogMessage]:
-    """Every message in file order, JSON decoded.
-
-    A file cut short (SIGKILL, power loss, copy in progress) yields everything up to the cut; the
-    cut is reported in ``result`` (``truncated``, ``reason``) rather than raised. A file that is not
-    MCAP at all raises :class:`LogFormatError`.
-    """
-    result = result if result is not None else LogReadResult()
-    p = Path(path)
-    try:
-        f = open(p, "rb")  # noqa: SIM115 - closed below
-    except OSError as exc:
-        raise LogFormatError(f"cannot open {p}: {exc}") from exc
-    with f:
-        head = f.read(8)
-        magic = b"\x89MCAP0\r\n"
-        if head != magic:
-            if magic.startswith(head):  # empty or cut inside the magic: a log that was just started
-                result.truncated = True
-                result.reason = f"only {len(head)} bytes"
-                return
-            raise LogFormatError(f"{p} is not an MCAP file")
-        f.seek(0)
-        channels: dict[int, str] = {}
-        count = 0
-        try:
-            for record in StreamReader(f).records:
-                if isinstance(record, Channel):
-                    channels[record.id] = record.topic
-                elif isinstance(record, Schema):
-                    continue
-                elif isinstance(record, Message):
-                    topic = channels.get(record.channel_id)
-                    if topic is None:
-                        raise LogFormatError(f"{p}: message on unknown channel {record.channel_id}")
-                    try:
-                        data = json.loads(record.data)
-                    except ValueError as exc:
-                        raise LogFormatError(f"{p}: message {count} on {topic} is not JSON") from exc
-                    count += 1
-                    yield LogMessage(topic, record.log_time, data)
-        except LogFormatError:
-            raise
-        except (McapError, struct.error, EOFError, ValueError, OSError, Exception) as exc:  # noqa: BLE001
-            # a cut or corrupt tail (zstd errors included): report it, keep what was read
-            result.truncated = True
-            result.reason = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    def _rotate_if_due(self) -> None:
+        f = self._file
+        if f is None or f.failure is not None:
+            return
+        if f.bytes >= self._rotate_bytes or time.monotonic() - self._opened_at >= self._rotate_s:
+            self._finish_file()
+            if self.stats.state == "ok":
+                try:
+                    self._open_file()
+                except OSError as exc:
+                    self._note_failure(exc)

@@ -9,6 +9,8 @@ same poses and obstacles exactly.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -45,36 +47,70 @@ def decode_jpeg(jpeg: bytes) -> np.ndarray:
         raise LogFormatError(str(exc)) from exc
 
 
-def _nan(values: list[float | None]) -> np.ndarray:
+#: a recorded scan longer than this is refused (the UTM-30LX gives 1081 beams, the widest SCIP
+#: sensors a few thousand)
+MAX_BEAMS = 10_000
+
+
+def _num(rec: dict[str, Any], key: str) -> float:
+    """A finite real number, or ValueError naming the key."""
+    v = rec[key]
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ValueError(f"{key!r} is {v!r}, not a finite number")
+    return float(v)
+
+
+def _int(rec: dict[str, Any], key: str) -> int:
+    v = rec[key]
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ValueError(f"{key!r} is {v!r}, not an integer")
+    return v
+
+
+def _ranges(values: Any) -> np.ndarray:
+    if not isinstance(values, list) or not 1 <= len(values) <= MAX_BEAMS:
+        size = len(values) if isinstance(values, list) else type(values).__name__
+        raise ValueError(f"'ranges_m' must be a list of 1 to {MAX_BEAMS} values, not {size}")
+    if not all(v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in values):
+        raise ValueError("'ranges_m' holds a value that is neither a number nor null")
     return np.array([math.nan if v is None else v for v in values], dtype=float)
 
 
 def scan_from_record(rec: dict[str, Any]) -> Scan:
     from .daemon import normalised_bearings
 
-    ranges = _nan(rec["ranges_m"])
+    ranges = _ranges(rec["ranges_m"])
+    step = _num(rec, "bearing_step_rad")
+    if len(ranges) > 1 and not 0.0 < step <= 2 * math.pi / (len(ranges) - 1):
+        raise ValueError(f"'bearing_step_rad' {step!r} does not fit {len(ranges)} beams in one turn")
     return Scan(
         ranges_m=ranges,
-        bearings_rad=normalised_bearings(rec["first_bearing_rad"], rec["bearing_step_rad"], len(ranges)),
-        stamp_s=rec["stamp_s"],
-        seq=rec["seq"],
-        beam_dt_s=rec["beam_dt_s"],
+        bearings_rad=normalised_bearings(_num(rec, "first_bearing_rad"), step, len(ranges)),
+        stamp_s=_num(rec, "stamp_s"),
+        seq=_int(rec, "seq"),
+        beam_dt_s=_num(rec, "beam_dt_s"),
     )
 
 
 def odometry_from_record(rec: dict[str, Any]) -> Odometry:
-    return Odometry(rec["x_m"], rec["y_m"], rec["theta_rad"], rec["v_mps"], rec["w_radps"], rec["stamp_s"])
+    keys = ("x_m", "y_m", "theta_rad", "v_mps", "w_radps", "stamp_s")
+    return Odometry(*(_num(rec, k) for k in keys))
 
 
 def frame_from_record(rec: dict[str, Any], jpeg: bytes) -> Frame:
-    fx, fy, cx, cy, w, h = rec["intrinsics"]
+    intr = rec["intrinsics"]
+    if not isinstance(intr, list) or len(intr) != 6:
+        raise ValueError(f"'intrinsics' must be 6 numbers, not {intr!r}"[:200])
+    fx, fy, cx, cy, w, h = (_num({"intrinsics": v}, "intrinsics") for v in intr)
+    if fx <= 0 or fy <= 0 or not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise ValueError(f"'intrinsics' {intr!r} are not a camera's")
     return Frame(
         image=decode_jpeg(jpeg),
-        stamp_s=rec["stamp_s"],
+        stamp_s=_num(rec, "stamp_s"),
         intrinsics=Intrinsics(fx, fy, cx, cy, int(w), int(h)),
-        pan_rad=rec["pan_rad"],
-        tilt_rad=rec["tilt_rad"],
-        seq=rec["seq"],
+        pan_rad=_num(rec, "pan_rad"),
+        tilt_rad=_num(rec, "tilt_rad"),
+        seq=_int(rec, "seq"),
     )
 
 
@@ -88,50 +124,87 @@ class ReplayCycle:
     truth: dict[str, Any] | None
 
 
-def iter_cycles(path: str | Path, read: LogReadResult | None = None) -> Iterator[ReplayCycle]:
-    """The recorded cycles in order; frames are matched to cycles by sequence number."""
-    read = read if read is not None else LogReadResult()
-    jpegs: dict[int, bytes] = {}
-    truth_by_stamp: dict[float, dict[str, Any]] = {}
-    pending: list[dict[str, Any]] = []
-    import base64
+def _image_key(data: dict[str, Any], log_time_ns: int) -> tuple[str, int]:
+    """Version 2 logs: a frame is found by its image's log time; version 1 by a ``seq`` in the image."""
+    return ("seq", int(data["seq"])) if "seq" in data else ("t", log_time_ns)
 
-    def emit(rec: dict[str, Any]) -> ReplayCycle:
-        fr = rec["frame"]
-        frame = None
-        if fr is not None:
-            jpeg = jpegs.get(fr["seq"])
-            if jpeg is None:
-                raise LogFormatError(f"cycle {rec['cycle']}: frame {fr['seq']} is not in the log")
-            frame = frame_from_record(fr, jpeg)
-        return ReplayCycle(
-            cycle=rec["cycle"],
-            scan=scan_from_record(rec["scan"]),
-            odometry=odometry_from_record(rec["odometry"]),
-            frame=frame,
-            recorded=rec["estimate"],
-            truth=truth_by_stamp.get(rec["scan"]["stamp_s"]),
-        )
+
+def _frame_key(fr: dict[str, Any]) -> tuple[str, int]:
+    t = fr.get("image_log_time_ns")
+    return ("t", int(t)) if t is not None else ("seq", int(fr["seq"]))
+
+
+def _image_bytes(data: dict[str, Any]) -> bytes:
+    raw = data["data"]
+    return raw if isinstance(raw, bytes) else base64.b64decode(raw, validate=True)
+
+
+class _Recent(dict):  # type: ignore[type-arg]
+    """The newest entries only (frames and truth wait here for the cycle that uses them)."""
+
+    def put(self, key: Any, value: Any, keep: int = 64) -> None:
+        self[key] = value
+        if len(self) > keep:
+            for k in list(self)[: len(self) - keep // 2]:
+                del self[k]
+
+
+def iter_cycles(path: str | Path, read: LogReadResult | None = None) -> Iterator[ReplayCycle]:
+    """The recorded cycles in order. A cycle whose record is malformed is skipped and counted in
+    ``read.bad_messages`` (with the reason), never replayed half-built."""
+    read = read if read is not None else LogReadResult()
+    jpegs, truth_by_stamp = _Recent(), _Recent()
+    pending: list[tuple[int, dict[str, Any]]] = []
+
+    def emit(n: int, rec: dict[str, Any]) -> ReplayCycle | None:
+        try:
+            return cycle_from_record(rec, jpegs, truth_by_stamp)
+        except (KeyError, TypeError, ValueError, IndexError, OverflowError, LogFormatError) as exc:
+            read.note_bad(f"cycle message {n}: {type(exc).__name__}: {str(exc)[:200]}")
+            return None
 
     # The writer may put a cycle before its frame or truth (different producers); hold cycles
     # until the next cycle arrives, by which time everything logged with them has been seen.
+    n = 0
     for msg in read_log(path, read):
-        if msg.topic == "/camera/image":
-            jpegs[msg.data["seq"]] = base64.b64decode(msg.data["data"])
-            if len(jpegs) > 64:
-                for k in sorted(jpegs)[:-32]:
-                    del jpegs[k]
-        elif msg.topic == "/truth":
-            truth_by_stamp[msg.data["stamp_s"]] = msg.data
-            if len(truth_by_stamp) > 64:
-                for k in sorted(truth_by_stamp)[:-32]:
-                    del truth_by_stamp[k]
-        elif msg.topic == "/vipsm/cycle":
-            pending.append(msg.data)
+        try:
+            if msg.topic == "/camera/image":
+                jpegs.put(_image_key(msg.data, msg.log_time_ns), _image_bytes(msg.data))
+            elif msg.topic == "/truth":
+                truth_by_stamp.put(float(msg.data["stamp_s"]), msg.data)
+        except (KeyError, TypeError, ValueError, binascii.Error) as exc:
+            read.note_bad(f"{msg.topic} message: {type(exc).__name__}: {str(exc)[:200]}")
+        if msg.topic == "/vipsm/cycle":
+            n += 1
+            pending.append((n, msg.data))
             if len(pending) > 1:
-                yield emit(pending.pop(0))
-    for rec in pending:
-        yield emit(rec)
+                cyc = emit(*pending.pop(0))
+                if cyc is not None:
+                    yield cyc
+    for item in pending:
+        cyc = emit(*item)
+        if cyc is not None:
+            yield cyc
+
+
+def cycle_from_record(rec: dict[str, Any], jpegs: dict[Any, bytes], truths: dict[float, Any]) -> ReplayCycle:
+    """One ``/vipsm/cycle`` record as the estimator's inputs, checked (raises on a malformed one)."""
+    fr = rec["frame"]
+    frame = None
+    if fr is not None:
+        jpeg = jpegs.get(_frame_key(fr))
+        if jpeg is None:
+            raise LogFormatError(f"cycle {rec['cycle']}: frame {fr['seq']} is not in the log")
+        frame = frame_from_record(fr, jpeg)
+    scan = scan_from_record(rec["scan"])
+    return ReplayCycle(
+        cycle=int(rec["cycle"]),
+        scan=scan,
+        odometry=odometry_from_record(rec["odometry"]),
+        frame=frame,
+        recorded=dict(rec["estimate"]),
+        truth=truths.get(scan.stamp_s),
+    )
 
 
 def recorded_estimator_config(path: str | Path) -> EstimatorConfig | None:
@@ -147,6 +220,18 @@ def recorded_estimator_config(path: str | Path) -> EstimatorConfig | None:
         if msg.topic == "/vipsm/cycle":
             break
     return None
+
+
+def recorded_log_version(path: str | Path) -> int:
+    """The field-log layout the file was written with (``/vipsm/config``'s ``log_version``; 1 before it
+    was recorded)."""
+    for msg in read_log(path):
+        if msg.topic == "/vipsm/config":
+            v = msg.data.get("log_version", 1)
+            return v if isinstance(v, int) and not isinstance(v, bool) else 1
+        if msg.topic == "/vipsm/cycle":
+            break
+    return 1
 
 
 def run_replay(

@@ -75,6 +75,7 @@ STATUS_BITS = {
     "odometry_fallback": 6,
     "loop_healthy": 7,
     "simulated": 8,
+    "log_error": 9,
 }
 
 

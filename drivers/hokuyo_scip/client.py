@@ -185,6 +185,9 @@ class LaserScan:
     beam_dt_s: float
     seq: int
     remaining: int | None = None
+    #: the sensor's limits (PP's DMIN/DMAX) the ranges were judged by
+    dmin_mm: int = 0
+    dmax_mm: int = 0
 
     @property
     def valid(self) -> np.ndarray:
@@ -193,6 +196,16 @@ class LaserScan:
     @property
     def n_valid(self) -> int:
         return int(np.count_nonzero(self.valid))
+
+    def rep117_ranges_m(self) -> np.ndarray:
+        """The ranges with ROS REP 117's meanings for invalid readings: +inf no return within range
+        (error code 1, or beyond DMAX), -inf too close (code 2), NaN erroneous (codes 3-5 and other
+        values below DMIN)."""
+        out = np.array(self.ranges_m, dtype=np.float64)
+        raw = self.raw_mm
+        out[(raw == 1) | ((raw > self.dmax_mm) & (self.dmax_mm > 0))] = np.inf
+        out[raw == 2] = -np.inf
+        return out
 
 
 @dataclass(frozen=True)
@@ -825,6 +838,8 @@ class Utm30lxClient:
             stamp_from_time_sync=synced,
             beam_dt_s=beam_dt_s,
             seq=self._seq,
+            dmin_mm=params.dmin_mm,
+            dmax_mm=params.dmax_mm,
             remaining=frame.remaining,
         )
 

@@ -265,3 +265,95 @@ def test_replay_of_a_missing_or_corrupt_log_is_a_clean_error(tmp_path: Path) -> 
     bad.write_bytes(os.urandom(100))
     proc = run_cli("replay", str(bad))
     assert proc.returncode == 2 and "not an MCAP file" in proc.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# the log's conformance: official schemas, complete custom schemas, transforms, old logs
+
+
+def test_sim_log_conforms_to_the_official_and_its_own_schemas(sim_run: tuple[dict, Path]) -> None:
+    import foxglove
+    import jsonschema
+    from mcap.records import Schema
+
+    from app.logread import _protobuf_class, proto_to_dict
+
+    _, log = sim_run
+    checked: Counter[str] = Counter()
+    with open(log, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        assert reader.get_summary() is not None
+        for schema, channel, message in reader.iter_messages():
+            if schema.encoding == "protobuf":
+                official = getattr(foxglove.messages, schema.name.removeprefix("foxglove.")).get_schema()
+                assert schema.data == official.data, schema.name
+                cls = _protobuf_class(Schema(id=0, name=official.name, encoding="protobuf", data=official.data))
+                assert proto_to_dict(cls.FromString(message.data)), channel.topic
+            else:
+                assert schema.encoding == "jsonschema" and channel.message_encoding == "json"
+                jsonschema.validate(json.loads(message.data), json.loads(schema.data))
+            checked[schema.name] += 1
+    assert {"foxglove.LaserScan", "foxglove.PoseInFrame", "foxglove.FrameTransforms", "foxglove.CompressedImage",
+            "foxglove.SceneUpdate", "vipsm.Cycle", "vipsm.LoopDiagnostics", "vipsm.GroundTruth",
+            "vipsm.Config"} <= set(checked)
+
+
+def test_sim_transforms_chain_odom_to_the_sensors_and_the_world(sim_run: tuple[dict, Path]) -> None:
+    _, log = sim_run
+    tfs = [m.data for m in read_log(log) if m.topic == "/tf"]
+    assert tfs
+    edges = {(t["parent_frame_id"], t["child_frame_id"]) for t in tfs[-1]["transforms"]}
+    assert edges == {("odom", "base_link"), ("base_link", "laser"), ("base_link", "camera"), ("world", "odom"),
+                     ("world", "truth/base_link")}
+    scans = [m.data for m in read_log(log) if m.topic == "/scan"]
+    assert scans[0]["frame_id"] == "laser"
+    poses = [m.data for m in read_log(log) if m.topic == "/pose"]
+    last_pose = poses[-1]["pose"]["position"]
+    odom_base = next(t for t in tfs[-1]["transforms"] if t["child_frame_id"] == "base_link")
+    assert odom_base["translation"]["x"] == pytest.approx(last_pose["x"])
+    assert odom_base["translation"]["y"] == pytest.approx(last_pose["y"])
+
+
+def _as_version_1(src: Path, dst: Path) -> None:
+    """The same run as the field log's first layout wrote it: JSON everywhere, frames matched by seq."""
+    import base64
+
+    from mcap.writer import Writer
+
+    msgs = list(read_log(src))
+    seq_by_image_time = {m.data["frame"]["image_log_time_ns"]: m.data["frame"]["seq"] for m in msgs
+                         if m.topic == "/vipsm/cycle" and m.data["frame"] is not None}
+    with open(dst, "wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema("vipsm.Any", "jsonschema", b"{}")
+        channels: dict[str, int] = {}
+        for m in msgs:
+            data = dict(m.data)
+            if m.topic == "/camera/image":
+                if m.log_time_ns not in seq_by_image_time:
+                    continue
+                data = {"seq": seq_by_image_time[m.log_time_ns], "format": "jpeg",
+                        "data": base64.b64encode(m.data["data"]).decode()}
+            elif m.topic == "/vipsm/cycle" and data["frame"] is not None:
+                data["frame"] = {k: v for k, v in data["frame"].items() if k != "image_log_time_ns"}
+            elif m.topic == "/vipsm/config":
+                data.pop("log_version")
+            elif m.topic not in ("/truth",):
+                continue
+            if m.topic not in channels:
+                channels[m.topic] = w.register_channel(m.topic, "json", sid)
+            w.add_message(channels[m.topic], log_time=m.log_time_ns, publish_time=m.log_time_ns,
+                          data=json.dumps(data).encode())
+        w.finish()
+
+
+def test_a_log_in_the_first_layout_still_replays_identically(sim_run: tuple[dict, Path], tmp_path: Path) -> None:
+    _, log = sim_run
+    old = tmp_path / "v1.mcap"
+    _as_version_1(log, old)
+    proc = run_cli("replay", str(old), "--json")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["log_version"] == 1 and out["bad_messages"] == 0
+    assert out["cycles"] > 50 and out["identical_to_recorded"] == out["cycles"]

@@ -1,0 +1,183 @@
+"""What goes on each field-log channel: the official Foxglove messages, built with the Foxglove SDK's
+typed classes (so each ``foxglove.*`` channel carries the official protobuf schema by construction),
+and the JSON schemas of the project's own channels (every field typed, every field required).
+
+Frames (REP 105): ``odom`` (the estimator's frame: the odometry frame of its first scan),
+``base_link`` (the robot), ``laser`` and ``camera`` (the sensors on the robot); in simulated runs
+also ``world`` (the simulated world) and ``truth/base_link`` (the robot's true pose).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from typing import Any
+
+from foxglove.messages import (
+    ArrowPrimitive,
+    Color,
+    CompressedImage,
+    CylinderPrimitive,
+    Duration,
+    FrameTransform,
+    FrameTransforms,
+    KeyValuePair,
+    LaserScan,
+    Log,
+    LogLevel,
+    Pose,
+    PoseInFrame,
+    Quaternion,
+    SceneEntity,
+    SceneEntityDeletion,
+    SceneEntityDeletionType,
+    SceneUpdate,
+    TextPrimitive,
+    Timestamp,
+    Vector3,
+)
+
+#: the field-log layout this version writes (recorded in ``/vipsm/config`` as ``log_version``);
+#: 1 = JSON everywhere (written before the Foxglove SDK), 2 = official protobuf schemas + ``/tf``
+LOG_VERSION = 2
+
+LOG_LEVELS = {"debug": LogLevel.Debug, "info": LogLevel.Info, "warning": LogLevel.Warning,
+              "error": LogLevel.Error, "fatal": LogLevel.Fatal}
+
+OBSTACLE_COLOR = Color(r=1.0, g=0.3, b=0.1, a=0.7)
+ARROW_COLOR = Color(r=1.0, g=0.9, b=0.1, a=1.0)
+
+
+def timestamp(t_wall_s: float) -> Timestamp:
+    """A Foxglove timestamp from seconds since the epoch (the same rounding as the log time)."""
+    ns = stamp_ns(t_wall_s)
+    return Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
+
+
+def stamp_ns(t_wall_s: float) -> int:
+    return int(round(t_wall_s * 1e9))
+
+
+def yaw(theta_rad: float) -> Quaternion:
+    return Quaternion(x=0.0, y=0.0, z=math.sin(theta_rad / 2.0), w=math.cos(theta_rad / 2.0))
+
+
+def pan_tilt(pan_rad: float, tilt_rad: float) -> Quaternion:
+    """Rotation by ``pan`` about z, then ``tilt`` about the panned y axis (positive tilt looks down,
+    as REP 103's right-handed y-left axes give)."""
+    cp, sp = math.cos(pan_rad / 2.0), math.sin(pan_rad / 2.0)
+    ct, st = math.cos(tilt_rad / 2.0), math.sin(tilt_rad / 2.0)
+    return Quaternion(x=-sp * st, y=cp * st, z=sp * ct, w=cp * ct)
+
+
+def planar_pose(x_m: float, y_m: float, theta_rad: float, z_m: float = 0.0) -> Pose:
+    return Pose(position=Vector3(x=x_m, y=y_m, z=z_m), orientation=yaw(theta_rad))
+
+
+# ---------------------------------------------------------------------------------------------
+# foxglove.* messages
+
+
+def laser_scan(ranges_m: list[float], first_rad: float, last_rad: float, intensities: list[float] | None,
+               wall_s: float) -> LaserScan:
+    """``ranges_m`` as the driver gave them with invalid returns already mapped to REP 117's values
+    (+inf no return, -inf too close, NaN erroneous): protobuf doubles carry all three."""
+    return LaserScan(
+        timestamp=timestamp(wall_s), frame_id="laser", pose=planar_pose(0.0, 0.0, 0.0),
+        start_angle=first_rad, end_angle=last_rad, ranges=ranges_m, intensities=intensities or [],
+    )
+
+
+def pose_in_frame(x_m: float, y_m: float, theta_rad: float, wall_s: float, frame_id: str = "odom") -> PoseInFrame:
+    return PoseInFrame(timestamp=timestamp(wall_s), frame_id=frame_id, pose=planar_pose(x_m, y_m, theta_rad))
+
+
+def compressed_image(jpeg: bytes, wall_s: float) -> CompressedImage:
+    return CompressedImage(timestamp=timestamp(wall_s), frame_id="camera", data=jpeg, format="jpeg")
+
+
+def log_line(level: str, message: str, wall_s: float) -> Log:
+    return Log(timestamp=timestamp(wall_s), level=LOG_LEVELS[level], message=message, name="vipsm-robot",
+               file="", line=0)
+
+
+@dataclasses.dataclass(frozen=True)
+class ObstacleView:
+    """What ``/obstacles`` shows of one tracked obstacle (odom frame, SI units)."""
+
+    track_id: int
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    radius_m: float
+
+
+def scene_update(obstacles: typing.Iterable[ObstacleView], wall_s: float, lifetime_s: float) -> SceneUpdate:
+    """All previous obstacles deleted, then one entity per obstacle: a 1 m cylinder of its radius,
+    an arrow for its velocity (length = the distance covered in 1 s) and its speed as text."""
+    ts = timestamp(wall_s)
+    life = Duration(sec=int(lifetime_s), nsec=int(round((lifetime_s % 1.0) * 1e9)))
+    return SceneUpdate(
+        deletions=[SceneEntityDeletion(timestamp=ts, type=SceneEntityDeletionType.All, id="")],
+        entities=[_obstacle_entity(ob, ts, life) for ob in obstacles],
+    )
+
+
+def _obstacle_entity(ob: ObstacleView, ts: Timestamp, life: Duration) -> SceneEntity:
+    speed = math.hypot(ob.vx_mps, ob.vy_mps)
+    heading = math.atan2(ob.vy_mps, ob.vx_mps)
+    arrows = []
+    if speed > 1e-3:
+        arrows.append(ArrowPrimitive(pose=planar_pose(ob.x_m, ob.y_m, heading, 1.0),
+                                     shaft_length=max(speed - 0.1, 0.01), shaft_diameter=0.04, head_length=0.1,
+                                     head_diameter=0.12, color=ARROW_COLOR))
+    return SceneEntity(
+        timestamp=ts, frame_id="odom", id=f"obstacle-{ob.track_id}", lifetime=life, frame_locked=False,
+        metadata=[KeyValuePair(key="vx_mps", value=f"{ob.vx_mps:.3f}"),
+                  KeyValuePair(key="vy_mps", value=f"{ob.vy_mps:.3f}")],
+        cylinders=[CylinderPrimitive(pose=planar_pose(ob.x_m, ob.y_m, 0.0, 0.5),
+                                     size=Vector3(x=2 * ob.radius_m, y=2 * ob.radius_m, z=1.0),
+                                     bottom_scale=1.0, top_scale=1.0, color=OBSTACLE_COLOR)],
+        arrows=arrows,
+        texts=[TextPrimitive(pose=planar_pose(ob.x_m, ob.y_m, 0.0, 1.2), billboard=True, font_size=14.0,
+                             scale_invariant=True, color=ARROW_COLOR, text=f"#{ob.track_id} {speed:.2f} m/s")],
+    )
+
+
+def transform(parent: str, child: str, wall_s: float, x_m: float, y_m: float, z_m: float,
+              rotation: Quaternion) -> FrameTransform:
+    return FrameTransform(timestamp=timestamp(wall_s), parent_frame_id=parent, child_frame_id=child,
+                          translation=Vector3(x=x_m, y=y_m, z=z_m), rotation=rotation)
+
+
+@dataclasses.dataclass(frozen=True)
+class Mounts:
+    """Where the sensors sit on the robot (``base_link``), from the estimator's configuration."""
+
+    laser_x_m: float
+    laser_y_m: float
+    laser_theta_rad: float
+    camera_x_m: float
+    camera_y_m: float
+    camera_z_m: float
+
+
+def robot_transforms(pose: tuple[float, float, float], mounts: Mounts, pan_tilt_rad: tuple[float, float],
+                     wall_s: float, truth: dict[str, Any] | None = None) -> FrameTransforms:
+    """``odom -> base_link`` (the estimated pose), ``base_link -> laser``, ``base_link -> camera``
+    (with the camera's pan and tilt); with the simulated truth also ``world -> odom`` and
+    ``world -> truth/base_link``."""
+    m = mounts
+    tfs = [
+        transform("odom", "base_link", wall_s, pose[0], pose[1], 0.0, yaw(pose[2])),
+        transform("base_link", "laser", wall_s, m.laser_x_m, m.laser_y_m, 0.0, yaw(m.laser_theta_rad)),
+        transform("base_link", "camera", wall_s, m.camera_x_m, m.camera_y_m, m.camera_z_m, pan_tilt(*pan_tilt_rad)),
+    ]
+    if truth is not None:
+        ox, oy, oth = truth["origin"]
+        rx, ry, rth = truth["robot"]
+        tfs.append(transform("world", "odom", wall_s, ox, oy, 0.0, yaw(oth)))
+        tfs.append(transform("world", "truth/base_link", wall_s, rx, ry, 0.0, yaw(rth)))
+    return FrameTransforms(transforms=tfs)
