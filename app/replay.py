@@ -60,6 +60,13 @@ def _num(rec: dict[str, Any], key: str) -> float:
     return float(v)
 
 
+def _obj(rec: dict[str, Any], key: str) -> dict[str, Any]:
+    v = rec[key]
+    if not isinstance(v, dict):
+        raise ValueError(f"{key!r} is a {type(v).__name__}, not an object")
+    return v
+
+
 def _int(rec: dict[str, Any], key: str) -> int:
     v = rec[key]
     if isinstance(v, bool) or not isinstance(v, int):
@@ -192,17 +199,18 @@ def cycle_from_record(rec: dict[str, Any], jpegs: dict[Any, bytes], truths: dict
     fr = rec["frame"]
     frame = None
     if fr is not None:
+        fr = _obj(rec, "frame")
         jpeg = jpegs.get(_frame_key(fr))
         if jpeg is None:
             raise LogFormatError(f"cycle {rec['cycle']}: frame {fr['seq']} is not in the log")
         frame = frame_from_record(fr, jpeg)
-    scan = scan_from_record(rec["scan"])
+    scan = scan_from_record(_obj(rec, "scan"))
     return ReplayCycle(
-        cycle=int(rec["cycle"]),
+        cycle=_int(rec, "cycle"),
         scan=scan,
-        odometry=odometry_from_record(rec["odometry"]),
+        odometry=odometry_from_record(_obj(rec, "odometry")),
         frame=frame,
-        recorded=dict(rec["estimate"]),
+        recorded=_obj(rec, "estimate"),
         truth=truths.get(scan.stamp_s),
     )
 
