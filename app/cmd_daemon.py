@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import threading
@@ -21,6 +22,12 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
 
 
+def _add_live_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--live", metavar="[HOST:]PORT", default=None,
+                   help="serve the log's channels live to Foxglove/Lichtblick (WebSocket; host 127.0.0.1 unless "
+                        "given; a non-loopback host needs live.allow_remote = true); sets live.listen")
+
+
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("dump-config", help="print the default configuration as TOML")
     _add_config_args(p)
@@ -30,6 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     _add_config_args(p)
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--log", metavar="FILE", help="field log path (overrides log.path)")
+    _add_live_arg(p)
     p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
     p.set_defaults(func=cmd_run)
 
@@ -41,6 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
     add_scenario_arguments(p, allow_all=False)
     p.add_argument("--log", metavar="FILE", default=None, help="field log path (default: sim-<time>.mcap)")
+    _add_live_arg(p)
     p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
     p.add_argument("--no-progress", action="store_true", help="no progress line")
     p.add_argument(
@@ -61,7 +70,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _config(args: argparse.Namespace) -> Config:
-    return load_config(args.config, args.set)
+    config = load_config(args.config, args.set)
+    if getattr(args, "live", None) is not None:
+        config = dataclasses.replace(config, live=dataclasses.replace(config.live, listen=args.live))
+    return config
 
 
 def cmd_dump_config(args: argparse.Namespace) -> int:

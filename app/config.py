@@ -97,12 +97,19 @@ class StatusConfig:
 
 
 @dataclass(frozen=True)
+class LiveConfig:
+    listen: str = _f("", "live view (Foxglove WebSocket) as [HOST:]PORT, e.g. 8765; empty = off; --live sets it")
+    allow_remote: bool = _f(False, "allow a live view on a non-loopback address (anyone reaching it sees the robot)")
+
+
+@dataclass(frozen=True)
 class Config:
     devices: DevicesConfig = field(default_factory=DevicesConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
     mission: MissionConfig = field(default_factory=MissionConfig)
     log: LogConfig = field(default_factory=LogConfig)
     status: StatusConfig = field(default_factory=StatusConfig)
+    live: LiveConfig = field(default_factory=LiveConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
 
 

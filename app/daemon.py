@@ -223,6 +223,7 @@ class ControlLoop:
         status: StatusServer | None = None,
         notifier: SystemdNotifier | None = None,
         truth: TruthFn | None = None,
+        live_view: Any = None,
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
@@ -235,6 +236,8 @@ class ControlLoop:
         self.status = status
         self.notifier = notifier or SystemdNotifier({})
         self.truth = truth
+        #: the live view serving the log's channels (``app.liveview.LiveView``), stopped at shutdown
+        self.live_view = live_view
         self.clock = clock
         self._wall_offset = wall_clock() - clock()
         self.health = LoopHealth(config.loop.period_s)
@@ -554,4 +557,6 @@ class ControlLoop:
             self.status.stop()
         if self.log is not None:
             self.log.close()
+        if self.live_view is not None:
+            self.live_view.stop()
         self.notifier.close()

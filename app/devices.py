@@ -34,8 +34,9 @@ from vipsm.types import Odometry, Scan
 from .cmd_camera import to_vipsm_frame
 from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
-from .errors import AppError
+from .errors import AppError, ConfigError
 from .fieldlog import FieldLog
+from .liveview import LiveView, check_exposure, layout_path, parse_listen
 from .replay import deterministic_opencv
 from .sdnotify import SystemdNotifier
 from .status import StatusServer
@@ -362,6 +363,41 @@ class CameraAdapter:
 # ---------------------------------------------------------------------------------------------
 
 
+def _open_field_log(config: Config, path: str) -> FieldLog | None:
+    """The field log (to ``path``, and/or feeding the live view); None when neither is wanted."""
+    if not path and not config.live.listen:
+        return None
+    lc = config.log
+    log = FieldLog(path or None, compression=lc.compression, rotate_bytes=lc.rotate_bytes, rotate_s=lc.rotate_s,
+                   flush_s=lc.flush_s, queue_size=lc.queue_size)
+    try:
+        return log.start()
+    except OSError as exc:  # unwritable folder, name too long, no such folder, disk full
+        raise AppError(f"config key 'log.path': cannot open {path!r} for writing: {exc.strerror or exc}") from exc
+
+
+def _start_live_view(config: Config, field_log: FieldLog | None) -> LiveView | None:
+    if not config.live.listen:
+        return None
+    assert field_log is not None
+    try:
+        host, port = parse_listen(config.live.listen)
+        warning = check_exposure(host, config.live.allow_remote)
+    except ConfigError:
+        field_log.close()
+        raise
+    if warning:
+        print(f"vipsm-robot: warning: {warning}", file=sys.stderr, flush=True)
+    try:
+        live = LiveView(field_log.context, host, port).start()
+    except AppError:
+        field_log.close()
+        raise
+    print(f"vipsm-robot: info: live view on {live.url} (Foxglove or Lichtblick: open connection, Foxglove "
+          f"WebSocket; layout: {layout_path()})", file=sys.stderr, flush=True)
+    return live
+
+
 def build_loop(
     config: Config,
     *,
@@ -376,23 +412,14 @@ def build_loop(
     base = BaseAdapter(d.robot_url, d.robot_baud, d.robot_command_timeout_s, d.reconnect_max_s) if d.robot_url else None
     camera = CameraAdapter(config) if d.camera_http_url else None
     path = log_path if log_path is not None else config.log.path
-    field_log = None
-    if path:
-        lc = config.log
-        try:
-            field_log = FieldLog(
-                path,
-                compression=lc.compression,
-                rotate_bytes=lc.rotate_bytes,
-                rotate_s=lc.rotate_s,
-                flush_s=lc.flush_s,
-                queue_size=lc.queue_size,
-            ).start()
-        except OSError as exc:  # unwritable folder, name too long, no such folder, disk full
-            for dev in (scanner, base, camera):
-                if dev is not None:
-                    dev.close()
-            raise AppError(f"config key 'log.path': cannot open {path!r} for writing: {exc.strerror or exc}") from exc
+    try:
+        field_log = _open_field_log(config, path)
+        live = _start_live_view(config, field_log)
+    except (AppError, OSError):
+        for dev in (scanner, base, camera):
+            if dev is not None:
+                dev.close()
+        raise
     status = None
     if config.status.enabled:
         s = config.status
@@ -402,6 +429,8 @@ def build_loop(
             for dev in (scanner, base, camera):
                 if dev is not None:
                     dev.close()
+            if live is not None:
+                live.stop()
             if field_log is not None:
                 field_log.close()
             raise
@@ -415,6 +444,7 @@ def build_loop(
         status=status,
         notifier=SystemdNotifier(),
         truth=truth,
+        live_view=live,
     )
     # give the devices a moment to open so the first cycles are not spent in device_stop
     wait_s = config.devices.startup_wait_s if wait_for_devices_s is None else wait_for_devices_s
