@@ -33,6 +33,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "app.cmd_estimator",
     "app.cmd_eval",
     "app.cmd_daemon",
+    "app.cmd_export",
 )
 
 # probe flag -> command module that answers it

@@ -357,3 +357,52 @@ def test_a_log_in_the_first_layout_still_replays_identically(sim_run: tuple[dict
     out = json.loads(proc.stdout)
     assert out["log_version"] == 1 and out["bad_messages"] == 0
     assert out["cycles"] > 50 and out["identical_to_recorded"] == out["cycles"]
+
+
+def test_rosbag2_export_reads_back_with_types_counts_stamps_and_frames(sim_run: tuple[dict, Path],
+                                                                       tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    summary, log = sim_run
+    out = tmp_path / "bag"
+    proc = run_cli("export", str(log), "--rosbag2", str(out), "--json")
+    assert proc.returncode == 0, proc.stderr
+    counts = json.loads(proc.stdout)["messages"]
+    src = Counter(m.topic for m in read_log(log))
+    assert counts["/scan"] == src["/scan"] and counts["/odom"] == src["/odom"]
+    assert counts["/camera/image/compressed"] == src["/camera/image"] and counts["/tf"] == src["/tf"]
+    assert counts["/vipsm/pose"] == counts["/vipsm/obstacles"] == src["/vipsm/cycle"]
+    assert counts["/tf_static"] == 1
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    with Reader(out) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        assert types == {"/scan": "sensor_msgs/msg/LaserScan", "/odom": "nav_msgs/msg/Odometry",
+                         "/vipsm/pose": "nav_msgs/msg/Odometry",
+                         "/camera/image/compressed": "sensor_msgs/msg/CompressedImage",
+                         "/vipsm/obstacles": "visualization_msgs/msg/MarkerArray",
+                         "/tf": "tf2_msgs/msg/TFMessage", "/tf_static": "tf2_msgs/msg/TFMessage"}
+        seen: Counter[str] = Counter()
+        for conn, bag_ns, raw in reader.messages():
+            msg = ts.deserialize_cdr(raw, conn.msgtype)
+            seen[conn.topic] += 1
+            if conn.topic == "/scan":
+                assert msg.header.frame_id == "laser" and len(msg.ranges) == 1081
+                stamp_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+                assert abs(stamp_ns - bag_ns) < 1000
+            elif conn.topic == "/vipsm/pose":
+                assert msg.header.frame_id == "odom" and msg.child_frame_id == "base_link"
+                assert msg.pose.covariance[0] >= 0.0
+            elif conn.topic == "/tf_static":
+                assert [(t.header.frame_id, t.child_frame_id) for t in msg.transforms] == [("base_link", "laser")]
+            elif conn.topic == "/tf":
+                assert ("odom", "base_link") in {(t.header.frame_id, t.child_frame_id) for t in msg.transforms}
+        assert dict(seen) == counts
+        tf_static = next(c for c in reader.connections if c.topic == "/tf_static")
+        assert "transient_local" in str(tf_static.ext.offered_qos_profiles).lower()
+
+
+def test_rosbag2_export_refuses_an_existing_folder(sim_run: tuple[dict, Path], tmp_path: Path) -> None:
+    _, log = sim_run
+    proc = run_cli("export", str(log), "--rosbag2", str(tmp_path))
+    assert proc.returncode == 2 and "exists" in proc.stderr and "Traceback" not in proc.stderr
