@@ -76,6 +76,11 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "log_dropped": loop.log.stats.dropped if loop.log is not None else 0,
             "log_bad_messages": loop.log.stats.bad_messages if loop.log is not None else 0,
             "log_error": loop.log.stats.error if loop.log is not None else None,
+            "log_state": loop.log.stats.state if loop.log is not None else "off",
+            "log_lost_to_disk": loop.log.stats.lost_to_disk if loop.log is not None else 0,
+            "log_disk_errors": loop.log.stats.disk_errors if loop.log is not None else 0,
+            "log_last_disk_error": loop.log.stats.last_disk_error if loop.log is not None else None,
+            "live_url": loop.live_view.url if loop.live_view is not None else None,
             "events": list(s.state_changes)[-50:],
         }
     )

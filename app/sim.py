@@ -23,6 +23,7 @@ import tempfile
 import threading
 import time
 from collections import deque
+from pathlib import Path
 from typing import IO, Any
 
 from hil_fakes.world import ObstacleTruth, Truth
@@ -214,6 +215,38 @@ def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float, mod
     return dataclasses.replace(config, devices=d, mission=mission, estimator=estimator)
 
 
+SIM_DIR_PREFIX = "vipsm-sim-"
+OWNER_FILE = "owner.pid"
+
+
+def remove_stale_sim_dirs(tmp_root: str | None = None) -> list[str]:
+    """Removes the folders of earlier ``sim`` runs that were killed (SIGKILL skips the cleanup): those
+    of this user whose owner process is gone. Returns what was removed."""
+    removed = []
+    for d in Path(tmp_root or tempfile.gettempdir()).glob(SIM_DIR_PREFIX + "*"):
+        try:
+            if d.stat().st_uid != os.getuid():
+                continue
+            pid = int((d / OWNER_FILE).read_text(encoding="ascii"))
+        except (OSError, ValueError):
+            continue
+        if pid == os.getpid() or _alive(pid):
+            continue
+        shutil.rmtree(d, ignore_errors=True)
+        removed.append(str(d))
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
     from .devices import build_loop
     from .runtime import Progress, loop_summary, process_usage
@@ -224,7 +257,9 @@ def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
     except ValueError as exc:
         raise AppError(str(exc)) from exc
     duration_s = float(scenario.duration_s)
-    tmp = tempfile.mkdtemp(prefix="vipsm-sim-")
+    remove_stale_sim_dirs()
+    tmp = tempfile.mkdtemp(prefix=SIM_DIR_PREFIX)
+    Path(tmp, OWNER_FILE).write_text(str(os.getpid()), encoding="ascii")
     err_path = os.path.join(tmp, "simhost.stderr")
     with open(err_path, "wb") as err_file:
         child = subprocess.Popen(

@@ -406,3 +406,20 @@ def test_rosbag2_export_refuses_an_existing_folder(sim_run: tuple[dict, Path], t
     _, log = sim_run
     proc = run_cli("export", str(log), "--rosbag2", str(tmp_path))
     assert proc.returncode == 2 and "exists" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_killed_sims_folder_is_removed_by_the_next_sim(tmp_path: Path) -> None:
+    from app.sim import OWNER_FILE, SIM_DIR_PREFIX, remove_stale_sim_dirs
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f"{SIM_DIR_PREFIX}old"
+    stale.mkdir()
+    (stale / OWNER_FILE).write_text(str(dead.pid))
+    alive = tmp_path / f"{SIM_DIR_PREFIX}running"
+    alive.mkdir()
+    (alive / OWNER_FILE).write_text(str(os.getpid()))
+    foreign = tmp_path / f"{SIM_DIR_PREFIX}no-owner-file"
+    foreign.mkdir()
+    assert remove_stale_sim_dirs(str(tmp_path)) == [str(stale)]
+    assert not stale.exists() and alive.exists() and foreign.exists()
