@@ -22,7 +22,8 @@ RULES: dict[str, tuple[set[str], set[str] | None]] = {
     "drivers": ({"drivers", "serial", "usb", "numpy"}, None),
     "vipsm": ({"vipsm", "numpy", "cv2"}, VIPSM_STDLIB),
     "hil_fakes": ({"hil_fakes", "numpy", "cv2"}, None),
-    "app": ({"app", "drivers", "vipsm", "hil_fakes", "numpy", "cv2", "serial", "usb", "pymodbus", "mcap"}, None),
+    "app": ({"app", "drivers", "vipsm", "hil_fakes", "numpy", "cv2", "serial", "usb", "pymodbus", "mcap", "foxglove",
+             "google", "rosbags", "matplotlib"}, None),
 }
 
 
