@@ -64,7 +64,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("log", metavar="LOG.mcap")
     p.add_argument("--plain-psm", action="store_true", help="replay with the plain-PSM baseline")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plots", metavar="DIR", help="write PNG plots of the replayed run")
+    p.add_argument("--plots", metavar="DIR",
+                   help="write the figures (Fig. 8 map, Fig. 9 paths, errors over time; both methods) as PNG into DIR")
+    p.add_argument("--svg", action="store_true", help="with --plots: also write each figure as SVG")
     _add_config_args(p)
     p.set_defaults(func=cmd_replay)
 
@@ -109,11 +111,33 @@ def cmd_sim(args: argparse.Namespace) -> int:
     config = _config(args)
     tune_allocator()
     summary = run_sim(config, args)
-    emit(summary, args.json)
+    if args.json:
+        emit(summary, True)
+        return 0
+    from .sim import headline_lines
+
+    print("\n".join(headline_lines(summary)))
+    print("details:")
+    emit({k: v for k, v in summary.items() if k != "headline"}, False)
     return 0
 
 
 # ---------------------------------------------------------------------------------------------
+
+
+def _replay_plots(path: Path, results: list[Any], estimator_config: Any, args: argparse.Namespace) -> list[str]:
+    """The figures of a replay: the method replayed, and the other one run over the same log for
+    comparison (VIPSM above plain PSM)."""
+    from vipsm.estimator import EstimatorConfig
+
+    from .plots import write_figures
+    from .replay import recorded_estimator_config, replay_trace, run_replay
+
+    config = estimator_config or recorded_estimator_config(path) or EstimatorConfig()
+    other, _ = run_replay(path, config, plain_psm=not args.plain_psm)
+    vipsm, plain = (other, results) if args.plain_psm else (results, other)
+    traces = [replay_trace(vipsm, config, "vipsm"), replay_trace(plain, config, "plain_psm")]
+    return [str(p) for p in write_figures(traces, Path(args.plots), path.stem, svg=args.svg)]
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -158,9 +182,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             scorer.score(est, truth)
         summary.update(scorer.metrics())
     if args.plots:
-        from .plots import plot_replay
-
-        summary["plots"] = plot_replay(results, Path(args.plots))
+        summary["plots"] = _replay_plots(path, results, estimator_config, args)
     emit(summary, args.json)
     if read.bad_messages:
         print(f"vipsm-robot: warning: {path}: {read.bad_messages} malformed message(s) skipped, the first: "

@@ -2,7 +2,7 @@
 
 The command line only: the scenarios come from :mod:`app.evaluation.scenarios`, the run from
 :mod:`app.evaluation.runner`, the metric definitions from :mod:`app.evaluation.metrics`, the table from
-:mod:`app.evaluation.report` and the pictures from :mod:`app.evaluation.figures`.
+:mod:`app.evaluation.report` and the figures from :mod:`app.plots`.
 """
 
 from __future__ import annotations
@@ -12,11 +12,13 @@ import time
 from pathlib import Path
 
 from .cli import print_json
-from .evaluation.figures import write_plots
 from .evaluation.metrics import ROBUSTNESS_FACTOR
 from .evaluation.report import print_table
 from .evaluation.runner import run_scenario, scenario_result, tune_allocator
 from .evaluation.scenarios import add_scenario_arguments, build_scenarios
+
+#: the paper's two scenarios: their Fig. 8 is drawn at the paper's instants (6, 8, 10, 12 s)
+PAPER_NAMES = {"paper1", "paper2", "scenario1_45deg", "scenario2_90deg"}
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -34,7 +36,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
         )
         results.append(scenario_result(log))
         if args.plots is not None:
-            for p in write_plots(log, Path(args.plots)):
+            from .plots import write_figures
+
+            for p in write_figures(log.traces(), Path(args.plots), sc.name, paper=sc.name in PAPER_NAMES,
+                                   svg=args.svg):
                 if not args.json:
                     print(f"wrote {p}")
     elapsed = time.perf_counter() - t0
@@ -77,7 +82,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "world uses its camera_jpeg_quality",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object: {scenarios: [...]}")
-    p.add_argument("--plots", metavar="DIR", default=None, help="write Fig. 8/9-like PNGs into DIR")
+    p.add_argument("--plots", metavar="DIR", default=None,
+                   help="write the figures per scenario (Fig. 8 map, Fig. 9 paths, errors over time) as PNG into DIR")
+    p.add_argument("--svg", action="store_true", help="with --plots: also write each figure as SVG")
     p.set_defaults(func=cmd_eval)
 
 

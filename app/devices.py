@@ -34,7 +34,7 @@ from vipsm.types import Odometry, Scan
 from .cmd_camera import to_vipsm_frame
 from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
-from .errors import AppError, ConfigError
+from .errors import AppError
 from .fieldlog import FieldLog
 from .liveview import LiveView, check_exposure, layout_path, parse_listen
 from .replay import deterministic_opencv
@@ -376,20 +376,22 @@ def _open_field_log(config: Config, path: str) -> FieldLog | None:
         raise AppError(f"config key 'log.path': cannot open {path!r} for writing: {exc.strerror or exc}") from exc
 
 
-def _start_live_view(config: Config, field_log: FieldLog | None) -> LiveView | None:
+def _live_address(config: Config) -> tuple[str, int] | None:
     if not config.live.listen:
+        return None
+    host, port = parse_listen(config.live.listen)
+    warning = check_exposure(host, config.live.allow_remote)
+    if warning:
+        print(f"vipsm-robot: warning: {warning}", file=sys.stderr, flush=True)
+    return host, port
+
+
+def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None) -> LiveView | None:
+    if address is None:
         return None
     assert field_log is not None
     try:
-        host, port = parse_listen(config.live.listen)
-        warning = check_exposure(host, config.live.allow_remote)
-    except ConfigError:
-        field_log.close()
-        raise
-    if warning:
-        print(f"vipsm-robot: warning: {warning}", file=sys.stderr, flush=True)
-    try:
-        live = LiveView(field_log.context, host, port).start()
+        live = LiveView(field_log.context, *address).start()
     except AppError:
         field_log.close()
         raise
@@ -413,8 +415,9 @@ def build_loop(
     camera = CameraAdapter(config) if d.camera_http_url else None
     path = log_path if log_path is not None else config.log.path
     try:
+        live_at = _live_address(config)  # a refused address leaves no log file behind
         field_log = _open_field_log(config, path)
-        live = _start_live_view(config, field_log)
+        live = _start_live_view(live_at, field_log)
     except (AppError, OSError):
         for dev in (scanner, base, camera):
             if dev is not None:

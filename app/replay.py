@@ -259,3 +259,39 @@ def run_replay(
         if progress is not None:
             progress(i)
     return out, read
+
+
+def replay_trace(results: list[tuple[ReplayCycle, Estimate]], mount: EstimatorConfig, label: str) -> Any:
+    """A replayed run as a :class:`app.evaluation.traces.RunTrace` for the figures: time from the first
+    cycle, poses and obstacles in the odometry frame; the truth (simulated logs) moved there with the
+    log's origin."""
+    from .evaluation.traces import CycleTrace, RunTrace, scan_endpoints_xy, split_cut, track_point
+
+    cycles = []
+    t0 = results[0][0].scan.stamp_s if results else 0.0
+    for cyc, est in results:
+        pose = (est.pose.x_m, est.pose.y_m, est.pose.theta_rad)
+        kept, cut = split_cut(cyc.scan.ranges_m, est.restored_indices)
+        true_pose, true_obs = _truth_in_odom(cyc.truth)
+        cycles.append(CycleTrace(
+            cyc.scan.stamp_s - t0, pose, true_pose, scan_endpoints_xy(kept, cyc.scan.bearings_rad, pose, mount),
+            tuple(track_point(o) for o in est.obstacles), true_obs,
+            scan_endpoints_xy(cut, cyc.scan.bearings_rad, pose, mount)))
+    return RunTrace(label, tuple(cycles), ())
+
+
+def _truth_in_odom(truth: dict[str, Any] | None) -> tuple[Any, tuple[tuple[float, float, float], ...]]:
+    """The true robot pose and the moving obstacles (x, y, radius) in the odometry frame."""
+    if truth is None:
+        return None, ()
+    ox, oy, oth = (float(v) for v in truth["origin"])
+    c, s = math.cos(-oth), math.sin(-oth)
+
+    def to_odom(x: float, y: float) -> tuple[float, float]:
+        dx, dy = x - ox, y - oy
+        return c * dx - s * dy, s * dx + c * dy
+
+    rx, ry, rth = (float(v) for v in truth["robot"])
+    robot = (*to_odom(rx, ry), rth - oth)
+    obs = tuple((*to_odom(float(o[0]), float(o[1])), float(o[4])) for o in truth["obstacles"] if o[5])
+    return robot, obs

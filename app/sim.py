@@ -40,6 +40,7 @@ from .evaluation.metrics import (
     MethodLog,
     _assign,
     count_reports,
+    targets_for,
 )
 from .evaluation.runner import _replace_fields, mount_values
 from .evaluation.scenarios import scenario_param_sets
@@ -215,6 +216,57 @@ def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float, mod
     return dataclasses.replace(config, devices=d, mission=mission, estimator=estimator)
 
 
+#: what a user ran ``sim`` for, first in its summary: metric -> the target when no scenario sets one
+HEADLINE: dict[str, tuple[float, str] | None] = {
+    "obstacle_err_mean_m": None,
+    "obstacle_detected_fraction": None,
+    "false_tracks_per_min": None,
+    "pose_err_final_m": None,
+    "deadline_misses": (0, "max"),
+}
+
+
+def headline(summary: dict[str, Any], targets: dict[str, tuple[float, str]]) -> dict[str, dict[str, Any]]:
+    """The headline figures with their targets (the evaluation's, for this scenario) and met/missed."""
+    out = {}
+    for key, default in HEADLINE.items():
+        target = targets.get(key, default)
+        value = summary.get(key)
+        met = None
+        if target is not None:
+            bound, kind = target
+            met = value is not None and (value <= bound if kind == "max" else value >= bound)
+        text = None if target is None else ("<= " if target[1] == "max" else ">= ") + f"{target[0]:g}"
+        out[key] = {"value": value, "target": text, "met": met}
+    return out
+
+
+_HEADLINE_TEXT = {
+    "obstacle_err_mean_m": ("obstacle error, mean", 1.0, "m", 3),
+    "obstacle_detected_fraction": ("obstacle located", 100.0, "%", 1),
+    "false_tracks_per_min": ("false moving obstacles", 1.0, "/min", 1),
+    "pose_err_final_m": ("final pose error", 1.0, "m", 3),
+    "deadline_misses": ("deadline misses", 1.0, "", 0),
+}
+
+
+def headline_lines(summary: dict[str, Any]) -> list[str]:
+    """The headline as a small table for a terminal: figure, value, target, met or MISSED."""
+    sc = summary.get("scenario", {})
+    lines = [f"sim: {sc.get('name', '?')}, {summary.get('cycles', 0)} cycles"]
+    for key, row in summary["headline"].items():
+        label, scale, unit, digits = _HEADLINE_TEXT[key]
+        v = row["value"]
+        value = "n/a" if v is None else f"{v * scale:.{digits}f} {unit}".strip()
+        target = ""
+        if row["target"] is not None:
+            op, bound = row["target"].split()
+            target = f"target {op} {float(bound) * scale:g} {unit}".rstrip()
+        verdict = {True: "met", False: "MISSED", None: ""}[row["met"]]
+        lines.append(f"  {label:<24} {value:>12}   {target:<20} {verdict}")
+    return lines
+
+
 SIM_DIR_PREFIX = "vipsm-sim-"
 OWNER_FILE = "owner.pid"
 
@@ -316,7 +368,7 @@ def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
         child.wait(15)
         truth.join(5)
         summary["fakes"] = truth.final
-        return summary
+        return {"headline": headline(summary, targets_for(params)), **summary}
     finally:
         if child.poll() is None:
             child.kill()

@@ -41,3 +41,14 @@ def hardware_url(device: str) -> str:
     if os.path.exists(udev_name):
         return udev_name
     pytest.skip(f"no real {device} attached (set {env} or plug one in as {udev_name})")
+
+
+@pytest.fixture(autouse=True)
+def _no_files_left_in_the_working_folder() -> object:
+    """A test that runs the CLI must send its logs and figures to a temporary folder, never into the
+    folder pytest runs in (the repository, on a developer's machine)."""
+    cwd = Path.cwd()
+    before = {p.name for p in cwd.iterdir()}
+    yield
+    left = sorted({p.name for p in cwd.iterdir()} - before)
+    assert not left, f"the test left {left} in {cwd}"

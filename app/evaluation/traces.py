@@ -7,7 +7,7 @@ the runner recorded; this module knows nothing of the runner and draws nothing.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,8 @@ class CycleTrace:
     scan_xy_m: np.ndarray  # (N, 2) valid scan endpoints, world frame, placed with pose_est
     obstacles_est: tuple[TrackPoint, ...]
     obstacles_true: tuple[tuple[float, float, float], ...]  # (x_m, y_m, radius_m)
+    #: (M, 2) endpoints of the beams the method cut out (restored), world frame
+    cut_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,16 @@ def scan_endpoints_xy(
     return np.column_stack((lx + r[ok] * np.cos(a), ly + r[ok] * np.sin(a)))
 
 
+def split_cut(ranges_m: np.ndarray, restored: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, cut) copies of a scan's ranges, NaN where the other one holds the beam; ``restored`` is the
+    estimator's ``(start, stop)`` index pairs of the beams it cut out."""
+    r = np.asarray(ranges_m, dtype=float)
+    cut_mask = np.zeros(r.shape, bool)
+    for i0, i1 in restored:
+        cut_mask[i0:i1] = True
+    return np.where(cut_mask, np.nan, r), np.where(cut_mask, r, np.nan)
+
+
 def _walls(scenario: Any) -> tuple[tuple[tuple[float, float], tuple[float, float]], ...]:
     return tuple(((w.x0_m, w.y0_m), (w.x1_m, w.y1_m)) for w in scenario.walls)
 
@@ -73,13 +85,14 @@ def method_trace(log: Any, name: str) -> RunTrace:
     empty = np.zeros((0, 2))
     cycles = []
     for k, stamp_s in enumerate(log.times_s):
-        scan = (
-            scan_endpoints_xy(log.scans[k], log.bearings_rad, m.poses[k], log.mount)
-            if k < len(log.scans) and log.bearings_rad is not None
-            else empty
-        )
+        scan, cut = empty, empty
+        if k < len(log.scans) and log.bearings_rad is not None:
+            kept, removed = split_cut(log.scans[k], m.restored[k] if k < len(m.restored) else ())
+            scan = scan_endpoints_xy(kept, log.bearings_rad, m.poses[k], log.mount)
+            cut = scan_endpoints_xy(removed, log.bearings_rad, m.poses[k], log.mount)
         true_obs = tuple((float(x), float(y), float(radii[i])) for i, (x, y) in enumerate(log.true_obstacles[k]))
-        cycles.append(CycleTrace(float(stamp_s), m.poses[k], log.true_poses[k], scan, tuple(m.tracks[k]), true_obs))
+        cycles.append(CycleTrace(float(stamp_s), m.poses[k], log.true_poses[k], scan, tuple(m.tracks[k]), true_obs,
+                                 cut))
     return RunTrace(name, tuple(cycles), _walls(log.scenario))
 
 

@@ -423,3 +423,40 @@ def test_a_killed_sims_folder_is_removed_by_the_next_sim(tmp_path: Path) -> None
     foreign.mkdir()
     assert remove_stale_sim_dirs(str(tmp_path)) == [str(stale)]
     assert not stale.exists() and alive.exists() and foreign.exists()
+
+
+def test_replay_plots_write_every_figure_for_both_methods(sim_run: tuple[dict, Path], tmp_path: Path) -> None:
+    import cv2
+
+    _, log = sim_run
+    out = tmp_path / "plots"
+    proc = run_cli("replay", str(log), "--json", "--plots", str(out), "--svg")
+    assert proc.returncode == 0, proc.stderr
+    written = sorted(Path(p).name for p in json.loads(proc.stdout)["plots"])
+    stems = ["errors_run", "fig8_map_run", "fig9_paths_run"]
+    assert written == sorted([f"{s}.png" for s in stems] + [f"{s}.svg" for s in stems])
+    sizes = {p.stem: cv2.imread(str(p)).shape[:2] for p in out.glob("*.png")}
+    assert sizes == {"fig8_map_run": (1080, 2520), "fig9_paths_run": (750, 1950), "errors_run": (1125, 1200)}
+    assert all(p.stat().st_size > 20_000 for p in out.iterdir())
+
+
+def test_sim_summary_starts_with_the_headline_figures_and_their_targets(sim_run: tuple[dict, Path]) -> None:
+    summary, _ = sim_run
+    assert list(summary)[0] == "headline"
+    head = summary["headline"]
+    assert list(head) == ["obstacle_err_mean_m", "obstacle_detected_fraction", "false_tracks_per_min",
+                          "pose_err_final_m", "deadline_misses"]
+    assert head["deadline_misses"] == {"value": summary["deadline_misses"], "target": "<= 0",
+                                       "met": summary["deadline_misses"] == 0}
+    assert head["pose_err_final_m"]["value"] == summary["pose_err_final_m"]
+    assert head["pose_err_final_m"]["met"] == (summary["pose_err_final_m"] <= 0.05)
+
+
+def test_sim_prints_the_headline_first_on_a_terminal(tmp_path: Path) -> None:
+    proc = run_cli("sim", "--scenario", "2", "--duration", "3", "--no-progress", "--set", "status.port=0",
+                   "--log", str(tmp_path / "h.mcap"))
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("sim: ") and "obstacle error, mean" in lines[1]
+    assert "final pose error" in lines[4] and "deadline misses" in lines[5]
+    assert all(w in " ".join(lines[1:6]) for w in ("target", "met")) and lines[6] == "details:"

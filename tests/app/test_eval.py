@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from app.cli import main
@@ -81,7 +82,7 @@ def test_bad_values_are_one_line_errors_naming_the_key(capsys: pytest.CaptureFix
 
 def test_json_output_shape_and_plots(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     pytest.importorskip("vipsm.estimator")
-    code, out, _ = run_cli(capsys, ["eval", "--scenario", "2", *SHORT, "--json", "--plots", str(tmp_path)])
+    code, out, _ = run_cli(capsys, ["eval", "--scenario", "2", *SHORT, "--json", "--plots", str(tmp_path), "--svg"])
     assert code == 0
     doc = json.loads(out)
     assert list(doc) == ["scenarios"] and len(doc["scenarios"]) == 1
@@ -92,11 +93,17 @@ def test_json_output_shape_and_plots(capsys: pytest.CaptureFixture[str], tmp_pat
     for method in ("vipsm", "plain_psm"):
         assert set(sc[method]) == set(metrics.METRIC_KEYS)
         assert sc[method]["ms_per_cycle"] > 0 and sc[method]["pose_err_final_m"] >= 0
-    pngs = sorted(p.name for p in tmp_path.glob("*.png"))
-    assert pngs == [f"fig8_map_{sc['name']}.png", f"fig9_paths_{sc['name']}.png"]
+    stems = [f"errors_{sc['name']}", f"fig8_map_{sc['name']}", f"fig9_paths_{sc['name']}"]
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [f"{s}.png" for s in stems]
+    assert sorted(p.name for p in tmp_path.glob("*.svg")) == [f"{s}.svg" for s in stems]
+    # matplotlib at 150 dpi: Fig. 8 is 4 instants x 2 methods (16.8 x 7.2 in), Fig. 9 two panels (13 x 5 in)
+    sizes = {p.stem: cv2.imread(str(p)).shape[:2] for p in tmp_path.glob("*.png")}
+    assert sizes[stems[1]] == (1080, 2520) and sizes[stems[2]] == (750, 1950) and sizes[stems[0]] == (1125, 1200)
     for p in tmp_path.glob("*.png"):
         img = cv2.imread(str(p))
-        assert img is not None and img.shape[0] > 100 and img.shape[1] > 200
+        assert len(np.unique(img.reshape(-1, 3), axis=0)) > 50  # drawn, not a blank canvas
+    for p in tmp_path.glob("*.svg"):
+        assert p.read_text(encoding="utf-8").lstrip().startswith("<?xml") and p.stat().st_size > 20_000
 
 
 def test_short_scenario_2_vipsm_beats_plain_psm() -> None:

@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from websockets.sync.client import connect
@@ -81,10 +82,12 @@ def test_remote_live_view_is_refused_unless_allowed_then_warned() -> None:
     assert "readable by anyone" in check_exposure("0.0.0.0", True)
 
 
-def test_sim_refuses_a_remote_live_view_with_one_line() -> None:
+def test_sim_refuses_a_remote_live_view_with_one_line_and_no_log_file(tmp_path: Path) -> None:
+    log = tmp_path / "never.mcap"
     proc = subprocess.run([sys.executable, "-m", "app", "sim", "--duration", "1", "--live", "0.0.0.0:0",
-                           "--set", "status.port=0"], capture_output=True, text=True, timeout=60)
+                           "--log", str(log), "--set", "status.port=0"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "live.allow_remote" in proc.stderr and "Traceback" not in proc.stderr
+    assert not log.exists()
 
 
 def test_the_layout_file_names_the_logs_topics() -> None:
