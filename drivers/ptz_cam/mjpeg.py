@@ -68,8 +68,23 @@ class _State(enum.Enum):
     BODY = 2
 
 
+#: a boundary line (``--token`` plus optional ``--`` and blanks) longer than this has lost its line feed
+MAX_BOUNDARY_LINE = 256
+#: one part's header block: at most this many bytes and lines, else it is junk and skipped
+MAX_HEADER_BYTES = 8192
+MAX_HEADER_LINES = 32
+
+
 class MjpegParser:
-    """Feed stream body bytes; get :class:`JpegPart` / :class:`TruncatedJpeg` / :class:`SkippedBytes`."""
+    """Feed stream body bytes; get :class:`JpegPart` / :class:`TruncatedJpeg` / :class:`SkippedBytes`.
+
+    Bounded: the buffer never holds more than ``max_part_bytes`` plus one delimiter and one header
+    block; each byte is scanned a bounded number of times (no rescans of a growing buffer). The events
+    do not depend on how the stream is split into ``feed`` calls. A part whose ``Content-Length``
+    does not frame a complete JPEG is delimited by the next boundary instead (a wrong length loses
+    no frame and cannot swallow the next part); a boundary inside a part's headers or body starts a
+    new part.
+    """
 
     def __init__(self, boundary: str, max_part_bytes: int = 8 * 1024 * 1024) -> None:
         token = boundary.lstrip("-")
@@ -80,23 +95,23 @@ class MjpegParser:
         self._buf = bytearray()
         self._state = _State.SEEK
         self._headers: dict[str, str] = {}
+        self._header_bytes = 0
         self._length: int | None = None
+        self._scan_from = 0  # where the next delimiter search in a body resumes
         self.frames = 0
         self.truncated = 0
         self.skipped_bytes = 0
 
+    @property
+    def buffered(self) -> int:
+        return len(self._buf)
+
     def feed(self, data: bytes) -> list[MjpegEvent]:
         self._buf += data
         events: list[MjpegEvent] = []
-        while True:
-            if self._state is _State.SEEK:
-                if not self._seek(events):
-                    break
-            elif self._state is _State.HEADERS:
-                if not self._read_headers(events):
-                    break
-            elif not self._read_body(events):
-                break
+        step = {_State.SEEK: self._seek, _State.HEADERS: self._read_headers, _State.BODY: self._read_body}
+        while step[self._state](events):
+            pass
         return events
 
     def _skip(self, events: list[MjpegEvent], n: int, reason: str) -> None:
@@ -107,92 +122,96 @@ class MjpegParser:
             self.skipped_bytes += len(chunk)
             events.append(SkippedBytes(len(chunk), reason))
 
+    def _resync(self, events: list[MjpegEvent], n: int, reason: str) -> bool:
+        """Drop ``n`` bytes and look for the next boundary."""
+        self._skip(events, n, reason)
+        self._state = _State.SEEK
+        return True
+
     def _seek(self, events: list[MjpegEvent]) -> bool:
+        d = len(self._delim)
         i = self._buf.find(self._delim)
         if i < 0:
-            keep = len(self._delim) - 1
-            if len(self._buf) > keep:
-                self._skip(events, len(self._buf) - keep, "bytes outside any part")
+            if len(self._buf) >= d:
+                self._skip(events, len(self._buf) - d + 1, "bytes outside any part")
             return False
-        eol = self._buf.find(b"\n", i)
+        if i:
+            self._skip(events, i, "bytes before a boundary")
+        eol = self._buf.find(b"\n", d, MAX_BOUNDARY_LINE)
         if eol < 0:
-            if i:
-                self._skip(events, i, "bytes before a boundary")
+            if len(self._buf) >= MAX_BOUNDARY_LINE:
+                return self._resync(events, d, "a boundary line without a line feed")
             return False
-        self._skip(events, i, "bytes before a boundary")
-        del self._buf[: eol - i + 1]
+        del self._buf[: eol + 1]
         self._state = _State.HEADERS
         self._headers = {}
+        self._header_bytes = 0
         self._length = None
         return True
 
     def _read_headers(self, events: list[MjpegEvent]) -> bool:
-        while True:
-            eol = self._buf.find(b"\n")
-            if eol < 0:
-                if len(self._buf) > 8192:
-                    self._skip(events, len(self._buf), "part headers too long")
-                    self._state = _State.SEEK
-                    return True
-                return False
-            line = bytes(self._buf[:eol]).rstrip(b"\r")
-            del self._buf[: eol + 1]
-            if not line:
-                self._state = _State.BODY
-                return True
-            if line.startswith(self._delim):
-                # a boundary right after a boundary: empty part
-                self._headers = {}
-                continue
-            name, sep, value = line.decode("latin-1").partition(":")
-            if not sep:
-                self.skipped_bytes += len(line)
-                events.append(SkippedBytes(len(line), "malformed part header"))
+        room = MAX_HEADER_BYTES - self._header_bytes
+        eol = self._buf.find(b"\n", 0, room)
+        cut = self._buf.find(self._delim, 0, room if eol < 0 else eol)
+        if cut >= 0:  # the header block was cut short by the next part's boundary
+            return self._resync(events, cut, "part headers cut short by a boundary")
+        if eol < 0:
+            if len(self._buf) >= room:
+                return self._resync(events, room, "part headers too long")
+            return False
+        line = bytes(self._buf[:eol]).rstrip(b"\r")
+        del self._buf[: eol + 1]
+        self._header_bytes += eol + 1
+        if not line:
+            self._state = _State.BODY
+            self._scan_from = 0
+            return True
+        if len(self._headers) >= MAX_HEADER_LINES:
+            return self._drop_part(events, line, "too many part headers")
+        return self._header_line(events, line)
+
+    def _drop_part(self, events: list[MjpegEvent], line: bytes, reason: str) -> bool:
+        self.skipped_bytes += len(line)
+        events.append(SkippedBytes(len(line), reason))
+        self._state = _State.SEEK
+        return True
+
+    def _header_line(self, events: list[MjpegEvent], line: bytes) -> bool:
+        name, sep, value = line.decode("latin-1").partition(":")
+        if not sep:
+            return self._drop_part(events, line, "malformed part header")
+        key = name.strip().lower()
+        self._headers[key] = value.strip()
+        if key == "content-length":
+            try:
+                length = int(value.strip())
+            except ValueError:
+                length = -1
+            if not 0 <= length <= self._max:
+                events.append(TruncatedJpeg(0, f"bad Content-Length {value.strip()!r}"))
+                self.truncated += 1
                 self._state = _State.SEEK
                 return True
-            self._headers[name.strip().lower()] = value.strip()
-            if name.strip().lower() == "content-length":
-                try:
-                    length = int(value.strip())
-                except ValueError:
-                    length = -1
-                self._length = length if 0 <= length <= self._max else None
-                if length < 0 or length > self._max:
-                    events.append(TruncatedJpeg(0, f"bad Content-Length {value.strip()!r}"))
-                    self.truncated += 1
-                    self._state = _State.SEEK
-                    return True
+            self._length = length
+        return True
 
-    def _deliver(self, events: list[MjpegEvent], body: bytes) -> None:
+    def _deliver(self, events: list[MjpegEvent], body: bytes, reason: str | None = None) -> None:
         if is_complete_jpeg(body):
             self.frames += 1
             events.append(JpegPart(body, dict(self._headers)))
         else:
             self.truncated += 1
-            reason = "no JPEG SOI" if not body.startswith(SOI) else "no JPEG EOI (truncated)"
-            events.append(TruncatedJpeg(len(body), reason))
+            why = reason or ("no JPEG SOI" if not body.startswith(SOI) else "no JPEG EOI (truncated)")
+            events.append(TruncatedJpeg(len(body), why))
         self._state = _State.SEEK
 
     def _read_body(self, events: list[MjpegEvent]) -> bool:
         if self._length is not None:
-            n = self._length
-            # a delimiter inside the declared length means the part was cut short
-            inner = self._buf.find(self._delim, 0, n + len(self._delim))
-            if 0 <= inner < n:
-                body = bytes(self._buf[:inner]).rstrip(b"\r\n")
-                del self._buf[:inner]
-                self.truncated += 1
-                events.append(TruncatedJpeg(len(body), "part shorter than its Content-Length"))
-                self._state = _State.SEEK
-                return True
-            if len(self._buf) < n:
-                return False
-            body = bytes(self._buf[:n])
-            del self._buf[:n]
-            self._deliver(events, body)
-            return True
-        i = self._buf.find(self._delim)
+            return self._read_sized_body(events, self._length)
+        d = len(self._delim)
+        i = self._buf.find(self._delim, self._scan_from)
         if i < 0:
+            self._scan_from = max(0, len(self._buf) - d + 1)
             if len(self._buf) > self._max:
                 self._skip(events, len(self._buf), "part larger than max_part_bytes without a boundary")
                 self.truncated += 1
@@ -204,4 +223,19 @@ class MjpegParser:
         body = bytes(self._buf[:i]).rstrip(b"\r\n")
         del self._buf[:i]
         self._deliver(events, body)
+        return True
+
+    def _read_sized_body(self, events: list[MjpegEvent], n: int) -> bool:
+        """Content-Length framing, decided on the first ``n`` bytes alone (so however the stream is
+        split): a complete JPEG with no boundary inside is the frame; anything else is delimited by
+        the next boundary instead, as a part without a length would be."""
+        inner = self._buf.find(self._delim, 0, n)
+        if inner < 0 and len(self._buf) < n:
+            return False
+        body = bytes(self._buf[:n])
+        if inner < 0 and is_complete_jpeg(body):
+            del self._buf[:n]
+            self._deliver(events, body)
+            return True
+        self._length = None  # a wrong Content-Length: find the part's end by its boundary
         return True

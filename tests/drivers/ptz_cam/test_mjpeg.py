@@ -86,3 +86,92 @@ def test_arbitrary_streams_never_raise_and_never_deliver_a_broken_jpeg(chunks: l
                     assert ev.jpeg.startswith(b"\xff\xd8") and ev.jpeg.endswith(b"\xff\xd9")
     except ViscaError:
         pytest.fail("the parser must not raise on stream bytes")
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 12 rows 1 and 8: bounded memory, linear work, split-independence, no swallowed parts
+
+
+def feed_all(p: MjpegParser, stream: bytes, cuts: list[int]) -> list[object]:
+    events: list[object] = []
+    last = 0
+    for c in [*sorted(cuts), len(stream)]:
+        events += p.feed(stream[last:c])
+        last = c
+    return events
+
+
+def outcome(stream: bytes, cuts: list[int], max_part: int = 1 << 20) -> tuple[list[bytes], int]:
+    p = MjpegParser("myboundary", max_part_bytes=max_part)
+    events = feed_all(p, stream + b"--myboundary\r\n", cuts)
+    return [e.jpeg for e in events if isinstance(e, JpegPart)], p.truncated
+
+
+def test_a_boundary_line_without_a_line_feed_is_not_buffered_forever() -> None:
+    p = MjpegParser("myboundary")
+    p.feed(b"--myboundary")
+    for _ in range(256):  # 1 MiB of bytes with no line feed
+        p.feed(b"x" * 4096)
+        assert p.buffered <= 4096 + 256
+    events = p.feed(part(JPEG_A))
+    assert [e.jpeg for e in events if isinstance(e, JpegPart)] == [JPEG_A]
+
+
+def test_endless_distinct_header_lines_are_not_kept() -> None:
+    p = MjpegParser("myboundary")
+    p.feed(b"--myboundary\r\n")
+    for i in range(20_000):
+        p.feed(b"X-Header-%d: value\r\n" % i)
+        assert p.buffered <= 8192 + 64
+    assert len(p._headers) <= 32  # noqa: SLF001 - the bound itself
+    events = p.feed(part(JPEG_A))
+    assert [e.jpeg for e in events if isinstance(e, JpegPart)] == [JPEG_A]
+
+
+def test_a_part_header_cut_short_does_not_swallow_the_next_part() -> None:
+    for cut_at in (b"Content-Len", b"Content-Type: image/jp", b"Content-Length: 2"):
+        stream = b"--myboundary\r\n" + cut_at + part(JPEG_A) + part(JPEG_B)
+        assert outcome(stream, [])[0] == [JPEG_A, JPEG_B], cut_at
+
+
+@pytest.mark.parametrize("wrong", [-5, -1, 1, 3, 20, 400])
+def test_a_wrong_content_length_gives_the_same_frames_however_the_stream_is_split(wrong: int) -> None:
+    stream = part(JPEG_A, length=len(JPEG_A) + wrong) + part(JPEG_B) + part(JPEG_A)
+    whole = outcome(stream, [])
+    assert whole[0][-2:] == [JPEG_B, JPEG_A]  # the wrong length never costs the next parts
+    for cut in range(1, len(stream)):
+        assert outcome(stream, [cut]) == whole, cut
+    assert outcome(stream, list(range(1, len(stream)))) == whole  # byte by byte
+
+
+_FRAGMENTS = st.sampled_from([
+    part(JPEG_A), part(JPEG_B), part(JPEG_A, None), part(JPEG_A, len(JPEG_A) + 7), part(JPEG_B, 10),
+    part(JPEG_A[:50]), b"--myboundary\r\n", b"--myboundary", b"Content-Length: 12\r\n", b"\r\n", b"\xff\xd8",
+    b"--myboundary\r\nContent-Type: image/jpeg\r\nContent-Len",
+])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.one_of(_FRAGMENTS, st.binary(max_size=40)), max_size=10), st.lists(st.integers(0, 2000), max_size=6))
+def test_splitting_a_stream_anywhere_yields_the_same_frames(chunks: list[bytes], cuts: list[int]) -> None:
+    stream = b"".join(chunks)
+    assert outcome(stream, [c % (len(stream) + 1) for c in cuts]) == outcome(stream, [])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.one_of(_FRAGMENTS, st.binary(max_size=40)), max_size=8), st.sampled_from([JPEG_A, JPEG_B]))
+def test_a_valid_part_after_any_corruption_is_delivered(junk: list[bytes], jpeg: bytes) -> None:
+    p = MjpegParser("myboundary", max_part_bytes=4096)
+    for c in junk:
+        p.feed(c)
+    events = p.feed(b"\r\n" + part(jpeg) + b"--myboundary\r\n")
+    assert jpeg in [e.jpeg for e in events if isinstance(e, JpegPart)]
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.one_of(_FRAGMENTS, st.binary(min_size=1, max_size=3000)), max_size=30))
+def test_the_buffer_stays_bounded(chunks: list[bytes]) -> None:
+    p = MjpegParser("myboundary", max_part_bytes=4096)
+    for c in chunks:
+        p.feed(c)
+        assert p.buffered <= 4096 + 8192 + 256 + len(c)
