@@ -94,6 +94,8 @@ class StatusConfig:
     host: str = _f("127.0.0.1", "Modbus TCP bind address")
     port: int = _f(5020, "Modbus TCP port (0: any free port)", min=0, max=65535)
     allow_stop_coil: bool = _f(False, "honour writes to the stop coil (coil 0)")
+    max_connections: int = _f(8, "Modbus clients served at once; more are disconnected at once", min=1, max=256)
+    idle_timeout_s: float = _f(30.0, "a Modbus connection that sends nothing this long is closed", min=1.0, max=3600.0)
 
 
 @dataclass(frozen=True)

@@ -427,7 +427,7 @@ def build_loop(
     if config.status.enabled:
         s = config.status
         try:
-            status = StatusServer(s.host, s.port, s.allow_stop_coil).start()
+            status = StatusServer(s.host, s.port, s.allow_stop_coil, s.max_connections, s.idle_timeout_s).start()
         except AppError:
             for dev in (scanner, base, camera):
                 if dev is not None:

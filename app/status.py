@@ -41,12 +41,17 @@ enables it (``status.allow_stop_coil``); otherwise they are refused with Modbus 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ipaddress
 import logging
 import math
+import struct
 import sys
 import threading
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from pymodbus.constants import ExcCodes
 from pymodbus.pdu import ModbusPDU
@@ -176,6 +181,26 @@ def _own_server_id(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
     return pdu
 
 
+#: how often the supervisor closes idle connections and checks the listener
+SUPERVISE_S = 0.5
+
+
+def _refuse_illegal_coil_values(sending: bool, packet: bytes) -> bytes:
+    """Write Single Coil (FC 5) allows only 0xFF00 (on) and 0x0000 (off); pymodbus turns any value
+    into a bool before the handler sees it. A request with another value is rewritten to address
+    ``ILLEGAL_VALUE_ADDRESS``, which the handler answers with exception 3 (illegal data value)."""
+    if sending or len(packet) < 12 or packet[7] != 5:
+        return packet
+    value = struct.unpack(">H", packet[10:12])[0]
+    if value in (0x0000, 0xFF00):
+        return packet
+    return packet[:8] + struct.pack(">H", ILLEGAL_VALUE_ADDRESS) + packet[10:]
+
+
+#: the coil address an illegal FC 5 value is moved to (never a real coil: they are 0-15)
+ILLEGAL_VALUE_ADDRESS = 0xFFF0
+
+
 def exposure_warning(host: str, allow_stop_coil: bool) -> str:
     """A warning when the registers (and maybe the stop coil) are reachable from other hosts; '' if not."""
     try:
@@ -188,13 +213,64 @@ def exposure_warning(host: str, allow_stop_coil: bool) -> str:
     return f"status.host = {host!r}: the Modbus status registers are reachable from the network {coil}"
 
 
-class StatusServer:
-    """Serves the registers on its own thread (an asyncio loop); ``publish`` never blocks."""
+class _GuardedServer(ModbusTcpServer):
+    """pymodbus's TCP server with a cap on concurrent connections and an idle timeout per connection
+    (a client that connects and says nothing, or too many at once, cannot hold the port)."""
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 5020, allow_stop_coil: bool = False) -> None:
+    def __init__(self, *args: Any, max_connections: int, idle_timeout_s: float, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.max_connections = max_connections
+        self.idle_timeout_s = idle_timeout_s
+        self.refused_connections = 0
+        self.idle_closed = 0
+
+    def callback_new_connection(self) -> Any:
+        handler = super().callback_new_connection()
+        handler.last_rx_s = time.monotonic()
+        refuse = len(self.active_connections) >= self.max_connections
+        on_data, on_made = handler.callback_data, handler.connection_made
+
+        def callback_data(data: bytes, addr: tuple | None = None) -> int:  # type: ignore[type-arg]
+            handler.last_rx_s = time.monotonic()
+            return int(on_data(data, addr))
+
+        def connection_made(transport: asyncio.BaseTransport) -> None:
+            on_made(transport)
+            if refuse:
+                self.refused_connections += 1
+                handler.close()
+
+        handler.callback_data, handler.connection_made = callback_data, connection_made
+        return handler
+
+    def close_idle(self, now_s: float) -> None:
+        for handler in list(self.active_connections.values()):
+            if now_s - getattr(handler, "last_rx_s", now_s) > self.idle_timeout_s:
+                self.idle_closed += 1
+                handler.close()
+
+    def listening(self) -> bool:
+        server = self.transport
+        return server is not None and bool(getattr(server, "is_serving", lambda: True)())
+
+
+class StatusServer:
+    """Serves the registers on its own thread (an asyncio loop); ``publish`` never blocks.
+
+    A supervisor task closes connections idle for ``idle_timeout_s``, and restarts the listener if it
+    stops listening (reported through ``on_event`` and counted in ``restarts``)."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 5020, allow_stop_coil: bool = False,
+                 max_connections: int = 8, idle_timeout_s: float = 30.0) -> None:
         self.host = host
         self.port = port
         self.allow_stop_coil = allow_stop_coil
+        self.max_connections = max_connections
+        self.idle_timeout_s = idle_timeout_s
+        #: listener restarts after it stopped listening, and the last reason
+        self.restarts = 0
+        self.last_failure: str | None = None
+        self.on_event: Callable[[str, str], None] | None = None
         self._regs = [0] * N_INPUT_REGISTERS
         self._stop_coil = False
         self._lock = threading.Lock()
@@ -202,6 +278,7 @@ class StatusServer:
         self._server: ModbusTcpServer | None = None
         self._thread: threading.Thread | None = None
         self._ready = threading.Event()
+        self._stopping = False
         self.error: BaseException | None = None
         #: coil writes refused because the config does not allow them
         self.refused_writes = 0
@@ -238,6 +315,9 @@ class StatusServer:
         elif function_code in HOLDING_WRITE_FUNCTIONS:
             self.refused_writes += 1  # nothing here is writable but the stop coil
             return ExcCodes.ILLEGAL_FUNCTION
+        elif function_code == 5 and address == ILLEGAL_VALUE_ADDRESS:
+            self.refused_writes += 1
+            return ExcCodes.ILLEGAL_VALUE
         elif function_code in (5, 15) and set_values is not None:
             if not self.allow_stop_coil:
                 self.refused_writes += 1
@@ -256,7 +336,8 @@ class StatusServer:
         return SimDevice(
             0,
             simdata=(
-                [SimData(0, count=16, values=False, datatype=DataType.BITS)],
+                [SimData(0, count=16, values=False, datatype=DataType.BITS),
+                 SimData(ILLEGAL_VALUE_ADDRESS, count=16, values=False, datatype=DataType.BITS)],
                 [SimData(0, count=16, values=False, datatype=DataType.BITS)],
                 [SimData(0, count=1, values=0, datatype=DataType.REGISTERS)],
                 [SimData(0, count=N_INPUT_REGISTERS, values=0, datatype=DataType.REGISTERS)],
@@ -289,9 +370,11 @@ class StatusServer:
             print(f"vipsm-robot: warning: {warning}", file=sys.stderr, flush=True)
         return self
 
-    async def _serve(self) -> None:
-        # the server must be built inside the running loop
-        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id)
+    async def _listen(self) -> asyncio.Future[Any]:
+        """A new listener on (host, port); raises what pymodbus raised if it cannot listen."""
+        self._server = _GuardedServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id,
+                                      trace_packet=_refuse_illegal_coil_values,
+                                      max_connections=self.max_connections, idle_timeout_s=self.idle_timeout_s)
         task = asyncio.ensure_future(self._server.serve_forever())
         for _ in range(200):
             if self._server.transport is not None or task.done():
@@ -299,12 +382,56 @@ class StatusServer:
             await asyncio.sleep(0.01)
         if task.done() and task.exception() is not None:
             raise task.exception()  # type: ignore[misc]
+        sockets = getattr(self._server.transport, "sockets", None) or []
+        if self.port == 0 and sockets:
+            self.port = int(sockets[0].getsockname()[1])  # a restart keeps the port clients know
+        return task
+
+    async def _serve(self) -> None:
+        # the server must be built inside the running loop
+        task = await self._listen()
         self._ready.set()
-        await task
+        while not self._stopping:
+            await asyncio.sleep(SUPERVISE_S)
+            assert self._server is not None
+            self._server.close_idle(time.monotonic())
+            if self._stopping or (self._server.listening() and not task.done()):
+                continue
+            task = await self._restart(task)
+
+    async def _restart(self, task: asyncio.Future[Any]) -> asyncio.Future[Any]:
+        reason = "stopped listening" if not task.done() or task.exception() is None else repr(task.exception())
+        self.last_failure = reason
+        self._event("error", f"status server on {self.host}:{self.port} {reason}; restarting it")
+        with contextlib.suppress(Exception):
+            assert self._server is not None
+            await self._server.shutdown()
+        try:
+            task = await self._listen()
+        except Exception as exc:  # noqa: BLE001 - retried at the next supervision tick
+            self.last_failure = f"restart failed: {exc}"
+            self._event("error", f"status server on {self.host}:{self.port}: {self.last_failure}")
+            return task
+        self.restarts += 1
+        self._event("info", f"status server on {self.host}:{self.port} listening again")
+        return task
+
+    def connection_counts(self) -> dict[str, int]:
+        """Connections refused over the cap and closed for idleness (by the current listener)."""
+        srv = self._server
+        return {"refused_connections": srv.refused_connections if srv else 0,
+                "idle_closed": srv.idle_closed if srv else 0}
+
+    def _event(self, level: str, message: str) -> None:
+        if self.on_event is not None:
+            self.on_event(level, message)
+        else:
+            print(f"vipsm-robot: {level}: {message}", file=sys.stderr, flush=True)
 
     def stop(self) -> None:
         if self._loop is None or self._server is None or self._thread is None:
             return
+        self._stopping = True
         try:
             asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop).result(5.0)
         except (RuntimeError, TimeoutError, OSError):

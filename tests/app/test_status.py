@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import asyncio
 import socket
 import struct
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -175,3 +177,109 @@ def test_junk_from_clients_prints_nothing_and_the_server_keeps_answering() -> No
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().endswith("04020000")
     assert ">>>>>" not in done.stderr and "Invalid Modbus" not in done.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 12 rows 3 and 7: the listener survives junk, connections are capped and timed out, a dead
+# listener is restarted, FC 5 with an illegal value is refused
+
+
+def _read_one(port: int) -> bytes:
+    return _raw_request(port, bytes.fromhex("0400000001"))
+
+
+def _junk(port: int, i: int) -> None:
+    junk = [b"GET / HTTP/1.0\r\n\r\n", bytes.fromhex("00010007ffff01") + b"x" * 30, bytes.fromhex("000100000000"),
+            bytes.fromhex("0001000700060104"), bytes((i * 7 + k) % 256 for k in range(97))]
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
+            s.sendall(junk[i % len(junk)])
+            s.settimeout(0.05)
+            try:
+                s.recv(64)
+            except (TimeoutError, ConnectionError):
+                pass
+    except ConnectionError:
+        pass
+
+
+def test_hundreds_of_junk_connections_leave_the_server_answering() -> None:
+    server = StatusServer(port=0).start()
+    try:
+        for i in range(300):
+            _junk(server.port, i)
+        assert _read_one(server.port)[:2] == bytes.fromhex("0402")
+        assert server.restarts == 0 and server.error is None
+    finally:
+        server.stop()
+
+
+def test_connections_over_the_cap_are_closed_and_the_server_still_answers_others() -> None:
+    server = StatusServer(port=0, max_connections=3).start()
+    held = [socket.create_connection(("127.0.0.1", server.port), timeout=2) for _ in range(3)]
+    try:
+        extra = socket.create_connection(("127.0.0.1", server.port), timeout=2)
+        extra.settimeout(2)
+        assert extra.recv(16) == b""  # closed by the server at once
+        extra.close()
+        assert server.connection_counts()["refused_connections"] >= 1
+        held.pop().close()
+        for _ in range(100):  # the server notices the closed connection
+            if len(server._server.active_connections) < 3:  # noqa: SLF001
+                break
+            time.sleep(0.05)
+        assert _read_one(server.port)[:2] == bytes.fromhex("0402")
+    finally:
+        for s in held:
+            s.close()
+        server.stop()
+
+
+def test_an_idle_connection_is_closed() -> None:
+    server = StatusServer(port=0, idle_timeout_s=1.0).start()
+    try:
+        with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+            s.settimeout(5)
+            assert s.recv(16) == b""  # closed after about a second and a half of silence
+        assert server.connection_counts()["idle_closed"] == 1
+    finally:
+        server.stop()
+
+
+def test_a_listener_that_stops_listening_is_restarted_and_reported() -> None:
+    events: list[tuple[str, str]] = []
+    server = StatusServer(port=0)
+    server.on_event = lambda level, msg: events.append((level, msg))
+    server.start()
+    try:
+        port = server.port
+        asyncio.run_coroutine_threadsafe(_stop_listening(server), server._loop).result(5)  # noqa: SLF001
+        for _ in range(100):
+            if server.restarts:
+                break
+            time.sleep(0.05)
+        assert server.restarts == 1 and server.port == port
+        assert events[0][0] == "error" and "restarting" in events[0][1]
+        assert _read_one(port)[:2] == bytes.fromhex("0402")
+    finally:
+        server.stop()
+
+
+async def _stop_listening(server: StatusServer) -> None:
+    """What the audit saw: the listening socket gone while the server object lives on."""
+    server._server.transport.close()  # noqa: SLF001
+
+
+@pytest.mark.parametrize("allow", [False, True])
+@pytest.mark.parametrize("value", [0x1234, 0x0001, 0xFFFF, 0x00FF])
+def test_write_single_coil_with_an_illegal_value_is_refused(allow: bool, value: int) -> None:
+    server = StatusServer(port=0, allow_stop_coil=allow).start()
+    try:
+        reply = _raw_request(server.port, struct.pack(">BHH", 5, 0, value))
+        assert reply == bytes([0x85, 3])  # exception 3: illegal data value
+        assert not server.stop_requested
+        if allow:  # the legal values still work
+            assert _raw_request(server.port, struct.pack(">BHH", 5, 0, 0xFF00)) == struct.pack(">BHH", 5, 0, 0xFF00)
+            assert server.stop_requested
+    finally:
+        server.stop()
