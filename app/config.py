@@ -60,7 +60,10 @@ class DevicesConfig:
 
 @dataclass(frozen=True)
 class LoopConfig:
-    period_s: float = _f(0.1, "control period on monotonic deadlines", min=0.01, max=1.0)
+    period_s: float = _f(0.1, "control period on monotonic deadlines (with trigger = scan: the longest wait)",
+                         min=0.01, max=1.0)
+    trigger: str = _f("timer", "timer: a cycle every period_s; scan: a cycle as each scan arrives (every UTM-30LX "
+                      "scan, 40 Hz), or after period_s without one", choices=("timer", "scan"))
     max_scan_age_s: float = _f(0.25, "a newer scan than this is required; older = scanner stalled", min=0.01)
     max_frame_age_s: float = _f(0.3, "frames older than this are not used (plain PSM for the cycle)", min=0.01)
     max_odometry_age_s: float = _f(0.35, "odometry older than this = base lost", min=0.01)

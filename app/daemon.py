@@ -70,6 +70,7 @@ class FrameSample:
 class ScannerPort(Protocol):
     def state(self) -> str: ...
     def poll(self) -> list[ScanSample]: ...
+    def wait_scan(self, timeout_s: float) -> bool: ...
     def counters(self) -> dict[str, int]: ...
     def close(self) -> None: ...
 
@@ -396,6 +397,9 @@ class ControlLoop:
                 self.base.command(0.0, 0.0)
 
         self._publish(now_s, scanner_state, base_state, camera_state, healthy, est, coil, safety_stop)
+        if est is not None and scan_sample is not None:  # obstacles are out (status registers, log queue)
+            sc = scan_sample.scan
+            self.health.record_latency(self.clock() - (sc.stamp_s + max(len(sc.ranges_m) - 1, 0) * sc.beam_dt_s))
         if healthy:
             if not self._ready_sent:
                 self.notifier.ready()
@@ -513,8 +517,12 @@ class ControlLoop:
         """Cycles on monotonic deadlines until ``stop`` is set or ``duration_s`` has passed.
 
         A cycle that overruns counts as a deadline miss; periods that passed entirely are skipped
-        (counted), never run back to back to catch up.
+        (counted), never run back to back to catch up. With ``loop.trigger = "scan"`` a cycle runs as
+        each scan arrives instead (:meth:`run_on_scans`).
         """
+        if self.config.loop.trigger == "scan" and self.scanner is not None:
+            self.run_on_scans(stop, duration_s, progress)
+            return
         period = self.config.loop.period_s
         t0 = self.clock()
         k = 0
@@ -534,6 +542,32 @@ class ControlLoop:
             done = self.clock()
             compute = done - wake
             self.health.record(wake - deadline, compute, missed=done > deadline + period, skipped=skipped)
+            if progress is not None:
+                progress(self, wake - t0)
+            if duration_s is not None and wake - t0 >= duration_s:
+                break
+
+    def run_on_scans(
+        self,
+        stop: threading.Event,
+        duration_s: float | None = None,
+        progress: Callable[[ControlLoop, float], None] | None = None,
+    ) -> None:
+        """A cycle as soon as a scan is ready (or after ``loop.period_s`` without one, so a silent
+        scanner is still noticed and the base still commanded). A cycle longer than the period is a
+        deadline miss; the jitter recorded is the wait beyond the period when no scan came."""
+        assert self.scanner is not None
+        period = self.config.loop.period_s
+        t0 = self.clock()
+        last = t0
+        while not stop.is_set():
+            self.scanner.wait_scan(period)
+            wake = self.clock()
+            late = max(0.0, wake - last - period)
+            self.step(wake)
+            done = self.clock()
+            self.health.record(late, done - wake, missed=done - wake > period)
+            last = wake
             if progress is not None:
                 progress(self, wake - t0)
             if duration_s is not None and wake - t0 >= duration_s:

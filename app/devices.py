@@ -195,6 +195,15 @@ class ScannerAdapter(ClientAdapter[Utm30lxClient]):
 
         self.opener: Opener[Utm30lxClient] = Opener("scanner", open_fn, lambda c: c.close(), max_backoff_s)
 
+    def wait_scan(self, timeout_s: float) -> bool:
+        """Blocks until a scan is ready or ``timeout_s`` passed (the loop's scan-triggered mode)."""
+        start = time.monotonic()
+        c = self.opener.client
+        ready = c is not None and c.wait_for_scan(timeout_s)
+        if not ready:  # no client, or its reader failed (returns at once): never spin
+            time.sleep(max(0.0, timeout_s - (time.monotonic() - start)))
+        return ready
+
     def poll(self) -> list[ScanSample]:
         c = self.opener.client
         if c is None:
@@ -400,6 +409,17 @@ def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None
     return live
 
 
+def _warm_up_matcher(config: Config) -> None:
+    """The scan matcher's compiled kernels are loaded (compiled and cached the first time) here, not
+    in the control loop's first cycle; how long it took is said on stderr."""
+    from vipsm.psm import warm_up
+
+    t0 = time.monotonic()
+    warm_up(config.estimator.psm)
+    print(f"vipsm-robot: info: scan matcher ready in {time.monotonic() - t0:.2f} s (compiled kernels loaded; "
+          "compiled and cached on the first run after an install)", file=sys.stderr, flush=True)
+
+
 def build_loop(
     config: Config,
     *,
@@ -437,6 +457,7 @@ def build_loop(
             if field_log is not None:
                 field_log.close()
             raise
+    _warm_up_matcher(config)
     loop = ControlLoop(
         config,
         scanner=scanner,

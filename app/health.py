@@ -20,6 +20,8 @@ class LoopHealth:
         self.period_s = period_s
         self._jitter = deque[float](maxlen=window)
         self._compute = deque[float](maxlen=window)
+        #: per estimate: from the scan's last beam to the obstacles published (s)
+        self._latency = deque[float](maxlen=window)
         self.cycles = 0
         self.deadline_misses = 0
         self.skipped_periods = 0
@@ -33,6 +35,9 @@ class LoopHealth:
         if missed:
             self.deadline_misses += 1
         self.skipped_periods += skipped
+
+    def record_latency(self, latency_s: float) -> None:
+        self._latency.append(latency_s)
 
     @staticmethod
     def _pct(values: deque[float], q: float) -> float:
@@ -59,6 +64,8 @@ class LoopHealth:
             "loop_jitter_max_ms": round(self.jitter_max_s() * 1e3, 4),
             "compute_median_ms": round(self.compute_median_s() * 1e3, 4),
             "compute_p99_ms": round(self.compute_p99_s() * 1e3, 4),
+            "scan_to_obstacles_ms_median": round(self._pct(self._latency, 50) * 1e3, 3),
+            "scan_to_obstacles_ms_p99": round(self._pct(self._latency, 99) * 1e3, 3),
         }
 
 

@@ -83,6 +83,17 @@ class LatestBuffer(Generic[T]):
                 self._cond.wait(remaining)
             return self._items.popleft()
 
+    def wait_nonempty(self, timeout_s: float) -> bool:
+        """Whether a sample is (or becomes, within ``timeout_s``) available, without taking it."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while not self._items and self._error is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._cond.wait(remaining)
+            return bool(self._items)
+
     def latest(self) -> T | None:
         """Newest sample or None, without waiting; the buffer is emptied."""
         with self._cond:

@@ -20,7 +20,7 @@ VIPSM_STDLIB = {
 RULES: dict[str, tuple[set[str], set[str] | None]] = {
     # package: (allowed third-party / project top-level modules, allowed stdlib (None: all))
     "drivers": ({"drivers", "serial", "usb", "numpy"}, None),
-    "vipsm": ({"vipsm", "numpy", "cv2"}, VIPSM_STDLIB),
+    "vipsm": ({"vipsm", "numpy", "cv2", "numba"}, VIPSM_STDLIB),
     "hil_fakes": ({"hil_fakes", "numpy", "cv2"}, None),
     "app": ({"app", "drivers", "vipsm", "hil_fakes", "numpy", "cv2", "serial", "usb", "pymodbus", "mcap", "foxglove",
              "google", "rosbags", "matplotlib"}, None),

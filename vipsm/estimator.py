@@ -81,6 +81,9 @@ class EstimatorConfig:
     weak_info_min: float = 0.03  # ... and below which the odometry's translation is kept entirely
     odom_sigma_per_m: float = 0.05  # covariance growth on odometry fallback
     odom_sigma_rad_per_rad: float = 0.05
+    #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
+    #: this length); scans in between publish the tracks predicted to their stamp
+    obstacle_period_s: float = 0.1
 
     @property
     def laser_mount(self) -> Pose2D:
@@ -118,6 +121,7 @@ class Estimator:
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._last_pose: Pose2D | None = None
+        self._last_obstacle_s: float | None = None
         self._last_odo: Pose2D | None = None
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
@@ -133,15 +137,27 @@ class Estimator:
         rest = restore(scan.ranges_m, scan.bearings_rad, masks, self.config.restore, self.config.psm.min_range_m)
         match = self._match(scan, rest, predicted, scan_ok)
         laser = compose(match.pose, self.config.laser_mount)
-        bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
-                                self.config.tracker, self._ahead_of_keyframe(scan, match))
-        tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
-        self._update_static(scan, laser, bodies)
+        bodies, tracked = self._obstacles(scan, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
         return self._estimate(scan, odometry, match, rest, flags | match.flags | _rest_flags(rest, self.plain_psm),
                               tracked, laser)
 
     # ------------------------------------------------------------------ stages
+    def _obstacles(self, scan: Scan, laser: Pose2D, camera: list[BearingInterval], match: MatchOutcome
+                   ) -> tuple[list[Body], list[tuple[Track, Detection | None]]]:
+        """Bodies, tracking and the static map at most every ``obstacle_period_s`` (the cycle their
+        thresholds are counted in); a scan in between (the 40 Hz loop) publishes the tracks predicted
+        to its stamp."""
+        last = self._last_obstacle_s
+        if last is not None and scan.stamp_s - last < 0.8 * self.config.obstacle_period_s:
+            return [], [(t, None) for t in self._tracker.tracks]
+        self._last_obstacle_s = scan.stamp_s
+        bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
+                                self.config.tracker, self._ahead_of_keyframe(scan, match))
+        tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
+        self._update_static(scan, laser, bodies)
+        return bodies, tracked
+
     def _prefilter(self, scan: Scan) -> Scan:
         ranges = drop_veiling(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
         return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities)
@@ -224,7 +240,9 @@ class Estimator:
         self._last_odo = odometry.pose
         self._last_cov = match.cov
         alive = {id(t) for t in self._tracker.tracks}
-        obstacles = tuple(_obstacle(t, d, laser) for t, d in tracked if id(t) in alive and self._tracker.reported(t))
+        at = self._tracker.predict_position
+        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tracked
+                          if id(t) in alive and self._tracker.reported(t))
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
@@ -310,19 +328,20 @@ def _detection(b: Body) -> Detection:
                      b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind], kind=b.kind)
 
 
-def _obstacle(t: Track, det: Detection | None, laser: Pose2D) -> Obstacle:
+def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, float]) -> Obstacle:
+    """The reported obstacle at ``xy`` (the track's position at the scan's stamp)."""
     if det is not None:
         bmin, bmax, i0, i1 = det.bearing_min_rad, det.bearing_max_rad, det.scan_index_start, det.scan_index_stop
     else:
-        rel = between(laser, Pose2D(float(t.state[0]), float(t.state[1]), 0.0))
+        rel = between(laser, Pose2D(xy[0], xy[1], 0.0))
         d = max(math.hypot(rel.x_m, rel.y_m), 1e-6)
         b = math.atan2(rel.y_m, rel.x_m)
         half = math.asin(min(t.radius_m / d, 1.0))
         bmin, bmax, i0, i1 = b - half, b + half, -1, -1
     return Obstacle(
         track_id=t.track_id,
-        x_m=float(t.state[0]),
-        y_m=float(t.state[1]),
+        x_m=float(xy[0]),
+        y_m=float(xy[1]),
         vx_mps=float(t.state[2]),
         vy_mps=float(t.state[3]),
         radius_m=float(t.radius_m),

@@ -343,76 +343,17 @@ def project(cur: PreparedScan, ref_bearings_rad: np.ndarray, pose: Pose2D, confi
     bearings: interpolation between consecutive beams of one segment (the ray/chord intersection,
     or the original's range linear in bearing), a z-buffer keeping the nearest range, back-facing
     pairs flagged occluded (they hide what is behind but are not used). Bearings that receive
-    nothing are empty (not good)."""
+    nothing are empty (not good). The loop is compiled (:func:`vipsm.psm_kernel.project_into`)."""
+    from .psm_kernel import project_into
+
     n_ref = ref_bearings_rad.size
-    out = np.full(n_ref, np.inf)
-    wout = np.zeros(n_ref)
-    pa = cur.pair_a
-    if pa.size == 0 or n_ref == 0:
-        return _Projection(out, np.zeros(n_ref, dtype=bool), wout)
-    c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
-    X = pose.x_m + (c * cur.x_m - s * cur.y_m)
-    Y = pose.y_m + (s * cur.x_m + c * cur.y_m)
-    f = np.arctan2(Y, X)
-    # consecutive beams as views (no gathers); pairs not in one segment get a zero count below
-    fa, fb = f[:-1], f[1:]
-    lo = np.minimum(fa, fb)
-    hi = np.maximum(fa, fb)
-    b0 = float(ref_bearings_rad[0])
-    db = float(ref_bearings_rad[-1] - b0) / max(n_ref - 1, 1)
-    if _uniform(ref_bearings_rad):
-        inv = 1.0 / db
-        j0 = np.ceil((lo - b0) * inv).astype(np.intp)
-        j1 = np.floor((hi - b0) * inv).astype(np.intp)
-        np.maximum(j0, 0, out=j0)
-        np.minimum(j1, n_ref - 1, out=j1)
-        cnt = j1 - j0 + 1
-    else:
-        j0 = np.searchsorted(ref_bearings_rad, lo, side="left")
-        cnt = np.searchsorted(ref_bearings_rad, hi, side="right") - j0
-    ok = cur.pair_ok & ((hi - lo) < config.max_pair_gap_rad) & (cnt > 0)
-    cnt = np.where(ok, cnt, 0)
-    total = int(cnt.sum())
-    if total == 0:
-        return _Projection(out, np.zeros(n_ref, dtype=bool), wout)
-    rep = np.repeat(np.arange(cnt.size), cnt)
-    j = np.arange(total) + np.repeat(j0 - (np.cumsum(cnt) - cnt), cnt)
-    xa, ya = X[rep], Y[rep]
-    ex = X[rep + 1] - xa
-    ey = Y[rep + 1] - ya
-    if config.line_interpolation:
-        # the reference ray meets the straight chord between the two projected points (exact for
-        # flat surfaces, where interpolating the range linearly in bearing overestimates it)
-        dd = cur_cos_sin(ref_bearings_rad)
-        cj, sj = dd[0][j], dd[1][j]
-        den = cj * ey - sj * ex
-        num = xa * ey - ya * ex
-        small = np.abs(den) < 1e-12
-        den[small] = 1.0
-        rr = num / den
-        bad = small | (rr <= 0.0)
-        if bad.any():
-            ra = np.hypot(xa[bad], ya[bad])
-            rb = np.hypot(xa[bad] + ex[bad], ya[bad] + ey[bad])
-            fa_b, fb_b = fa[rep[bad]], fb[rep[bad]]
-            d_b = fb_b - fa_b
-            d_b[d_b == 0.0] = 1.0
-            rr[bad] = ra + (ref_bearings_rad[j[bad]] - fa_b) / d_b * (rb - ra)
-    else:
-        ra = np.hypot(xa, ya)
-        rb = np.hypot(xa + ex, ya + ey)
-        fa_r = fa[rep]
-        d_r = fb[rep] - fa_r
-        d_r[d_r == 0.0] = 1.0
-        rr = ra + (ref_bearings_rad[j] - fa_r) / d_r * (rb - ra)
-    np.minimum.at(out, j, rr)
-    win = rr <= out[j]
-    jw = j[win]
-    repw = rep[win]
-    wout[jw] = cur.pair_w[repw]
-    good = np.zeros(n_ref, dtype=bool)
-    good[jw] = fb[repw] > fa[repw]  # front-facing pair won the z-buffer: usable; else occluded
-    good &= (out > config.min_range_m) & (out < config.max_range_m)
+    out, wout, good = np.empty(n_ref), np.empty(n_ref), np.empty(n_ref, dtype=bool)
+    if cur.pair_a.size == 0 or n_ref == 0 or cur.pair_ok is None or cur.pair_w is None:
+        return _Projection(np.full(n_ref, np.inf), np.zeros(n_ref, dtype=bool), np.zeros(n_ref))
+    cos_b, sin_b = cur_cos_sin(ref_bearings_rad)
+    project_into(cur.x_m, cur.y_m, cur.pair_ok, cur.pair_w, ref_bearings_rad, cos_b, sin_b,
+                 _uniform(ref_bearings_rad), pose.x_m, pose.y_m, pose.theta_rad, config.max_pair_gap_rad,
+                 config.line_interpolation, config.min_range_m, config.max_range_m, out, wout, good)
     return _Projection(out, good, wout)
 
 
@@ -449,53 +390,6 @@ def _uniform(b: np.ndarray) -> bool:
             _UNIFORM_CACHE.clear()
         _UNIFORM_CACHE[key] = hit
     return hit
-
-
-def _orientation_search(
-    ref: PreparedScan, proj: _Projection, window: int, config: PsmConfig, max_error_m: float | None = None
-) -> tuple[float, float, float] | None:
-    """Best bearing shift (in steps, sub-step refined) by the mean absolute range difference.
-    Returns (shift_steps, cost_m, curvature_m_per_step2) or None when no shift is valid."""
-    n = ref.ranges_m.size
-    w = min(window, n - 1)
-    ref_ok = ref.good & (ref.weights > 0.0)
-    new_ok = proj.good & (proj.weights > 0.0)
-    n_ref, n_new = int(np.count_nonzero(ref_ok)), int(np.count_nonzero(new_ok))
-    if n_ref == 0 or n_new == 0:
-        return None
-    big = np.float32(1e6)
-    me = np.float32(config.max_error_m if max_error_m is None else max_error_m)
-    ref_pad = np.full(n + 2 * w, big, dtype=np.float32)
-    ref_pad[w : w + n] = np.where(ref_ok, ref.ranges_m, big)
-    new_r = np.where(new_ok, proj.ranges_m, -big).astype(np.float32)
-    # g[k, i] = |ref_r[i + k - w] - new_r[i]|: shift d = k - w compares new_r[i] with ref_r[i + d]
-    stride = ref_pad.strides[0]
-    win = np.lib.stride_tricks.as_strided(ref_pad, shape=(2 * w + 1, n), strides=(stride, stride), writeable=False)
-    g = np.subtract(win, new_r)
-    np.abs(g, out=g)
-    valid = g < me
-    cnt = np.count_nonzero(valid, axis=1)
-    np.minimum(g, me, out=g)
-    tot = g.sum(axis=1, dtype=np.float64) - float(me) * (n - cnt)
-    min_cnt = max(1, int(math.ceil(config.min_overlap_frac * min(n_ref, n_new))))
-    ok = cnt >= min_cnt
-    if not ok.any():
-        return None
-    cost = np.where(ok, tot / np.maximum(cnt, 1), np.inf)
-    k = int(np.argmin(cost))
-    e0 = float(cost[k])
-    shift = float(k - w)
-    curv = 0.0
-    if 0 < k < cost.size - 1:
-        em, ep = float(cost[k - 1]), float(cost[k + 1])
-        if math.isfinite(em) and math.isfinite(ep) and em > e0 and ep > e0:
-            den = em + ep - 2.0 * e0
-            curv = den
-            if abs(den) > 1e-4:  # the original's 0.01 cm threshold, here in metres
-                d = (em - ep) / (2.0 * den)
-                if abs(d) < 1.0:
-                    shift += d
-    return shift, e0, curv
 
 
 def _translation_terms(
@@ -574,71 +468,35 @@ def _loewner_max(floor: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return 0.5 * (out + out.T)
 
 
+def _kernel_params(c: PsmConfig) -> tuple[tuple[float, ...], tuple[int, ...], tuple[bool]]:
+    """The configuration as the compiled loop takes it (float, int and bool tuples)."""
+    first_gate = c.max_error_first_m if c.max_error_first_m is not None else c.max_error_m
+    floats = (c.weight_c_m2, c.max_error_m, first_gate, c.weight_c_divisor, c.max_pair_gap_rad, c.min_range_m,
+              c.max_range_m, c.min_overlap_frac, c.orientation_gain, c.stop_translation_m, c.stop_rotation_rad,
+              c.degenerate_eig, c.damping)
+    ints = (c.change_weight_iter, c.max_iterations, c.stop_count, c.search_window_first_beams,
+            c.search_window_beams, c.min_valid_beams)
+    return tuple(float(v) for v in floats), tuple(int(v) for v in ints), (bool(c.line_interpolation),)
+
+
 def match_prepared(
     ref: PreparedScan, cur: PreparedScan, initial_guess: Pose2D, config: PsmConfig
 ) -> PsmResult:
     """Match two prepared scans; never raises for bad data (refusals are typed results)."""
     if ref.n_good < max(3, config.min_segment_beams) or cur.n_good < max(3, config.min_segment_beams):
         return _refused(initial_guess, PsmRefusal.EMPTY_SCAN, 0, 0, config)
-    x, y, th = initial_guess.x_m, initial_guess.y_m, initial_guess.theta_rad
-    c_m2 = config.weight_c_m2
+    from .psm_kernel import DEGENERATE, NO_VALID_SHIFT, TOO_FEW_BEAMS, iterate
+
+    cos_b, sin_b = cur_cos_sin(ref.bearings_rad)
+    x, y, th, it, converged, code, beams, curv_th, c_m2 = iterate(
+        ref.ranges_m, ref.good, ref.weights, ref.bearings_rad, cos_b, sin_b, _uniform(ref.bearings_rad),
+        ref.dphi_rad, cur.x_m, cur.y_m, cur.pair_ok, cur.pair_w, initial_guess.x_m, initial_guess.y_m,
+        initial_guess.theta_rad, *_kernel_params(config))
+    if code:
+        reason = {NO_VALID_SHIFT: PsmRefusal.NO_VALID_SHIFT, TOO_FEW_BEAMS: PsmRefusal.TOO_FEW_BEAMS,
+                  DEGENERATE: PsmRefusal.DEGENERATE}[code]
+        return _refused(initial_guess, reason, it, beams, config)
     dphi = ref.dphi_rad
-    small = 0
-    last_dt = math.inf
-    last_dth = math.inf
-    it = 0
-    converged = False
-    curv_th = 0.0
-    cost_th = 0.0
-    first_orientation = True
-    while it < config.max_iterations:
-        if it == config.change_weight_iter:
-            c_m2 = c_m2 / config.weight_c_divisor
-        proj = project(cur, ref.bearings_rad, Pose2D(x, y, th), config)
-        gate = config.max_error_m
-        if config.max_error_first_m is not None and it < config.change_weight_iter:
-            gate = config.max_error_first_m
-        if it % 2 == 0:
-            window = config.search_window_first_beams if first_orientation else config.search_window_beams
-            first_orientation = False
-            found = _orientation_search(ref, proj, window, config, gate)
-            if found is None:
-                return _refused(initial_guess, PsmRefusal.NO_VALID_SHIFT, it + 1, 0, config)
-            shift, cost_th, curv_th = found
-            d = config.orientation_gain * shift * dphi
-            th = math.remainder(th + d, 2.0 * math.pi)
-            last_dth = abs(d)
-        else:
-            idx, e, w, hc, hs = _translation_terms(ref, proj, c_m2, config, gate)
-            if idx.size < config.min_valid_beams:
-                return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it + 1, int(idx.size), config)
-            a11 = float(np.dot(w, hc * hc))
-            a12 = float(np.dot(w, hc * hs))
-            a22 = float(np.dot(w, hs * hs))
-            b1 = float(np.dot(w, hc * e))
-            b2 = float(np.dot(w, hs * e))
-            sw = float(w.sum())
-            tr = a11 + a22
-            det0 = a11 * a22 - a12 * a12
-            lam_min = 0.5 * tr - math.sqrt(max(0.25 * tr * tr - det0, 0.0))
-            if sw <= 0.0 or lam_min / sw < config.degenerate_eig:
-                return _refused(initial_guess, PsmRefusal.DEGENERATE, it + 1, int(idx.size), config)
-            lam = config.damping * sw
-            a11d, a22d = a11 + lam, a22 + lam
-            det = a11d * a22d - a12 * a12
-            ddx = (a22d * b1 - a12 * b2) / det
-            ddy = (a11d * b2 - a12 * b1) / det
-            x += ddx
-            y += ddy
-            last_dt = math.hypot(ddx, ddy)
-        it += 1
-        if last_dt < config.stop_translation_m and last_dth < config.stop_rotation_rad:
-            small += 1
-            if small >= config.stop_count:
-                converged = True
-                break
-        else:
-            small = 0
 
     # Final bookkeeping at the matched pose: residuals, beams used, covariance.
     pose = Pose2D(x, y, th)
@@ -724,6 +582,15 @@ def match(
     return match_prepared(ref, cur, initial_guess, cfg)
 
 
+def warm_up(config: PsmConfig | None = None) -> None:
+    """Run one match on a made-up scan, so the compiled kernels are loaded (or, the first time on a
+    machine, compiled and cached) before a control loop needs them."""
+    b = np.linspace(-2.0, 2.0, 181)
+    r = 3.0 + 0.5 * np.sin(3.0 * b)
+    scan = Scan(r, b, 0.0)
+    match(scan, scan, Pose2D(0.01, 0.0, 0.0), config or PsmConfig(min_valid_beams=10))
+
+
 def _check_bearings(b: np.ndarray) -> None:
     if b.size >= 2 and not (np.all(np.isfinite(b)) and np.all(np.diff(b) > 0)):
         raise ValueError("bearings must be finite and strictly ascending")
@@ -739,6 +606,7 @@ __all__ = [
     "project",
     "match",
     "match_prepared",
+    "warm_up",
     "median_filter_valid",
     "segment_scan",
     "TAG_INVALID",

@@ -667,6 +667,10 @@ class Utm30lxClient:
         """The oldest unread scan, waiting at most ``timeout_s``; raises the reader's error if it gave up."""
         return self._buffer.get(timeout_s)
 
+    def wait_for_scan(self, timeout_s: float) -> bool:
+        """Whether an unread scan is (or arrives within ``timeout_s``) in the buffer, without taking it."""
+        return self._buffer.wait_nonempty(timeout_s)
+
     def latest_scan(self) -> LaserScan | None:
         """The newest scan without waiting (older unread ones are counted as dropped)."""
         return self._buffer.latest()

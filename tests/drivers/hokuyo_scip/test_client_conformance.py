@@ -283,3 +283,20 @@ def test_clock_drift_is_followed_while_streaming(tmp_path: Path) -> None:
         assert abs(untracked - truth) > 0.02
     finally:
         server.stop()
+
+
+def test_rep117_ranges_give_each_invalid_reading_its_ros_meaning() -> None:
+    """+inf: nothing in range (code 1) or beyond DMAX; -inf: too close (code 2); NaN: codes 3-5 and
+    other values below DMIN (fact sheet 1.7); valid readings unchanged."""
+    raw = np.array([1, 2, 3, 4, 5, 12, 22, 23, 1500, 60000, 60001, 65533])
+    ranges = raw * 0.001
+    ranges[(raw < 23) | (raw > 60000)] = np.nan
+    scan = LaserScan(ranges_m=ranges, raw_mm=raw, intensities=None, bearings_rad=np.zeros(len(raw)),
+                     device_stamp_raw_ms=0, device_stamp_ms=0, device_epoch=0, host_stamp_s=0.0, stamp_s=0.0,
+                     stamp_from_time_sync=False, beam_dt_s=0.0, seq=1, dmin_mm=23, dmax_mm=60000)
+    out = scan.rep117_ranges_m()
+    assert out[0] == math.inf and out[1] == -math.inf
+    assert np.isnan(out[2:7]).all()
+    assert out[7] == 0.023 and out[8] == 1.5 and out[9] == 60.0
+    assert out[10] == math.inf and out[11] == math.inf
+    assert np.isnan(scan.ranges_m[0])  # the driver's own ranges keep NaN for every invalid reading
