@@ -165,7 +165,7 @@ def _refine(refp, new_idx, new_r, k, w, e0, max_error, min_cnt):  # pragma: no c
 
 
 @njit(cache=True, nogil=True)
-def translation_step(ref_r, ref_ok, ref_w, ref_b, proj_r, proj_ok, proj_w, c_m2, max_error, min_valid,
+def translation_step(ref_r, ref_ok, ref_w, cos_b, sin_b, proj_r, proj_ok, proj_w, c_m2, max_error, min_valid,
                      degenerate_eig, damping):  # pragma: no cover - compiled
     """(dx, dy, beams used, refusal code) of one weighted least-squares translation step."""
     a11 = a12 = a22 = b1 = b2 = sw = 0.0
@@ -177,7 +177,7 @@ def translation_step(ref_r, ref_ok, ref_w, ref_b, proj_r, proj_ok, proj_w, c_m2,
         if not abs(e) < max_error:
             continue
         ww = c_m2 / (c_m2 + e * e) * ref_w[i] * proj_w[i]
-        hc, hs = math.cos(ref_b[i]), math.sin(ref_b[i])
+        hc, hs = cos_b[i], sin_b[i]
         a11 += ww * hc * hc
         a12 += ww * hc * hs
         a22 += ww * hs * hs
@@ -231,8 +231,8 @@ def iterate(ref_r, ref_good, ref_w, ref_b, cos_b, sin_b, uniform, dphi, cur_x, c
             th = _remainder_2pi(th + d)
             last_dth = abs(d)
         else:
-            dx, dy, used, code = translation_step(ref_r, ref_ok, ref_w, ref_b, proj_r, proj_ok, proj_w, c_m2, gate,
-                                                  min_valid, degenerate_eig, damping)
+            dx, dy, used, code = translation_step(ref_r, ref_ok, ref_w, cos_b, sin_b, proj_r, proj_ok, proj_w, c_m2,
+                                                  gate, min_valid, degenerate_eig, damping)
             if code != OK:
                 return x, y, th, it + 1, False, code, used, curv, c_m2
             x += dx

@@ -99,8 +99,22 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         "estimator_step_cpu_ms_p99": round(float(np.percentile(step_cpu_ms, 99)), 3),
         "note": "wall-clock (perf_counter) and process CPU time (process_time; includes OpenCV worker threads)",
         "plain_psm_step_ms_median": round(statistics.median(plain_ms), 3),
+        **_real_scans(),
         **_realistic_suite_steps(),
     }
+
+
+def _real_scans() -> dict[str, Any]:
+    """PSM on the real recorded scans in ``../shared/data`` (or ``$VIPSM_SHARED_DATA``)."""
+    import os
+    from pathlib import Path
+
+    from app.evaluation.psm_real import bench_real
+
+    data = Path(os.environ.get("VIPSM_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+    if not data.is_dir():
+        return {"psm_real_skipped": f"no real data at {data} (set VIPSM_SHARED_DATA)"}
+    return bench_real(data)
 
 
 def _realistic_suite_steps(duration_s: float = 10.0) -> dict[str, Any]:

@@ -262,3 +262,57 @@ def eval_intel(raw_path: Path, corrected_path: Path, per_pair: bool) -> dict[str
     if per_pair:
         out["per_pair"] = rows
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# speed on real scans (``vipsm-robot bench --only estimator``)
+
+
+def _timed(pairs: list[tuple[Scan, Scan, Pose2D]], cfg: PsmConfig, repetitions: int) -> dict[str, float]:
+    """Per-match wall time over ``repetitions`` passes: ``match`` (both scans preprocessed in the
+    call) and ``match_prepared`` (the scans preprocessed beforehand, as the estimator keeps them)."""
+    from vipsm.psm import match_prepared, prepare
+
+    whole, matched = [], []
+    prepared = [(prepare(a, cfg), prepare(b, cfg), g) for a, b, g in pairs]
+    for _ in range(repetitions):
+        for a, b, guess in pairs:
+            t0 = time.perf_counter()
+            match(a, b, guess, cfg)
+            whole.append(1000.0 * (time.perf_counter() - t0))
+        for ra, rb, guess in prepared:
+            t0 = time.perf_counter()
+            match_prepared(ra, rb, guess, cfg)
+            matched.append(1000.0 * (time.perf_counter() - t0))
+    return {
+        "ms_median": round(statistics.median(whole), 3),
+        "ms_p90": round(float(np.percentile(whole, 90)), 3),
+        "ms_prepared_median": round(statistics.median(matched), 3),
+        "ms_prepared_p90": round(float(np.percentile(matched, 90)), 3),
+    }
+
+
+def bench_real(data: Path, repetitions: int = 20) -> dict[str, Any]:
+    """PSM speed on the real scans: the 24 consecutive Diosi UTM-30LX pairs from a zero guess at
+    the original v0.3 parameters and at this project's defaults, and the 909 Intel pairs seeded with
+    odometry at ``PsmConfig.sick_1deg()`` (Intel: ``repetitions // 10`` passes). Missing data: a reason."""
+    out: dict[str, Any] = {}
+    diosi = data / DIOSI_FILE
+    if diosi.exists():
+        scans = read_diosi_scans(diosi)
+        pairs = [(scans[i], scans[i + 1], Pose2D(0.0, 0.0, 0.0)) for i in range(len(scans) - 1)]
+        for name, cfg in (("v03", PsmConfig.diosi_v03_utm()), ("default", PsmConfig())):
+            out.update({f"psm_real_utm_{name}_{k}": v for k, v in _timed(pairs, cfg, repetitions).items()})
+        out["psm_real_utm_pairs"] = len(pairs)
+    else:
+        out["psm_real_utm_skipped"] = f"{diosi} not found"
+    raw = data / INTEL_RAW
+    if raw.exists():
+        logged = read_freiburg_json(raw, INTEL_BEAMS, INTEL_BEARINGS, INTEL_NO_RETURN_M)
+        pairs = [(a.scan, b.scan, between(a.pose, b.pose)) for a, b in zip(logged, logged[1:])]
+        timed = _timed(pairs, PsmConfig.sick_1deg(), max(1, repetitions // 10))
+        out.update({f"psm_real_intel_{k}": v for k, v in timed.items()})
+        out["psm_real_intel_pairs"] = len(pairs)
+    else:
+        out["psm_real_intel_skipped"] = f"{raw} not found"
+    return out
