@@ -460,3 +460,14 @@ def test_sim_prints_the_headline_first_on_a_terminal(tmp_path: Path) -> None:
     assert lines[0].startswith("sim: ") and "obstacle error, mean" in lines[1]
     assert "final pose error" in lines[4] and "deadline misses" in lines[5]
     assert all(w in " ".join(lines[1:6]) for w in ("target", "met")) and lines[6] == "details:"
+
+
+def test_sim_runs_the_estimator_on_every_scan_when_triggered_by_scans(tmp_path: Path) -> None:
+    proc = run_cli("sim", "--scenario", "2", "--duration", "4", "--json", "--no-progress", "--log",
+                   str(tmp_path / "s40.mcap"), "--set", "status.port=0", "--set", 'loop.trigger="scan"',
+                   "--set", "loop.period_s=0.025")
+    assert proc.returncode == 0, proc.stderr
+    s = json.loads(proc.stdout)
+    assert s["estimates"] >= 0.8 * s["scans"] and s["estimates"] >= 0.8 * 40 * 4  # every scan, not every fourth
+    assert 0.0 < s["scan_to_obstacles_ms_median"] <= s["scan_to_obstacles_ms_p99"]
+    assert "scan matcher ready in" in proc.stderr

@@ -260,3 +260,48 @@ def test_a_person_who_starts_walking_is_reported_within_half_a_second_and_not_be
             t = scan.stamp_s - start_s
             assert abs(ob.x_m - 3.0) < 0.15 and abs(ob.y_m - (1.8 - 1.2 * t)) < 0.2  # the body centre
     assert first is not None and start_s < first <= start_s + 0.5 + 1e-9
+
+
+def _sequence_40hz(world: World, seconds: float, v: float = 0.2):
+    """Every UTM-30LX scan (40 Hz) with the camera's 10 fps frames: each frame serves four scans."""
+    rng = np.random.default_rng(3)
+    out = []
+    frame = None
+    for k in range(int(seconds * 40)):
+        t = 0.025 * k
+        truth = Pose2D(v * t, 0.0, 0.0)
+        scan = world.scan(compose(truth, LASER), t_s=t, noise_m=0.01, rng=rng, stamp_s=t)
+        odo = Odometry(1.02 * v * t, 0.0, 0.004 * v * t, v, 0.0, t)
+        if k % 4 == 0:
+            tf = max(t - 0.04, 0.0)
+            frame = Frame(CAM.render(world, Pose2D(v * tf, 0.0, 0.0), tf), tf, CAM.intrinsics, 0.0, 0.0, k // 4)
+        out.append((scan, odo, frame, truth))
+    return out
+
+
+def test_at_40_hz_the_body_is_tracked_and_published_every_scan_at_its_current_position() -> None:
+    world = _crossing_world()
+    est = _run(Estimator(CFG), _sequence_40hz(world, 7.0))
+    body = world.circles[0]
+    late = est[40:]  # after the first second
+    reported = [e for e in late if e.obstacles]
+    assert len(reported) >= 0.9 * len(late)
+    errs = []
+    for e in reported:
+        cx, cy = body.at(e.stamp_s)
+        errs.append(min(math.hypot(o.x_m - cx, o.y_m - cy) for o in e.obstacles))
+    # every scan's obstacle is where the body is at that scan's stamp, also between the tracker's
+    # 10 Hz updates (predicted), not where it was at the last update (up to 2.6 cm behind)
+    assert np.mean(errs) < 0.03 and max(errs) < 0.12
+    assert len({o.track_id for e in reported for o in e.obstacles}) == 1
+
+
+def test_the_obstacle_stages_run_at_most_every_obstacle_period() -> None:
+    world = _crossing_world()
+    est = Estimator(CFG)
+    updates = 0
+    for scan, odo, frame, _ in _sequence_40hz(world, 2.0):
+        before = est._last_obstacle_s  # noqa: SLF001 - the stage's own clock
+        est.step(scan, odo, frame)
+        updates += est._last_obstacle_s != before  # noqa: SLF001
+    assert updates == 20  # 2 s at 0.1 s, not 80 scans

@@ -276,3 +276,38 @@ def test_range_gating_and_invalid_tags() -> None:
     prep = prepare_scan(r, np.radians(np.linspace(-5, 5, 30)), PsmConfig(median_window=1, max_range_m=10.0))
     assert prep.tags[3] & TAG_RANGE and prep.tags[4] & TAG_INVALID and prep.tags[5] & TAG_INVALID
     assert prep.good[10]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 40), st.floats(0.05, 1.0))
+def test_the_pruned_orientation_search_equals_the_exhaustive_one(seed: int, window: int, gate_m: float) -> None:
+    """The compiled search abandons shifts that cannot win; its answer must be the exhaustive
+    search's (numpy, every shift in full, ties to the smaller shift)."""
+    from vipsm.psm_kernel import orientation_search
+
+    rng = np.random.default_rng(seed)
+    n = 181
+    ref_r = 2.0 + np.cumsum(rng.normal(0.0, 0.05, n))
+    ref_ok = rng.random(n) > 0.1
+    proj_r = np.roll(ref_r, int(rng.integers(-window, window + 1))) + rng.normal(0.0, 0.02, n)
+    proj_ok = rng.random(n) > 0.1
+    proj_w = np.where(rng.random(n) > 0.05, 1.0, 0.0)
+    got = orientation_search(ref_r, ref_ok, proj_r, proj_ok, proj_w, window, gate_m, 0.3)
+    refp = np.where(ref_ok, ref_r, 1e6)
+    idx = np.flatnonzero(proj_ok & (proj_w > 0))
+    min_cnt = max(1, math.ceil(0.3 * min(int(ref_ok.sum()), idx.size)))
+    costs = []
+    for d in range(-window, window + 1):
+        r = idx + d
+        keep = (r >= 0) & (r < n)
+        g = np.abs(refp[r[keep]] - proj_r[idx[keep]])
+        g = g[g < gate_m]
+        costs.append(g.sum() / g.size if g.size >= min_cnt else np.inf)
+    costs = np.asarray(costs)
+    if not np.isfinite(costs).any():
+        assert not got[3]
+        return
+    k = int(np.argmin(costs))
+    assert got[3]
+    assert abs(got[0] - (k - window)) < 1.0  # the best whole shift, then at most one step of refinement
+    assert got[1] == pytest.approx(costs[k], rel=1e-12, abs=1e-15)
