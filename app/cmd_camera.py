@@ -47,11 +47,13 @@ def to_vipsm_frame(
     *,
     fallback_ptz: tuple[float, float, int] = (0.0, 0.0, 0),
     grey: bool = False,
+    distortion: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
 ) -> Frame:
     """Decode a driver frame and attach intrinsics for its size and the zoom in force at capture.
 
     ``fallback_ptz`` (pan_rad, tilt_rad, zoom position) is used when the frame carries no PTZ
-    state (no VISCA link: the camera stays where the config put it)."""
+    state (no VISCA link: the camera stays where the config put it). ``distortion``: (k1, k2, p1, p2)
+    of the lens (config ``devices.camera_k1`` ...), 0 = pinhole."""
     cal = calibration or PtzCalibration()
     img = decode_jpeg(frame.jpeg, grey=grey)
     h, w = img.shape[:2]
@@ -63,7 +65,7 @@ def to_vipsm_frame(
     return Frame(
         image=img,
         stamp_s=frame.stamp_s,
-        intrinsics=Intrinsics(k.fx_px, k.fy_px, k.cx_px, k.cy_px, w, h),
+        intrinsics=Intrinsics(k.fx_px, k.fy_px, k.cx_px, k.cy_px, w, h, *distortion),
         pan_rad=pan,
         tilt_rad=tilt,
         seq=frame.seq,

@@ -52,6 +52,11 @@ class DevicesConfig:
     camera_pan_deg: float = _f(0.0, "pan set at start-up (left positive)", min=-170.0, max=170.0)
     camera_tilt_deg: float = _f(0.0, "tilt set at start-up (up positive)", min=-25.0, max=90.0)
     camera_zoom: int = _f(0, "zoom position set at start-up (0 = wide)", min=0, max=0x4000)
+    camera_k1: float = _f(0.0, "lens distortion k1 (Brown-Conrady, OpenCV's calibrateCamera) at the zoom used; "
+                          "[?] unmeasured for the SNC-RZ50: 0 = pinhole", min=-2.0, max=2.0)
+    camera_k2: float = _f(0.0, "lens distortion k2 [?]", min=-2.0, max=2.0)
+    camera_p1: float = _f(0.0, "tangential distortion p1 [?]", min=-0.5, max=0.5)
+    camera_p2: float = _f(0.0, "tangential distortion p2 [?]", min=-0.5, max=0.5)
     reconnect_max_s: float = _f(2.0, "longest wait between reconnect attempts", min=0.05)
     startup_wait_s: float = _f(
         10.0, "at start-up, wait this long at most for the devices to open before the loop runs", min=0.0, max=600.0

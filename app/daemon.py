@@ -181,6 +181,7 @@ def cycle_message(
                 frame.intrinsics.width_px,
                 frame.intrinsics.height_px,
             ],
+            "distortion": list(frame.intrinsics.distortion),
             "image_log_time_ns": lm.stamp_ns(image_wall_s) if image_wall_s is not None else -1,
         },
         "estimate": estimate_to_dict(est),

@@ -313,13 +313,15 @@ class CameraAdapter:
             c = self.visca.client if self.visca is not None else None
             return c.last_state if c is not None else None
 
+        self._distortion = (d.camera_k1, d.camera_k2, d.camera_p1, d.camera_p2)
         self._http_url = d.camera_http_url
         http_cfg = HttpConfig(base_url=d.camera_http_url, frame_rate=d.camera_fps)
         self.source = MjpegFrameSource(http_cfg, ptz=ptz).start()
 
     def frame_from_driver(self, f: CameraFrame) -> FrameSample:
         frame = to_vipsm_frame(
-            f, self._visca_cfg.calibration, fallback_ptz=(self._fixed_pan, self._fixed_tilt, self._zoom), grey=True
+            f, self._visca_cfg.calibration, fallback_ptz=(self._fixed_pan, self._fixed_tilt, self._zoom), grey=True,
+            distortion=self._distortion,
         )
         return FrameSample(frame, f.jpeg, f.ptz.zoom_position if f.ptz is not None else self._zoom)
 

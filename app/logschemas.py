@@ -45,9 +45,10 @@ _ESTIMATE = obj(
 )
 
 _FRAME = obj(
-    "the camera frame used (its JPEG is the /camera/image message logged at image_log_time_ns)",
+    "the camera frame used (its JPEG is the /camera/image message logged at image_log_time_ns); intrinsics "
+    "[fx, fy, cx, cy, width, height] in pixels, distortion [k1, k2, p1, p2]",
     seq=INTEGER, stamp_s=NUMBER, pan_rad=NUMBER, tilt_rad=NUMBER, intrinsics=array(NUMBER, 6),
-    image_log_time_ns=INTEGER,
+    distortion=array(NUMBER, 4), image_log_time_ns=INTEGER,
 )
 
 CYCLE = obj(

@@ -111,10 +111,14 @@ def frame_from_record(rec: dict[str, Any], jpeg: bytes) -> Frame:
     fx, fy, cx, cy, w, h = (_num({"intrinsics": v}, "intrinsics") for v in intr)
     if fx <= 0 or fy <= 0 or not (1 <= w <= 16384 and 1 <= h <= 16384):
         raise ValueError(f"'intrinsics' {intr!r} are not a camera's")
+    dist = rec.get("distortion", [0.0, 0.0, 0.0, 0.0])  # logs before it was recorded: pinhole
+    if not isinstance(dist, list) or len(dist) != 4:
+        raise ValueError(f"'distortion' must be 4 numbers, not {dist!r}"[:200])
+    k1, k2, p1, p2 = (_num({"distortion": v}, "distortion") for v in dist)
     return Frame(
         image=decode_jpeg(jpeg),
         stamp_s=_num(rec, "stamp_s"),
-        intrinsics=Intrinsics(fx, fy, cx, cy, int(w), int(h)),
+        intrinsics=Intrinsics(fx, fy, cx, cy, int(w), int(h), k1, k2, p1, p2),
         pan_rad=_num(rec, "pan_rad"),
         tilt_rad=_num(rec, "tilt_rad"),
         seq=_int(rec, "seq"),

@@ -336,7 +336,7 @@ def _as_version_1(src: Path, dst: Path) -> None:
                 data = {"seq": seq_by_image_time[m.log_time_ns], "format": "jpeg",
                         "data": base64.b64encode(m.data["data"]).decode()}
             elif m.topic == "/vipsm/cycle" and data["frame"] is not None:
-                data["frame"] = {k: v for k, v in data["frame"].items() if k != "image_log_time_ns"}
+                data["frame"] = {k: v for k, v in data["frame"].items() if k not in ("image_log_time_ns", "distortion")}
             elif m.topic == "/vipsm/config":
                 data.pop("log_version")
             elif m.topic not in ("/truth",):
@@ -471,3 +471,16 @@ def test_sim_runs_the_estimator_on_every_scan_when_triggered_by_scans(tmp_path: 
     assert s["estimates"] >= 0.8 * s["scans"] and s["estimates"] >= 0.8 * 40 * 4  # every scan, not every fourth
     assert 0.0 < s["scan_to_obstacles_ms_median"] <= s["scan_to_obstacles_ms_p99"]
     assert "scan matcher ready in" in proc.stderr
+
+
+def test_the_lens_distortion_from_the_config_reaches_the_estimator_and_replays(tmp_path: Path) -> None:
+    log = tmp_path / "dist.mcap"
+    proc = run_cli("sim", "--scenario", "2", "--duration", "4", "--json", "--no-progress", "--log", str(log),
+                   "--set", "status.port=0", "--set", "devices.camera_k1=-0.15", "--set", "devices.camera_k2=0.02")
+    assert proc.returncode == 0, proc.stderr
+    frames = [m.data["frame"] for m in read_log(log) if m.topic == "/vipsm/cycle" and m.data["frame"]]
+    assert frames and all(f["distortion"] == [-0.15, 0.02, 0.0, 0.0] for f in frames)
+    replay = run_cli("replay", str(log), "--json")
+    assert replay.returncode == 0, replay.stderr
+    out = json.loads(replay.stdout)
+    assert out["identical_to_recorded"] == out["cycles"] > 20
