@@ -30,7 +30,7 @@ import numpy as np
 from foxglove.messages import LaserScan
 
 from vipsm.estimator import Estimator
-from vipsm.types import Estimate, EstimateFlag, Frame, Obstacle, Odometry, Scan
+from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
 
 from . import logmessages as lm
 from .config import Config
@@ -105,10 +105,6 @@ def scan_message(sample: ScanSample, wall_s: float) -> LaserScan:
     intensities = None if scan.intensities is None else scan.intensities.tolist()
     return lm.laser_scan(ranges.tolist(), float(b[0]) if len(b) else 0.0, float(b[-1]) if len(b) else 0.0,
                          intensities, wall_s)
-
-
-def obstacle_views(obstacles: tuple[Obstacle, ...]) -> list[lm.ObstacleView]:
-    return [lm.ObstacleView(o.track_id, o.x_m, o.y_m, o.vx_mps, o.vy_mps, o.radius_m) for o in obstacles]
 
 
 def estimate_to_dict(est: Estimate) -> dict[str, Any]:
@@ -415,8 +411,7 @@ class ControlLoop:
         p = est.pose
         self.log.log("/pose", wall, lm.pose_in_frame(p.x_m, p.y_m, p.theta_rad, wall))
         life_s = max(3 * self.config.loop.period_s, 0.3)
-        views = obstacle_views(est.obstacles)
-        self.log.log("/obstacles", wall, lambda: lm.scene_update(views, wall, life_s))
+        self.log.log("/obstacles", wall, lambda: lm.scene_update(est.obstacles, wall, life_s))
         cycle = self.cycle
         image_wall = self.wall(frame.stamp_s) if frame is not None else None
         self.log.log("/vipsm/cycle", wall, lambda: cycle_message(cycle, scan, odom, frame, image_wall, est))

@@ -38,6 +38,8 @@ from foxglove.messages import (
     Vector3,
 )
 
+from vipsm.types import Obstacle
+
 #: the field-log layout this version writes (recorded in ``/vipsm/config`` as ``log_version``);
 #: 1 = JSON everywhere (written before the Foxglove SDK), 2 = official protobuf schemas + ``/tf``
 LOG_VERSION = 2
@@ -102,19 +104,7 @@ def log_line(level: str, message: str, wall_s: float) -> Log:
                file="", line=0)
 
 
-@dataclasses.dataclass(frozen=True)
-class ObstacleView:
-    """What ``/obstacles`` shows of one tracked obstacle (odom frame, SI units)."""
-
-    track_id: int
-    x_m: float
-    y_m: float
-    vx_mps: float
-    vy_mps: float
-    radius_m: float
-
-
-def scene_update(obstacles: typing.Iterable[ObstacleView], wall_s: float, lifetime_s: float) -> SceneUpdate:
+def scene_update(obstacles: typing.Iterable[Obstacle], wall_s: float, lifetime_s: float) -> SceneUpdate:
     """All previous obstacles deleted, then one entity per obstacle: a 1 m cylinder of its radius,
     an arrow for its velocity (length = the distance covered in 1 s) and its speed as text."""
     ts = timestamp(wall_s)
@@ -125,7 +115,7 @@ def scene_update(obstacles: typing.Iterable[ObstacleView], wall_s: float, lifeti
     )
 
 
-def _obstacle_entity(ob: ObstacleView, ts: Timestamp, life: Duration) -> SceneEntity:
+def _obstacle_entity(ob: Obstacle, ts: Timestamp, life: Duration) -> SceneEntity:
     speed = math.hypot(ob.vx_mps, ob.vy_mps)
     heading = math.atan2(ob.vy_mps, ob.vx_mps)
     arrows = []

@@ -54,7 +54,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pymodbus.constants import ExcCodes
-from pymodbus.pdu import ModbusPDU
+from pymodbus.pdu import ExceptionResponse, ModbusPDU
+from pymodbus.pdu.bit_message import WriteSingleCoilRequest
 from pymodbus.pdu.other_message import ReportDeviceIdResponse
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -185,22 +186,6 @@ def _own_server_id(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
 SUPERVISE_S = 0.5
 
 
-def _refuse_illegal_coil_values(sending: bool, packet: bytes) -> bytes:
-    """Write Single Coil (FC 5) allows only 0xFF00 (on) and 0x0000 (off); pymodbus turns any value
-    into a bool before the handler sees it. A request with another value is rewritten to address
-    ``ILLEGAL_VALUE_ADDRESS``, which the handler answers with exception 3 (illegal data value)."""
-    if sending or len(packet) < 12 or packet[7] != 5:
-        return packet
-    value = struct.unpack(">H", packet[10:12])[0]
-    if value in (0x0000, 0xFF00):
-        return packet
-    return packet[:8] + struct.pack(">H", ILLEGAL_VALUE_ADDRESS) + packet[10:]
-
-
-#: the coil address an illegal FC 5 value is moved to (never a real coil: they are 0-15)
-ILLEGAL_VALUE_ADDRESS = 0xFFF0
-
-
 def exposure_warning(host: str, allow_stop_coil: bool) -> str:
     """A warning when the registers (and maybe the stop coil) are reachable from other hosts; '' if not."""
     try:
@@ -315,9 +300,6 @@ class StatusServer:
         elif function_code in HOLDING_WRITE_FUNCTIONS:
             self.refused_writes += 1  # nothing here is writable but the stop coil
             return ExcCodes.ILLEGAL_FUNCTION
-        elif function_code == 5 and address == ILLEGAL_VALUE_ADDRESS:
-            self.refused_writes += 1
-            return ExcCodes.ILLEGAL_VALUE
         elif function_code in (5, 15) and set_values is not None:
             if not self.allow_stop_coil:
                 self.refused_writes += 1
@@ -336,8 +318,7 @@ class StatusServer:
         return SimDevice(
             0,
             simdata=(
-                [SimData(0, count=16, values=False, datatype=DataType.BITS),
-                 SimData(ILLEGAL_VALUE_ADDRESS, count=16, values=False, datatype=DataType.BITS)],
+                [SimData(0, count=16, values=False, datatype=DataType.BITS)],
                 [SimData(0, count=16, values=False, datatype=DataType.BITS)],
                 [SimData(0, count=1, values=0, datatype=DataType.REGISTERS)],
                 [SimData(0, count=N_INPUT_REGISTERS, values=0, datatype=DataType.REGISTERS)],
@@ -373,7 +354,7 @@ class StatusServer:
     async def _listen(self) -> asyncio.Future[Any]:
         """A new listener on (host, port); raises what pymodbus raised if it cannot listen."""
         self._server = _GuardedServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id,
-                                      trace_packet=_refuse_illegal_coil_values,
+                                      custom_pdu=[self._strict_write_coil()],
                                       max_connections=self.max_connections, idle_timeout_s=self.idle_timeout_s)
         task = asyncio.ensure_future(self._server.serve_forever())
         for _ in range(200):
@@ -415,6 +396,27 @@ class StatusServer:
         self.restarts += 1
         self._event("info", f"status server on {self.host}:{self.port} listening again")
         return task
+
+    def _strict_write_coil(self) -> type[WriteSingleCoilRequest]:
+        """Write Single Coil (FC 5) as the spec has it: only 0xFF00 (on) and 0x0000 (off). pymodbus
+        turns any value into a bool when it decodes; this request keeps the value and answers any
+        other with exception 3 (illegal data value), changing nothing, coil allowed or not."""
+        server = self
+
+        class StrictWriteSingleCoil(WriteSingleCoilRequest):
+            raw_value = 0
+
+            def decode(self, data: bytes) -> None:
+                super().decode(data)
+                self.raw_value = struct.unpack(">H", data[2:4])[0]
+
+            async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+                if self.raw_value not in (0x0000, 0xFF00):
+                    server.refused_writes += 1
+                    return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
+                return await super().datastore_update(context, device_id)
+
+        return StrictWriteSingleCoil
 
     def connection_counts(self) -> dict[str, int]:
         """Connections refused over the cap and closed for idleness (by the current listener)."""

@@ -16,6 +16,7 @@ from app import logmessages as lm
 from app.errors import ConfigError
 from app.fieldlog import FieldLog
 from app.liveview import LiveView, check_exposure, layout_path, parse_listen
+from vipsm.types import Obstacle
 
 
 def _messages(t: float) -> dict[str, object]:
@@ -23,7 +24,7 @@ def _messages(t: float) -> dict[str, object]:
         "/scan": lm.laser_scan([1.0, 2.0, float("inf")], -0.5, 0.5, None, t),
         "/pose": lm.pose_in_frame(1.0, 2.0, 0.3, t),
         "/tf": lm.robot_transforms((1.0, 2.0, 0.3), lm.Mounts(0.16, 0, 0, 0.1, 0, 0.55), (0.2, 0.0), t),
-        "/obstacles": lm.scene_update([lm.ObstacleView(3, 4.0, 1.0, 0.5, 0.0, 0.2)], t, 0.3),
+        "/obstacles": lm.scene_update([Obstacle(3, 4.0, 1.0, 0.5, 0.0, 0.2, 0.1, 0.3, 10, 20)], t, 0.3),
         "/log": lm.log_line("info", "hello", t),
         "/diagnostics": {"cycle": 1},
     }

@@ -283,3 +283,19 @@ def test_write_single_coil_with_an_illegal_value_is_refused(allow: bool, value: 
             assert server.stop_requested
     finally:
         server.stop()
+
+
+def test_an_illegal_fc5_value_in_a_segment_of_several_frames_never_sets_the_coil() -> None:
+    """The value is checked when each request is decoded (not on the raw segment), so how the frames
+    are packed does not matter. pymodbus answers only the first frame of a segment."""
+    server = StatusServer(port=0, allow_stop_coil=True).start()
+    try:
+        bad = struct.pack(">HHHB", 1, 0, 6, 1) + struct.pack(">BHH", 5, 0, 0x1234)
+        on = struct.pack(">HHHB", 2, 0, 6, 1) + struct.pack(">BHH", 5, 0, 0xFF00)
+        with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+            s.sendall(bad + bad + on)
+            reply = s.recv(64)
+        assert reply[7:9] == bytes([0x85, 3])  # the first frame: exception 3
+        assert not server.stop_requested
+    finally:
+        server.stop()
