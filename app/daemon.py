@@ -24,10 +24,9 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
-from foxglove.messages import LaserScan
 
 from vipsm.estimator import Estimator
 from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
@@ -38,6 +37,9 @@ from .fieldlog import FieldLog
 from .health import LoopHealth, OdometryHistory, SafetyMonitor
 from .sdnotify import SystemdNotifier
 from .status import ObstacleStatus, StatusServer, StatusSnapshot
+
+if TYPE_CHECKING:
+    from foxglove.messages import LaserScan
 
 # ---------------------------------------------------------------------------------------------
 # what the loop consumes
