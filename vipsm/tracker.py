@@ -64,6 +64,9 @@ class TrackerConfig:
     #: standing person's detections jump by ~0.1-0.2 m between one leg and two, which a line fit
     #: averages out; the slowest body of interest moves at 0.15 m/s)
     report_window_speed_mps: float = 0.12
+    #: ... and over that window the detections must go somewhere: net displacement at least this
+    #: share of the path (a standing person's detections jump back and forth by 0.1-0.3 m)
+    report_straightness: float = 0.35
     max_tracks: int = 24
 
 
@@ -274,6 +277,10 @@ class Tracker:
             return False
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
+        step = np.hypot(np.diff(rec[:, 1]), np.diff(rec[:, 2]))
+        net = math.hypot(rec[-1, 1] - rec[0, 1], rec[-1, 2] - rec[0, 2])
+        if net < c.report_straightness * float(step.sum()):
+            return False  # back and forth: a standing body's detection jumping between legs and wall
         tt = rec[:, 0] - rec[:, 0].mean()
         vx = float(tt @ (rec[:, 1] - rec[:, 1].mean()) / (tt @ tt))
         vy = float(tt @ (rec[:, 2] - rec[:, 2].mean()) / (tt @ tt))
