@@ -189,15 +189,13 @@ def median_filter_valid(ranges_m: np.ndarray, valid: np.ndarray, window: int) ->
     """Window-``window`` median with edges clamped; invalid beams count as +inf (far), so an invalid
     beam never pulls a real one toward a made-up value, and a valid beam whose window is mostly
     invalid becomes invalid. Returns (filtered, still_valid)."""
+    from .psm_kernel import median_filter
+
     r = np.where(valid, ranges_m, np.inf)
     if window <= 1 or r.size == 0:
         return r, valid & np.isfinite(r)
-    h = window // 2
-    padded = np.concatenate((np.full(h, r[0]), r, np.full(h, r[-1])))
-    win = np.lib.stride_tricks.sliding_window_view(padded, window)
-    med = np.partition(win, h, axis=1)[:, h]
-    ok = valid & np.isfinite(med)
-    return med, ok
+    med = median_filter(r, window)
+    return med, valid & np.isfinite(med)
 
 
 def segment_scan(
@@ -206,34 +204,13 @@ def segment_scan(
     """Segment ids (1..) per beam, 0 for bad beams. A segment breaks at a bad beam, or where the
     range jump exceeds max(jump_m, range_factor * r * dphi) and the straight-line extrapolation from
     the two previous beams misses by as much (the extrapolation test of the original, which keeps
-    grazing walls in one piece). Vectorised: the extrapolation is used whenever the two previous beams
-    are good (the original also joins three aligned points that straddle a jump)."""
-    n = ranges_m.size
-    seg = np.zeros(n, dtype=np.int32)
-    if n == 0:
-        return seg
-    r = np.where(good, ranges_m, 0.0)
-    thr = np.maximum(jump_m, range_factor * r * dphi_rad)
-    d1 = np.zeros(n)
-    d1[1:] = np.abs(r[1:] - r[:-1])
-    jump = np.zeros(n, dtype=bool)
-    jump[1:] = d1[1:] >= thr[1:]
-    pred_ok = np.zeros(n, dtype=bool)
-    pred_ok[2:] = good[1:-1] & good[:-2]
-    miss = np.ones(n, dtype=bool)
-    miss[2:] = np.abs(r[2:] - (2.0 * r[1:-1] - r[:-2])) >= thr[2:]
-    # the same test backwards: beam i-1 on the line through beams i and i+1 (a segment's first pair)
-    miss_b = np.ones(n, dtype=bool)
-    if n >= 3:
-        back_ok = good[1:-1] & good[2:]
-        miss_b[1:-1] = ~back_ok | (np.abs(r[:-2] - (2.0 * r[1:-1] - r[2:])) >= thr[1:-1])
-    prev_good = np.zeros(n, dtype=bool)
-    prev_good[1:] = good[:-1]
-    brk = ~prev_good | (jump & (miss | ~pred_ok) & miss_b)
-    brk &= good
-    ids = np.cumsum(brk).astype(np.int32)
-    seg[good] = ids[good]
-    return seg
+    grazing walls in one piece). The extrapolation is used whenever the two previous beams are good
+    (the original also joins three aligned points that straddle a jump). Compiled
+    (:func:`vipsm.psm_kernel.segment`)."""
+    from .psm_kernel import segment
+
+    return segment(np.asarray(ranges_m, dtype=np.float64), np.asarray(good, dtype=bool), float(dphi_rad),
+                   float(jump_m), float(range_factor))
 
 
 def prepare_scan(
@@ -304,27 +281,9 @@ def _normals(
     """Unit normals from the points ``half`` beams either side within the same segment (clipped at
     segment ends, so one-sided there); zero where a beam has no neighbour in its segment. A wide
     stencil keeps range noise from tilting the normals of distant, grazing walls."""
-    n = x.size
-    nx = np.zeros(n)
-    ny = np.zeros(n)
-    if n < 2:
-        return nx, ny
-    i = np.arange(n)
-    seg_g = np.where(good, seg, 0)
-    # first and last beam index of each beam's segment
-    starts = np.flatnonzero(np.concatenate(([True], seg_g[1:] != seg_g[:-1])))
-    run_id = np.cumsum(np.concatenate(([True], seg_g[1:] != seg_g[:-1]))) - 1
-    ends = np.concatenate((starts[1:], [n])) - 1
-    lo = np.maximum(i - half, starts[run_id])
-    hi = np.minimum(i + half, ends[run_id])
-    tx = x[hi] - x[lo]
-    ty = y[hi] - y[lo]
-    norm = np.hypot(tx, ty)
-    ok = good & (seg > 0) & (hi != lo) & (norm > 0)
-    safe = np.where(ok, norm, 1.0)
-    nx[ok] = (-ty / safe)[ok]
-    ny[ok] = (tx / safe)[ok]
-    return nx, ny
+    from .psm_kernel import normals
+
+    return normals(x, y, good, seg, half)  # type: ignore[no-any-return]
 
 
 def prepare(scan: Scan, config: PsmConfig, weights: np.ndarray | None = None) -> PreparedScan:

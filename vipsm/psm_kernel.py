@@ -252,3 +252,80 @@ def iterate(ref_r, ref_good, ref_w, ref_b, cos_b, sin_b, uniform, dphi, cur_x, c
 def _remainder_2pi(a):  # pragma: no cover - compiled
     """``math.remainder(a, 2 pi)``: a - n 2 pi with n the nearest integer, ties to even."""
     return a - 2.0 * math.pi * np.rint(a / (2.0 * math.pi))
+
+
+# ---------------------------------------------------------------------------------------------
+# preprocessing (``vipsm.psm.prepare_scan``'s median filter, segmentation and normals)
+
+
+@njit(cache=True, nogil=True)
+def median_filter(r, window):  # pragma: no cover - compiled
+    """Window-``window`` median with the edges clamped (the ``h``-th smallest of each window)."""
+    n = r.size
+    h = window // 2
+    out = np.empty(n)
+    buf = np.empty(window)
+    for i in range(n):
+        for k in range(window):
+            j = min(max(i + k - h, 0), n - 1)
+            v = r[j]
+            m = k
+            while m > 0 and buf[m - 1] > v:  # insertion sort of a handful of values
+                buf[m] = buf[m - 1]
+                m -= 1
+            buf[m] = v
+        out[i] = buf[h]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def segment(ranges_m, good, dphi, jump_m, range_factor):  # pragma: no cover - compiled
+    """Segment ids (1..) per beam, 0 for bad beams; the rules of ``vipsm.psm.segment_scan``."""
+    n = ranges_m.size
+    seg = np.zeros(n, dtype=np.int32)
+    r = np.where(good, ranges_m, 0.0)
+    ids = 0
+    for i in range(n):
+        thr = max(jump_m, range_factor * r[i] * dphi)
+        if i == 0 or not good[i - 1]:
+            brk = True
+        else:
+            jump = abs(r[i] - r[i - 1]) >= thr
+            pred_ok = i >= 2 and good[i - 1] and good[i - 2]
+            miss = True if i < 2 else abs(r[i] - (2.0 * r[i - 1] - r[i - 2])) >= thr
+            miss_b = True
+            if 1 <= i <= n - 2:
+                back_ok = good[i] and good[i + 1]
+                miss_b = (not back_ok) or abs(r[i - 1] - (2.0 * r[i] - r[i + 1])) >= thr
+            brk = jump and (miss or not pred_ok) and miss_b
+        if good[i]:
+            if brk:
+                ids += 1
+            seg[i] = ids
+    return seg
+
+
+@njit(cache=True, nogil=True)
+def normals(x, y, good, seg, half):  # pragma: no cover - compiled
+    """Unit normals from the points ``half`` beams either side within the same run of segment ids
+    (clipped at its ends); zero where a beam has no neighbour in its segment."""
+    n = x.size
+    nx = np.zeros(n)
+    ny = np.zeros(n)
+    if n < 2:
+        return nx, ny
+    seg_g = np.where(good, seg, 0)
+    start = 0
+    while start < n:
+        end = start
+        while end + 1 < n and seg_g[end + 1] == seg_g[start]:
+            end += 1
+        for i in range(start, end + 1):
+            lo, hi = max(i - half, start), min(i + half, end)
+            tx, ty = x[hi] - x[lo], y[hi] - y[lo]
+            norm = math.hypot(tx, ty)
+            if good[i] and seg[i] > 0 and hi != lo and norm > 0:
+                nx[i] = -ty / norm
+                ny[i] = tx / norm
+        start = end + 1
+    return nx, ny
