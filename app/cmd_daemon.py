@@ -158,7 +158,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
     progress.finish()
     if not results:
-        raise AppError(f"{path}: no estimator cycles recorded (truncated: {read.truncated} {read.reason})".strip())
+        why = f"; {read.bad_messages} malformed, the first: {read.bad[0]}" if read.bad else ""
+        raise AppError(f"{path}: no estimator cycle to replay (truncated: {read.truncated} {read.reason}{why})")
     # compared in the log's JSON form (NaN is recorded as null)
     identical = sum(1 for cyc, est in results if json.loads(encode_json(estimate_to_dict(est))) == cyc.recorded)
     summary: dict[str, Any] = {

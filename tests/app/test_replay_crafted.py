@@ -103,3 +103,12 @@ def test_replay_cli_reports_the_skipped_messages_with_exit_3(tmp_path: Path) -> 
     assert "Traceback" not in proc.stderr and "malformed message" in proc.stderr
     out = json.loads(proc.stdout)
     assert out["cycles"] == 3 and out["bad_messages"] == 1 and "ranges_m" in out["bad_message_reasons"][0]
+
+
+def test_a_log_with_only_malformed_cycles_says_why_in_one_line(tmp_path: Path) -> None:
+    log = tmp_path / "bad.mcap"
+    write_log(log, [crafted()[1][1], crafted()[2][1]])
+    proc = subprocess.run([sys.executable, "-m", "app", "replay", str(log)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "2 malformed" in proc.stderr and "ranges_m" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
