@@ -25,6 +25,7 @@ the *reference* scan's laser frame (x forward, y left), like the original's ``rx
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass
 
@@ -160,6 +161,11 @@ class PsmResult:
         return Pose2D(self.dx_m, self.dy_m, self.dtheta_rad)
 
 
+#: normals come from the points this many beams either side within the same segment (clipped at the
+#: segment's ends): a wide stencil keeps range noise from tilting the normals of distant, grazing walls
+_NORMAL_HALF_BEAMS = 3
+
+
 @dataclass(frozen=True)
 class PreparedScan:
     """A preprocessed scan: filtered ranges, tags, segments and weights, ready for matching."""
@@ -221,41 +227,23 @@ def prepare_scan(
 ) -> PreparedScan:
     """Preprocess one scan: invalid first, median filter, range gating, segmentation, short segments
     dropped. ``weights`` (default 1) are per-beam; beams with weight 0 stay in the geometry (they keep
-    segments contiguous for projection) but never count in a matching step."""
+    segments contiguous for projection) but never count in a matching step. The work is one compiled
+    call (:func:`vipsm.psm_kernel.preprocess`)."""
+    from .psm_kernel import preprocess
+
     r_raw = np.asarray(ranges_m, dtype=np.float64)
     b = np.asarray(bearings_rad, dtype=np.float64)
     n = r_raw.size
     w = np.ones(n) if weights is None else np.clip(np.asarray(weights, dtype=np.float64), 0.0, 1.0)
     if w.shape != r_raw.shape:
         raise ValueError(f"weights shape {w.shape} != ranges shape {r_raw.shape}")
-    tags = np.zeros(n, dtype=np.uint8)
-    valid = np.isfinite(r_raw) & (r_raw >= config.min_range_m)
-    tags[~valid] |= TAG_INVALID
-    r, ok = median_filter_valid(r_raw, valid, config.median_window)
-    tags[~ok & valid] |= TAG_INVALID
-    far = ok & (r > config.max_range_m)
-    tags[far] |= TAG_RANGE
-    good = tags == 0
     dphi = float((b[-1] - b[0]) / (n - 1)) if n > 1 else 1.0
-    seg = segment_scan(r, good, abs(dphi), config.seg_jump_m, config.seg_jump_range_factor)
-    if n:
-        counts = np.bincount(seg, minlength=1)
-        short = (counts[seg] < config.min_segment_beams) & (seg > 0)
-        tags[short] |= TAG_SEGMENT
-        seg[short] = 0
-    good = tags == 0
-    rf = np.where(good, r, 0.0)
-    x = rf * np.cos(b)
-    y = rf * np.sin(b)
-    if n > 1:
-        pair_ok = good[:-1] & good[1:] & (seg[:-1] == seg[1:])
-        pa = np.flatnonzero(pair_ok)
-        pair_w = np.minimum(w[:-1], w[1:])
-    else:
-        pair_ok = np.zeros(0, dtype=bool)
-        pa = np.zeros(0, dtype=np.intp)
-        pair_w = np.zeros(0)
-    nx, ny = _normals(x, y, good, seg)
+    cos_b, sin_b = cur_cos_sin(b) if n else (b, b)
+    rf, tags, seg, good, x, y, pair_ok, pair_w, nx, ny = preprocess(
+        r_raw, cos_b, sin_b, w, abs(dphi), config.min_range_m, config.max_range_m, config.median_window,
+        config.seg_jump_m, config.seg_jump_range_factor, config.min_segment_beams, _NORMAL_HALF_BEAMS,
+        TAG_INVALID, TAG_RANGE, TAG_SEGMENT)
+    pa = np.flatnonzero(pair_ok)
     return PreparedScan(
         ranges_m=rf,
         bearings_rad=b,
@@ -273,17 +261,6 @@ def prepare_scan(
         normal_x=nx,
         normal_y=ny,
     )
-
-
-def _normals(
-    x: np.ndarray, y: np.ndarray, good: np.ndarray, seg: np.ndarray, half: int = 3
-) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals from the points ``half`` beams either side within the same segment (clipped at
-    segment ends, so one-sided there); zero where a beam has no neighbour in its segment. A wide
-    stencil keeps range noise from tilting the normals of distant, grazing walls."""
-    from .psm_kernel import normals
-
-    return normals(x, y, good, seg, half)  # type: ignore[no-any-return]
 
 
 def prepare(scan: Scan, config: PsmConfig, weights: np.ndarray | None = None) -> PreparedScan:
@@ -312,7 +289,8 @@ def project(cur: PreparedScan, ref_bearings_rad: np.ndarray, pose: Pose2D, confi
     cos_b, sin_b = cur_cos_sin(ref_bearings_rad)
     project_into(cur.x_m, cur.y_m, cur.pair_ok, cur.pair_w, ref_bearings_rad, cos_b, sin_b,
                  _uniform(ref_bearings_rad), pose.x_m, pose.y_m, pose.theta_rad, config.max_pair_gap_rad,
-                 config.line_interpolation, config.min_range_m, config.max_range_m, out, wout, good)
+                 config.line_interpolation, config.min_range_m, config.max_range_m, out, wout, good,
+                 np.empty(cur.x_m.size), np.empty(cur.x_m.size), np.empty(cur.x_m.size))
     return _Projection(out, good, wout)
 
 
@@ -351,26 +329,6 @@ def _uniform(b: np.ndarray) -> bool:
     return hit
 
 
-def _translation_terms(
-    ref: PreparedScan, proj: _Projection, c_m2: float, config: PsmConfig, max_error_m: float | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Beams used, residuals, weights and Jacobian rows (cos, sin of the reference bearing)."""
-    e = ref.ranges_m - proj.ranges_m
-    with np.errstate(invalid="ignore"):
-        use = (
-            ref.good
-            & proj.good
-            & (ref.weights > 0.0)
-            & (proj.weights > 0.0)
-            & (np.abs(e) < (config.max_error_m if max_error_m is None else max_error_m))
-        )
-    idx = np.flatnonzero(use)
-    ee = e[idx]
-    ww = c_m2 / (c_m2 + ee * ee) * ref.weights[idx] * proj.weights[idx]
-    b = ref.bearings_rad[idx]
-    return idx, ee, ww, np.cos(b), np.sin(b)
-
-
 def _is_corridor(scan: PreparedScan, threshold_rad: float) -> tuple[bool, float]:
     """The original's corridor test: directions between neighbouring points of one segment, folded
     into [0, pi), median-filtered over 3; a corridor when their spread (computed twice, once rotated
@@ -393,14 +351,14 @@ def _is_corridor(scan: PreparedScan, threshold_rad: float) -> tuple[bool, float]
     return True, float((k + 0.5) * math.pi / 90.0)
 
 
-def _corridor_from_information(info: np.ndarray, ratio: float) -> tuple[bool, float]:
+def _corridor_from_information(info: Sym2, ratio: float) -> tuple[bool, float]:
     """A corridor when the normal-based translation information along one direction is below
     ``ratio`` times the other; the corridor's axis (reference frame) is that weak direction."""
-    lam, vec = np.linalg.eigh(info)
-    if lam[1] <= 0.0:
+    lo, hi, vx, vy = _sym2_eig(info)
+    if hi <= 0.0:
         return False, 0.0
-    if lam[0] < ratio * lam[1]:
-        return True, float(math.atan2(vec[1, 0], vec[0, 0]))
+    if lo < ratio * hi:
+        return True, math.atan2(vy, vx)
     return False, 0.0
 
 
@@ -413,20 +371,7 @@ def _refused(guess: Pose2D, reason: PsmRefusal, iterations: int, beams: int, con
     )
 
 
-def _loewner_max(floor: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """A covariance at least as large as both ``floor`` (positive definite) and ``cov``: whiten by the
-    floor, raise eigenvalues below 1 to 1, colour back."""
-    evals, evecs = np.linalg.eigh(floor)
-    sq = evecs * np.sqrt(evals)
-    isq = evecs / np.sqrt(evals)
-    m = isq.T @ cov @ isq
-    m = 0.5 * (m + m.T)
-    lam, vec = np.linalg.eigh(m)
-    m2 = (vec * np.maximum(lam, 1.0)) @ vec.T
-    out = sq @ m2 @ sq.T
-    return 0.5 * (out + out.T)
-
-
+@functools.lru_cache(maxsize=32)
 def _kernel_params(c: PsmConfig) -> tuple[tuple[float, ...], tuple[int, ...], tuple[bool]]:
     """The configuration as the compiled loop takes it (float, int and bool tuples)."""
     first_gate = c.max_error_first_m if c.max_error_first_m is not None else c.max_error_m
@@ -444,7 +389,7 @@ def match_prepared(
     """Match two prepared scans; never raises for bad data (refusals are typed results)."""
     if ref.n_good < max(3, config.min_segment_beams) or cur.n_good < max(3, config.min_segment_beams):
         return _refused(initial_guess, PsmRefusal.EMPTY_SCAN, 0, 0, config)
-    from .psm_kernel import DEGENERATE, NO_VALID_SHIFT, TOO_FEW_BEAMS, iterate
+    from .psm_kernel import DEGENERATE, NO_VALID_SHIFT, TOO_FEW_BEAMS, iterate, match_statistics
 
     cos_b, sin_b = cur_cos_sin(ref.bearings_rad)
     x, y, th, it, converged, code, beams, curv_th, c_m2 = iterate(
@@ -455,68 +400,114 @@ def match_prepared(
         reason = {NO_VALID_SHIFT: PsmRefusal.NO_VALID_SHIFT, TOO_FEW_BEAMS: PsmRefusal.TOO_FEW_BEAMS,
                   DEGENERATE: PsmRefusal.DEGENERATE}[code]
         return _refused(initial_guess, reason, it, beams, config)
-    dphi = ref.dphi_rad
-
-    # Final bookkeeping at the matched pose: residuals, beams used, covariance.
     pose = Pose2D(x, y, th)
     proj = project(cur, ref.bearings_rad, pose, config)
-    idx, e, w, hc, hs = _translation_terms(ref, proj, c_m2, config)
-    n_used = int(idx.size)
+    n_used, residual, sw, sigma2, i11, i12, i22 = match_statistics(
+        ref.ranges_m, ref.good & (ref.weights > 0.0), ref.weights, cos_b, sin_b, ref.normal_x, ref.normal_y,
+        proj.ranges_m, proj.good, proj.weights, c_m2, config.max_error_m)
     if n_used < config.min_valid_beams:
         return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it, n_used, config)
-    residual = float(np.mean(np.abs(e))) if n_used else float("nan")
-    sw = float(w.sum())
-    dof = max(sw - 2.0, 1.0)
-    sigma2 = float(np.dot(w, e * e)) / dof
-    info = _normal_information(ref, idx, w, hc, hs)
-    cov = np.zeros((3, 3))
-    try:
-        cov[:2, :2] = sigma2 * np.linalg.inv(info * max(sw, 1e-9) + config.damping * max(sw, 1e-9) * np.eye(2))
-    except np.linalg.LinAlgError:
-        cov[:2, :2] = np.eye(2) * config.cov_floor_sigma_xy_m**2
-    # Orientation: the mean-|dr| cost near its minimum is J0 + 0.5 k (dtheta)^2; its noise is about
-    # sigma / sqrt(n); a cost rise of that size bounds the angle's uncertainty.
-    if curv_th > 0.0:
-        k_rad = curv_th / (dphi * dphi)
-        var_th = 2.0 * math.sqrt(sigma2) / math.sqrt(max(n_used, 1)) / k_rad
-    else:
-        var_th = (4.0 * dphi) ** 2
-    cov[2, 2] = var_th
+    info = (i11, i12, i22)
+    var_th = _orientation_variance(curv_th, sigma2, n_used, ref.dphi_rad)
     corridor, corr_angle = _corridor_from_information(info, config.corridor_info_ratio)
     if not corridor and config.corridor_direction_test:
         corridor, corr_angle = _is_corridor(cur, config.corridor_threshold_rad)
+    cov = _covariance(info, sw, sigma2, var_th, residual, corridor, corr_angle, config)
+    return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor,
+                     np.array([[i11, i12], [i12, i22]]))
+
+
+def _orientation_variance(curv_th: float, sigma2: float, n_used: int, dphi_rad: float) -> float:
+    """The mean-|dr| cost near its minimum is J0 + 0.5 k (dtheta)^2; its noise is about
+    sigma / sqrt(n); a cost rise of that size bounds the angle's uncertainty. No curvature: 4 steps."""
+    if curv_th > 0.0:
+        k_rad = curv_th / (dphi_rad * dphi_rad)
+        return 2.0 * math.sqrt(sigma2) / math.sqrt(max(n_used, 1)) / k_rad
+    return (4.0 * dphi_rad) ** 2
+
+
+# 2x2 symmetric matrices as (a11, a12, a22): a few scalar operations, where numpy's small-matrix calls
+# would cost more than the whole match of a small scan.
+Sym2 = tuple[float, float, float]
+
+
+def _covariance(info: Sym2, sw: float, sigma2: float, var_th: float, residual_m: float, corridor: bool,
+                corridor_angle_rad: float, config: PsmConfig) -> np.ndarray:
+    """3x3 covariance, block diagonal: translation from the weighted normal equations
+    (sigma^2 (info sw + damping sw I)^-1), orientation from the cost curvature; then
+    (``use_cov_floor``) raised to the original's heuristic floor scaled by the residual, stretched
+    along a corridor."""
+    s = max(sw, 1e-9)
+    lam = config.damping * s
+    xy = _sym2_scale(_sym2_inv((info[0] * s + lam, info[1] * s, info[2] * s + lam)), sigma2)
+    if not (math.isfinite(xy[0]) and math.isfinite(xy[2])):  # singular: no information, the floor's size
+        xy = (config.cov_floor_sigma_xy_m**2, 0.0, config.cov_floor_sigma_xy_m**2)
     if config.use_cov_floor:
-        factor = max((residual - config.cov_error_offset_m) / config.cov_floor_scale_m, 1.0)
-        floor = np.zeros((3, 3))
+        factor = max((residual_m - config.cov_error_offset_m) / config.cov_floor_scale_m, 1.0)
         if corridor:
-            ca, sa = math.cos(corr_angle), math.sin(corr_angle)
-            rot = np.array([[ca, -sa], [sa, ca]])
-            floor[:2, :2] = rot @ np.diag([config.corridor_sigma_along_m**2, config.corridor_sigma_across_m**2]) @ rot.T
+            floor = _sym2_rotated(corridor_angle_rad, config.corridor_sigma_along_m**2,
+                                  config.corridor_sigma_across_m**2)
         else:
-            floor[:2, :2] = np.eye(2) * config.cov_floor_sigma_xy_m**2
-        floor[2, 2] = config.cov_floor_sigma_theta_rad**2
-        cov = _loewner_max(floor * factor, cov)
-    return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor, info)
+            floor = (config.cov_floor_sigma_xy_m**2, 0.0, config.cov_floor_sigma_xy_m**2)
+        xy = _sym2_loewner_max(_sym2_scale(floor, factor), xy)
+        var_th = max(var_th, factor * config.cov_floor_sigma_theta_rad**2)
+    return np.array([[xy[0], xy[1], 0.0], [xy[1], xy[2], 0.0], [0.0, 0.0, var_th]])
 
 
-def _normal_information(
-    ref: PreparedScan, idx: np.ndarray, w: np.ndarray, hc: np.ndarray, hs: np.ndarray
-) -> np.ndarray:
-    """Weighted mean of g g^T with g = n / (n . u): how a translation changes the range along each
-    used beam when the surface is a plane with normal n (u the beam direction)."""
-    if ref.normal_x is None or ref.normal_y is None or idx.size == 0:
-        return np.zeros((2, 2))
-    nx, ny = ref.normal_x[idx], ref.normal_y[idx]
-    nu = nx * hc + ny * hs
-    ok = np.abs(nu) >= 0.2  # grazing beams: the sensitivity blows up and the normal is unreliable
-    gx = np.where(ok, nx / np.where(ok, nu, 1.0), 0.0)
-    gy = np.where(ok, ny / np.where(ok, nu, 1.0), 0.0)
-    sw = float(w.sum())
-    if sw <= 0:
-        return np.zeros((2, 2))
-    return np.array(
-        [[np.dot(w, gx * gx), np.dot(w, gx * gy)], [np.dot(w, gx * gy), np.dot(w, gy * gy)]]
-    ) / sw
+def _sym2_eig(m: Sym2) -> tuple[float, float, float, float]:
+    """(smaller eigenvalue, larger, unit eigenvector (x, y) of the smaller)."""
+    a, b, c = m
+    mean, half = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
+    lo = mean - half
+    if b == 0.0:
+        return (a, c, 1.0, 0.0) if a <= c else (c, a, 0.0, 1.0)
+    # (A - lo I) v = 0: v is orthogonal to either row; take the longer row for accuracy
+    r1, r2 = (a - lo, b), (b, c - lo)
+    rx, ry = r1 if math.hypot(*r1) >= math.hypot(*r2) else r2
+    n = math.hypot(rx, ry)
+    return lo, mean + half, -ry / n, rx / n
+
+
+def _sym2_inv(m: Sym2) -> Sym2:
+    """The inverse; infinite variances when singular."""
+    a, b, c = m
+    det = a * c - b * b
+    if not (det > 0.0 and math.isfinite(det)):
+        return (math.inf, 0.0, math.inf)
+    return (c / det, -b / det, a / det)
+
+
+def _sym2_scale(m: Sym2, k: float) -> Sym2:
+    return (m[0] * k, m[1] * k, m[2] * k)
+
+
+def _sym2_rotated(angle_rad: float, along: float, across: float) -> Sym2:
+    """R diag(along, across) R^T, R the rotation by ``angle_rad``."""
+    ca, sa = math.cos(angle_rad), math.sin(angle_rad)
+    return (along * ca * ca + across * sa * sa, (along - across) * ca * sa, along * sa * sa + across * ca * ca)
+
+
+def _sym2_congruence(v: tuple[float, float], m: Sym2, transpose: bool) -> Sym2:
+    """V^T m V (``transpose``) or V m V^T, V = [[vx, -vy], [vy, vx]] (a rotation)."""
+    vx, vy = v
+    if not transpose:
+        vy = -vy
+    a, b, c = m
+    return (vx * vx * a + 2 * vx * vy * b + vy * vy * c,
+            -vx * vy * a + (vx * vx - vy * vy) * b + vx * vy * c,
+            vy * vy * a - 2 * vx * vy * b + vx * vx * c)
+
+
+def _sym2_loewner_max(floor: Sym2, cov: Sym2) -> Sym2:
+    """A covariance at least as large as both ``floor`` (positive definite) and ``cov``: whitened by
+    the floor, eigenvalues below 1 raised to 1, coloured back."""
+    f0, f1, ux, uy = _sym2_eig(floor)
+    p = _sym2_congruence((ux, uy), cov, transpose=True)  # cov in the floor's eigenbasis
+    m = (p[0] / f0, p[1] / math.sqrt(f0 * f1), p[2] / f1)  # ... whitened
+    l0, l1, vx, vy = _sym2_eig(m)
+    raised = _sym2_congruence((vx, vy), (max(l0, 1.0), 0.0, max(l1, 1.0)), transpose=False)
+    q = (raised[0] * f0, raised[1] * math.sqrt(f0 * f1), raised[2] * f1)
+    return _sym2_congruence((ux, uy), q, transpose=False)
 
 
 def match(
@@ -551,7 +542,9 @@ def warm_up(config: PsmConfig | None = None) -> None:
 
 
 def _check_bearings(b: np.ndarray) -> None:
-    if b.size >= 2 and not (np.all(np.isfinite(b)) and np.all(np.diff(b) > 0)):
+    from .psm_kernel import finite_ascending
+
+    if not finite_ascending(np.asarray(b, dtype=np.float64)):
         raise ValueError("bearings must be finite and strictly ascending")
 
 

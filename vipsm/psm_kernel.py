@@ -28,23 +28,56 @@ OK, NO_VALID_SHIFT, TOO_FEW_BEAMS, DEGENERATE = 0, 1, 2, 3
 _BIG = 1e6
 
 
-@njit(cache=True, nogil=True)
-def project_into(x_m, y_m, pair_ok, pair_w, ref_b, cos_b, sin_b, uniform, x, y, th, max_gap, line_interp,
-                 min_r, max_r, out, wout, good):  # pragma: no cover - compiled
-    n_ref = ref_b.size
-    for j in range(n_ref):
-        out[j] = np.inf
-        wout[j] = 0.0
-        good[j] = False
+#: atan(t) = t * P(t^2) for 0 <= t <= tan(pi/8): least-squares coefficients of P (highest power
+#: first) fitted on Chebyshev nodes; max error 2e-14 rad with the octant folding (tests/vipsm/test_psm.py)
+_ATAN_P = (0.03070149028735282, -0.058771919988228345, 0.07564454610047046, -0.09078501465416303,
+           0.11110393878383934, -0.14285690811416976, 0.19999999613254754, -0.3333333333087228,
+           0.9999999999999747)
+_P0, _P1, _P2, _P3, _P4, _P5, _P6, _P7, _P8 = _ATAN_P
+_TAN_PI_8 = math.tan(math.pi / 8.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def bearings_of(X, Y, F):  # pragma: no cover - compiled
+    """F[i] = atan2(Y[i], X[i]) within 2e-14 rad, branch-free so the loop is vectorised (``math.atan2``
+    is a library call per point, about ten times slower): the octant folded to t in [0, 1], then to
+    |t| <= tan(pi/8) with atan t = pi/4 + atan((t-1)/(t+1)), then an odd polynomial."""
+    for i in range(X.size):
+        x, y = X[i], Y[i]
+        ax, ay = math.fabs(x), math.fabs(y)
+        steep = ay > ax
+        t = (ax if steep else ay) / ((ay if steep else ax) + 1e-300)
+        big = t > _TAN_PI_8
+        t = (t - 1.0) / (t + 1.0) if big else t
+        s = t * t
+        p = (((((((_P0 * s + _P1) * s + _P2) * s + _P3) * s + _P4) * s + _P5) * s + _P6) * s + _P7) * s + _P8
+        a = t * p + (0.25 * math.pi if big else 0.0)
+        a = 0.5 * math.pi - a if steep else a
+        a = math.pi - a if x < 0.0 else a
+        F[i] = -a if y < 0.0 else a
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def place(x_m, y_m, x, y, th, X, Y):  # pragma: no cover - compiled
+    """Points (x_m, y_m) moved to the pose (x, y, th): rotated by th, then translated."""
     c, s = math.cos(th), math.sin(th)
-    n = x_m.size
-    X = np.empty(n)
-    Y = np.empty(n)
-    F = np.empty(n)
-    for i in range(n):
+    for i in range(x_m.size):
         X[i] = x + (c * x_m[i] - s * y_m[i])
         Y[i] = y + (s * x_m[i] + c * y_m[i])
-        F[i] = math.atan2(Y[i], X[i])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def project_into(x_m, y_m, pair_ok, pair_w, ref_b, cos_b, sin_b, uniform, x, y, th, max_gap, line_interp,
+                 min_r, max_r, out, wout, good, X, Y, F):  # pragma: no cover - compiled
+    """Fills ``out`` (range), ``wout`` (weight) and ``good`` per reference bearing; ``X``, ``Y``, ``F``:
+    work space of the current scan's size (its points placed, their bearings)."""
+    n_ref = ref_b.size
+    out[:] = np.inf
+    wout[:] = 0.0
+    good[:] = False
+    n = x_m.size
+    place(x_m, y_m, x, y, th, X, Y)
+    bearings_of(X, Y, F)
     b0 = ref_b[0]
     inv_db = (n_ref - 1) / (ref_b[n_ref - 1] - b0) if n_ref > 1 else 1.0
     for p in range(n - 1):
@@ -65,7 +98,7 @@ def project_into(x_m, y_m, pair_ok, pair_w, ref_b, cos_b, sin_b, uniform, x, y, 
         good[j] = good[j] and out[j] > min_r and out[j] < max_r
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _project_pair(X, Y, p, fa, fb, j0, j1, ref_b, cos_b, sin_b, line_interp, w, out, wout,
                   good):  # pragma: no cover - compiled
     xa, ya = X[p], Y[p]
@@ -88,72 +121,100 @@ def _project_pair(X, Y, p, fa, fb, j0, j1, ref_b, cos_b, sin_b, line_interp, w, 
             good[j] = fb > fa  # front-facing pair won the z-buffer: usable; else occluded
 
 
-@njit(cache=True, nogil=True)
-def shift_cost(ref_r, new_idx, new_r, shift, max_error, bound):  # pragma: no cover - compiled
-    """(sum of |dr| below ``max_error``, how many, complete) comparing new beam i with reference
-    beam i + shift; ``ref_r`` holds a huge value where the reference beam is unusable. Stops early
-    (complete False) once the mean cannot come out at or below ``bound``: every beam still to come
-    adds at least 0 to the sum and at most 1 to the count."""
-    n = ref_r.size
-    m = new_idx.size
+_CHUNK = 256  # beams summed between two checks of the early exit (a vectorised block)
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _chunk_cost(refp, newp, a, b, shift, max_error):  # pragma: no cover - compiled
+    """(sum of |dr| below ``max_error``, how many) over new beams a..b-1 against reference beams
+    a+shift..b-1+shift; a branch-free loop the compiler vectorises (the sum may be reassociated)."""
+    r = refp[a + shift:b + shift]
+    q = newp[a:b]
+    total = 0.0
+    count = 0.0  # a float count vectorises with the sum
+    for i in range(r.size):
+        g = abs(r[i] - q[i])
+        ok = g < max_error
+        total += g if ok else 0.0
+        count += 1.0 if ok else 0.0
+    return total, count
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def shift_cost(refp, newp, usable_after, shift, max_error, bound):  # pragma: no cover - compiled
+    """(sum of |dr| below ``max_error``, how many, complete) comparing new beam k with reference
+    beam k + shift; ``refp`` holds +1e6 where the reference beam is unusable and ``newp`` -1e6 where
+    the new one is, so such pairs never pass the gate. ``usable_after[k]``: usable new beams from k
+    on. Stops early (complete False) once the mean cannot come out at or below ``bound``: every beam
+    still to come adds at least 0 to the sum and at most 1 to the count."""
+    n = refp.size
+    lo, hi = max(0, -shift), min(n, n - shift)
     total = 0.0
     count = 0
-    for k in range(m):
-        r = new_idx[k] + shift
-        if 0 <= r < n:
-            g = abs(ref_r[r] - new_r[k])
-            if g < max_error:
-                total += g
-                count += 1
-        if k & 31 == 31 and total > bound * (count + m - 1 - k):
+    a = lo
+    while a < hi:
+        b = min(a + _CHUNK, hi)
+        t, c = _chunk_cost(refp, newp, a, b, shift, max_error)
+        total += t
+        count += int(c)
+        a = b
+        if a < hi and total > bound * (count + usable_after[a] - usable_after[hi]):
             return total, count, False
     return total, count, True
 
 
-@njit(cache=True, nogil=True)
-def _full_cost(refp, new_idx, new_r, shift, max_error, min_cnt):  # pragma: no cover - compiled
-    tot, cnt, _ = shift_cost(refp, new_idx, new_r, shift, max_error, np.inf)
+@njit(cache=True, nogil=True, error_model="numpy")
+def _full_cost(refp, newp, usable_after, shift, max_error, min_cnt):  # pragma: no cover - compiled
+    tot, cnt, _ = shift_cost(refp, newp, usable_after, shift, max_error, np.inf)
     return tot / cnt if cnt >= min_cnt else np.inf
 
 
-@njit(cache=True, nogil=True)
-def orientation_search(ref_r, ref_ok, proj_r, proj_ok, proj_w, window, max_error,
-                       min_overlap_frac):  # pragma: no cover - compiled
+@njit(cache=True, nogil=True, error_model="numpy")
+def usable_reference(ref_r, ref_ok):  # pragma: no cover - compiled
+    """The reference ranges as the orientation search reads them: +1e6 where a beam is unusable."""
+    return np.where(ref_ok, ref_r, _BIG)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def orientation_search(refp, n_ref, proj_r, proj_ok, proj_w, window, max_error, min_overlap_frac, newp,
+                       usable_after):  # pragma: no cover - compiled
     """Best shift (steps, sub-step refined), its cost and the cost's curvature; ok False: none valid.
-    ``ref_ok``: the reference beams usable (good, weight > 0). Shifts are tried outward from 0 and a
-    shift is abandoned as soon as it cannot beat the best so far; the result is the exhaustive
-    search's (ties to the smaller shift), only the neighbours' costs for the curvature are computed
-    in full."""
-    n = ref_r.size
+    ``refp``: :func:`usable_reference`, ``n_ref`` its usable beams; ``newp`` (n) and ``usable_after``
+    (n + 1): work space. Shifts are tried outward from 0 and a shift is abandoned as soon as it cannot
+    beat the best so far; the result is the exhaustive search's (ties to the smaller shift), only the
+    neighbours' costs for the curvature are computed in full."""
+    n = refp.size
     w = min(window, n - 1)
-    refp = np.where(ref_ok, ref_r, _BIG)
-    new_idx = np.flatnonzero(proj_ok & (proj_w > 0.0))
-    n_ref = int(np.count_nonzero(ref_ok))
-    if n_ref == 0 or new_idx.size == 0:
+    usable_after[n] = 0  # usable new beams at index >= k
+    for k in range(n - 1, -1, -1):
+        ok = proj_ok[k] and proj_w[k] > 0.0
+        newp[k] = proj_r[k] if ok else -_BIG
+        usable_after[k] = usable_after[k + 1] + (1 if ok else 0)
+    n_new = usable_after[0]
+    if n_ref == 0 or n_new == 0:
         return 0.0, 0.0, 0.0, False
-    new_r = proj_r[new_idx]
-    min_cnt = max(1, int(math.ceil(min_overlap_frac * min(n_ref, new_idx.size))))
+    min_cnt = max(1, int(math.ceil(min_overlap_frac * min(n_ref, n_new))))
     best, best_k = np.inf, -1
     for step in range(2 * w + 1):
         k = w + ((step + 1) // 2 if step % 2 else -(step // 2))  # 0, +1, -1, +2, -2, ... as indices
-        tot, cnt, complete = shift_cost(refp, new_idx, new_r, k - w, max_error, best)
+        tot, cnt, complete = shift_cost(refp, newp, usable_after, k - w, max_error, best)
         if complete and cnt >= min_cnt:
             c = tot / cnt
             if c < best or (c == best and k < best_k):
                 best, best_k = c, k
     if best_k < 0:
         return 0.0, 0.0, 0.0, False
-    return _refine(refp, new_idx, new_r, best_k, w, best, max_error, min_cnt)
+    return _refine(refp, newp, usable_after, best_k, w, best, max_error, min_cnt)
 
 
-@njit(cache=True, nogil=True)
-def _refine(refp, new_idx, new_r, k, w, e0, max_error, min_cnt):  # pragma: no cover - compiled
+@njit(cache=True, nogil=True, error_model="numpy")
+def _refine(refp, newp, usable_after, k, w, e0, max_error, min_cnt):  # pragma: no cover - compiled
     """Sub-step shift from a parabola through the best shift's cost and its neighbours'."""
     shift = float(k - w)
     curv = 0.0
     if 0 < k < 2 * w:
-        em = _full_cost(refp, new_idx, new_r, k - 1 - w, max_error, min_cnt)
-        ep = _full_cost(refp, new_idx, new_r, k + 1 - w, max_error, min_cnt)
+        em = _full_cost(refp, newp, usable_after, k - 1 - w, max_error, min_cnt)
+        ep = _full_cost(refp, newp, usable_after, k + 1 - w, max_error, min_cnt)
         if math.isfinite(em) and math.isfinite(ep) and em > e0 and ep > e0:
             den = em + ep - 2.0 * e0
             curv = den
@@ -164,7 +225,7 @@ def _refine(refp, new_idx, new_r, k, w, e0, max_error, min_cnt):  # pragma: no c
     return shift, e0, curv, True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def translation_step(ref_r, ref_ok, ref_w, cos_b, sin_b, proj_r, proj_ok, proj_w, c_m2, max_error, min_valid,
                      degenerate_eig, damping):  # pragma: no cover - compiled
     """(dx, dy, beams used, refusal code) of one weighted least-squares translation step."""
@@ -197,7 +258,7 @@ def translation_step(ref_r, ref_ok, ref_w, cos_b, sin_b, proj_r, proj_ok, proj_w
     return (a22d * b1 - a12 * b2) / det, (a11d * b2 - a12 * b1) / det, used, OK
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def iterate(ref_r, ref_good, ref_w, ref_b, cos_b, sin_b, uniform, dphi, cur_x, cur_y, pair_ok, pair_w,
             x, y, th, fc, ic, bc):  # pragma: no cover - compiled
     """PSM's loop from the guess (x, y, th): orientation steps on even iterations, translation steps
@@ -209,9 +270,13 @@ def iterate(ref_r, ref_good, ref_w, ref_b, cos_b, sin_b, uniform, dphi, cur_x, c
     change_iter, max_iter, stop_count, window_first, window, min_valid = ic
     line_interp, = bc
     ref_ok = ref_good & (ref_w > 0.0)
-    n_ref = ref_b.size
-    proj_r, proj_w = np.empty(n_ref), np.empty(n_ref)
+    refp = usable_reference(ref_r, ref_ok)
+    n_usable = int(np.count_nonzero(ref_ok))
+    n_ref, n_cur = ref_b.size, cur_x.size
+    proj_r, proj_w, newp = np.empty(n_ref), np.empty(n_ref), np.empty(n_ref)
     proj_ok = np.empty(n_ref, dtype=np.bool_)
+    usable_after = np.empty(n_ref + 1, dtype=np.int64)
+    X, Y, F = np.empty(n_cur), np.empty(n_cur), np.empty(n_cur)
     small, it, curv = 0, 0, 0.0
     last_dt, last_dth = np.inf, np.inf
     first = True
@@ -219,11 +284,12 @@ def iterate(ref_r, ref_good, ref_w, ref_b, cos_b, sin_b, uniform, dphi, cur_x, c
         if it == change_iter:
             c_m2 = c_m2 / c_divisor
         project_into(cur_x, cur_y, pair_ok, pair_w, ref_b, cos_b, sin_b, uniform, x, y, th, max_gap, line_interp,
-                     min_r, max_r, proj_r, proj_w, proj_ok)
+                     min_r, max_r, proj_r, proj_w, proj_ok, X, Y, F)
         gate = max_error_first if it < change_iter else max_error
         if it % 2 == 0:
-            shift, _cost, curv, found = orientation_search(ref_r, ref_ok, proj_r, proj_ok, proj_w,
-                                                           window_first if first else window, gate, min_overlap)
+            shift, _cost, curv, found = orientation_search(refp, n_usable, proj_r, proj_ok, proj_w,
+                                                           window_first if first else window, gate, min_overlap,
+                                                           newp, usable_after)
             first = False
             if not found:
                 return x, y, th, it + 1, False, NO_VALID_SHIFT, 0, curv, c_m2
@@ -248,7 +314,7 @@ def iterate(ref_r, ref_good, ref_w, ref_b, cos_b, sin_b, uniform, dphi, cur_x, c
     return x, y, th, it, False, OK, 0, curv, c_m2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _remainder_2pi(a):  # pragma: no cover - compiled
     """``math.remainder(a, 2 pi)``: a - n 2 pi with n the nearest integer, ties to even."""
     return a - 2.0 * math.pi * np.rint(a / (2.0 * math.pi))
@@ -258,7 +324,56 @@ def _remainder_2pi(a):  # pragma: no cover - compiled
 # preprocessing (``vipsm.psm.prepare_scan``'s median filter, segmentation and normals)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
+def finite_ascending(b):  # pragma: no cover - compiled
+    """Whether every value is finite and each is above the one before (one value, or none: True)."""
+    for i in range(b.size):
+        if not math.isfinite(b[i]) or (i > 0 and not b[i] > b[i - 1]):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def preprocess(r_raw, cos_b, sin_b, w, dphi, min_r, max_r, median_window, jump_m, range_factor, min_seg_beams,
+               normal_half, tag_invalid, tag_range, tag_segment):  # pragma: no cover - compiled
+    """``vipsm.psm.prepare_scan`` in one call: invalid beams tagged, median filter over the valid
+    ones (invalid counts as +inf), range gating, segmentation, short segments dropped, points, pairs
+    and normals. Returns (ranges, tags, segments, good, x, y, pair_ok, pair_w, normal_x, normal_y)."""
+    n = r_raw.size
+    tags = np.zeros(n, dtype=np.uint8)
+    r = np.empty(n)
+    for i in range(n):
+        valid = math.isfinite(r_raw[i]) and r_raw[i] >= min_r
+        r[i] = r_raw[i] if valid else np.inf
+        if not valid:
+            tags[i] = tag_invalid
+    if median_window > 1 and n > 0:
+        r = median_filter(r, median_window)
+    for i in range(n):
+        if tags[i] == 0 and not math.isfinite(r[i]):
+            tags[i] = tag_invalid  # a valid beam whose window is mostly invalid
+        elif tags[i] == 0 and r[i] > max_r:
+            tags[i] = tag_range
+    seg = segment(r, tags == 0, dphi, jump_m, range_factor)
+    counts = np.bincount(seg) if n else np.zeros(1, dtype=np.int64)
+    for i in range(n):
+        if seg[i] > 0 and counts[seg[i]] < min_seg_beams:
+            tags[i] |= tag_segment
+            seg[i] = 0
+    good = tags == 0
+    rf = np.where(good, r, 0.0)
+    x, y = rf * cos_b, rf * sin_b
+    m = max(n - 1, 0)
+    pair_ok = np.empty(m, dtype=np.bool_)
+    pair_w = np.empty(m)
+    for i in range(m):
+        pair_ok[i] = good[i] and good[i + 1] and seg[i] == seg[i + 1]
+        pair_w[i] = min(w[i], w[i + 1])
+    nx, ny = normals(x, y, good, seg, normal_half)
+    return rf, tags, seg, good, x, y, pair_ok, pair_w, nx, ny
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def median_filter(r, window):  # pragma: no cover - compiled
     """Window-``window`` median with the edges clamped (the ``h``-th smallest of each window)."""
     n = r.size
@@ -278,7 +393,7 @@ def median_filter(r, window):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def segment(ranges_m, good, dphi, jump_m, range_factor):  # pragma: no cover - compiled
     """Segment ids (1..) per beam, 0 for bad beams; the rules of ``vipsm.psm.segment_scan``."""
     n = ranges_m.size
@@ -305,7 +420,7 @@ def segment(ranges_m, good, dphi, jump_m, range_factor):  # pragma: no cover - c
     return seg
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def normals(x, y, good, seg, half):  # pragma: no cover - compiled
     """Unit normals from the points ``half`` beams either side within the same run of segment ids
     (clipped at its ends); zero where a beam has no neighbour in its segment."""
@@ -329,3 +444,39 @@ def normals(x, y, good, seg, half):  # pragma: no cover - compiled
                 ny[i] = tx / norm
         start = end + 1
     return nx, ny
+
+
+# ---------------------------------------------------------------------------------------------
+# the statistics of a finished match (``vipsm.psm.match_prepared``'s bookkeeping)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def match_statistics(ref_r, ref_ok, ref_w, cos_b, sin_b, normal_x, normal_y, proj_r, proj_ok, proj_w, c_m2,
+                     max_error):  # pragma: no cover - compiled
+    """At the matched pose, over the beams a translation step would use: (how many, mean |residual|,
+    sum of weights, weighted residual variance with 2 degrees of freedom taken, and the translation
+    information per unit weight i11, i12, i22 from the reference's surface normals: the weighted mean
+    of g g^T, g = n / (n . u), beams hit at grazing incidence |n . u| < 0.2 left out)."""
+    used = 0
+    sum_abs = sw = swe2 = i11 = i12 = i22 = 0.0
+    for i in range(ref_r.size):
+        if not (ref_ok[i] and proj_ok[i] and proj_w[i] > 0.0):
+            continue
+        e = ref_r[i] - proj_r[i]
+        if not abs(e) < max_error:
+            continue
+        w = c_m2 / (c_m2 + e * e) * ref_w[i] * proj_w[i]
+        used += 1
+        sum_abs += abs(e)
+        sw += w
+        swe2 += w * e * e
+        nu = normal_x[i] * cos_b[i] + normal_y[i] * sin_b[i]
+        if abs(nu) >= 0.2:
+            gx, gy = normal_x[i] / nu, normal_y[i] / nu
+            i11 += w * gx * gx
+            i12 += w * gx * gy
+            i22 += w * gy * gy
+    if used == 0:
+        return 0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0
+    norm = 1.0 / sw if sw > 0.0 else 0.0
+    return used, sum_abs / used, sw, swe2 / max(sw - 2.0, 1.0), i11 * norm, i12 * norm, i22 * norm

@@ -283,7 +283,7 @@ def test_range_gating_and_invalid_tags() -> None:
 def test_the_pruned_orientation_search_equals_the_exhaustive_one(seed: int, window: int, gate_m: float) -> None:
     """The compiled search abandons shifts that cannot win; its answer must be the exhaustive
     search's (numpy, every shift in full, ties to the smaller shift)."""
-    from vipsm.psm_kernel import orientation_search
+    from vipsm.psm_kernel import orientation_search, usable_reference
 
     rng = np.random.default_rng(seed)
     n = 181
@@ -292,7 +292,8 @@ def test_the_pruned_orientation_search_equals_the_exhaustive_one(seed: int, wind
     proj_r = np.roll(ref_r, int(rng.integers(-window, window + 1))) + rng.normal(0.0, 0.02, n)
     proj_ok = rng.random(n) > 0.1
     proj_w = np.where(rng.random(n) > 0.05, 1.0, 0.0)
-    got = orientation_search(ref_r, ref_ok, proj_r, proj_ok, proj_w, window, gate_m, 0.3)
+    got = orientation_search(usable_reference(ref_r, ref_ok), int(ref_ok.sum()), proj_r, proj_ok, proj_w, window,
+                             gate_m, 0.3, np.empty(n), np.empty(n + 1, dtype=np.int64))
     refp = np.where(ref_ok, ref_r, 1e6)
     idx = np.flatnonzero(proj_ok & (proj_w > 0))
     min_cnt = max(1, math.ceil(0.3 * min(int(ref_ok.sum()), idx.size)))
@@ -311,3 +312,62 @@ def test_the_pruned_orientation_search_equals_the_exhaustive_one(seed: int, wind
     assert got[3]
     assert abs(got[0] - (k - window)) < 1.0  # the best whole shift, then at most one step of refinement
     assert got[1] == pytest.approx(costs[k], rel=1e-12, abs=1e-15)
+
+
+def _sym(a: float, b: float, c: float) -> np.ndarray:
+    return np.array([[a, b], [b, c]])
+
+
+_spd = st.tuples(st.floats(1e-6, 1e3), st.floats(1e-6, 1e3), st.floats(-0.999, 0.999), st.floats(0.0, math.pi))
+
+
+def _spd_matrix(t: tuple[float, float, float, float]) -> tuple[float, float, float]:
+    """A symmetric positive definite 2x2 from two eigenvalues and a rotation (the correlation term
+    scales the second, so near-singular matrices are drawn too)."""
+    l0, l1, corr, ang = t
+    from vipsm.psm import _sym2_rotated
+
+    return _sym2_rotated(ang, l0, l1 * (1.0 - abs(corr)) + 1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(_spd, _spd)
+def test_the_2x2_covariance_helpers_agree_with_numpy(fa: tuple, ca: tuple) -> None:
+    """The scalar 2x2 helpers the covariance uses: eigen decomposition, and the Loewner maximum
+    (floor-whitened, eigenvalues raised to 1, coloured back) computed with numpy's eigh."""
+    from vipsm.psm import _sym2_eig, _sym2_loewner_max
+
+    floor, cov = _spd_matrix(fa), _spd_matrix(ca)
+    lo, hi, vx, vy = _sym2_eig(cov)
+    m = _sym(*cov)
+    lam = np.linalg.eigvalsh(m)
+    scale = max(abs(lam).max(), 1e-300)
+    assert lo == pytest.approx(lam[0], abs=1e-9 * scale) and hi == pytest.approx(lam[1], abs=1e-9 * scale)
+    assert np.linalg.norm(m @ np.array([vx, vy]) - lo * np.array([vx, vy])) <= 1e-7 * scale
+    f = _sym(*floor)
+    evals, evecs = np.linalg.eigh(f)
+    sq, isq = evecs * np.sqrt(evals), evecs / np.sqrt(evals)
+    w = isq.T @ m @ isq
+    lw, vw = np.linalg.eigh(0.5 * (w + w.T))
+    want = sq @ ((vw * np.maximum(lw, 1.0)) @ vw.T) @ sq.T
+    got = _sym(*_sym2_loewner_max(floor, cov))
+    assert np.allclose(got, want, rtol=1e-6, atol=1e-9 * max(abs(want).max(), 1e-12))
+    assert np.all(np.linalg.eigvalsh(got - f) >= -1e-7 * abs(f).max())  # at least the floor
+    assert np.all(np.linalg.eigvalsh(got - m) >= -1e-7 * max(abs(m).max(), abs(f).max()))  # and the input
+
+
+def test_the_vectorised_bearing_is_atan2_within_2e_14_rad() -> None:
+    """The projection's branch-free atan2 against ``math.atan2``: every direction (dense), the axes
+    and the octant boundaries, tiny and huge magnitudes, and the origin (0, as atan2(0, 0))."""
+    from vipsm.psm_kernel import bearings_of
+
+    ang = np.linspace(-math.pi, math.pi, 200_001)
+    mag = np.geomspace(1e-6, 1e4, ang.size)
+    t8 = 3.0 * math.tan(math.pi / 8)
+    x = np.concatenate((mag * np.cos(ang), [0.0, 0.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 0.0, 3.0]))
+    y = np.concatenate((mag * np.sin(ang), [1.0, -1.0, 0.0, 0.0, 1.0, 1.0, -1.0, -1.0, 0.0, t8]))
+    got = np.empty(x.size)
+    bearings_of(x, y, got)
+    want = np.arctan2(y, x)
+    err = np.abs(np.remainder(got - want + math.pi, 2 * math.pi) - math.pi)  # +-pi are the same bearing
+    assert err.max() <= 2e-14
