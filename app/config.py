@@ -43,6 +43,10 @@ class DevicesConfig:
     robot_command_timeout_s: float = _f(
         1.0, "the base driver commands zero velocity when the loop sends nothing this long (a stalled loop)", min=0.2
     )
+    robot_command_period_s: float = _f(
+        0.1, "an unchanged velocity command is re-sent this often (a change goes out at once); the ARCOS "
+        "server cycle is 100 ms, so a 40 Hz loop need not write every cycle; 0 = every cycle", min=0.0, max=0.5
+    )
     camera_url: str = _f("/dev/ptzcam", "SNC-RZ50 VISCA: tty or socket://host:port; empty = no PTZ control")
     camera_baud: int = _f(9600, "VISCA serial rate", choices=(9600, 38400))
     camera_http_url: str = _f(

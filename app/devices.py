@@ -229,8 +229,12 @@ class BaseAdapter(ClientAdapter[ArcosClient]):
     CONNECTING = (ArcosState.CONNECTING, ArcosState.RECONNECTING)
     FAILED = (ArcosState.LOST,)
 
-    def __init__(self, url: str, baudrate: int, command_timeout_s: float, max_backoff_s: float) -> None:
+    def __init__(self, url: str, baudrate: int, command_timeout_s: float, max_backoff_s: float,
+                 command_period_s: float = 0.0) -> None:
         self.url = url
+        self.command_period_s = command_period_s
+        self._sent: tuple[float, float, float, ArcosClient] | None = None  # v, w, when, to which client
+        self.commands_sent = 0
         def open_fn() -> ArcosClient:
             client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate, command_timeout_s=command_timeout_s))
             client.connect()
@@ -253,16 +257,26 @@ class BaseAdapter(ClientAdapter[ArcosClient]):
         ]
 
     def command(self, v_mps: float, w_radps: float) -> None:
+        """Every cycle: the loop is alive (heartbeat). The velocity goes out when it changed, when the
+        client is new, or when ``command_period_s`` passed since it was last written."""
         c = self.opener.client
         if c is None:
+            return
+        now = time.monotonic()
+        sent = self._sent
+        if sent is not None and sent[3] is c and sent[:2] == (v_mps, w_radps) and now - sent[2] < self.command_period_s:
+            c.heartbeat()
             return
         try:
             c.heartbeat()
             c.set_velocity(v_mps, w_radps)
+            self._sent = (v_mps, w_radps, now, c)
+            self.commands_sent += 1
         except DriverError:
-            pass  # the client reconnects; state() shows it, the firmware watchdog stops the wheels
+            self._sent = None  # the client reconnects; state() shows it, the firmware watchdog stops the wheels
 
     def stop(self) -> None:
+        self._sent = None
         c = self.opener.client
         if c is not None:
             try:
@@ -433,7 +447,8 @@ def build_loop(
     deterministic_opencv()
     d = config.devices
     scanner = ScannerAdapter(d.scanner_url, d.scanner_intensity, d.reconnect_max_s) if d.scanner_url else None
-    base = BaseAdapter(d.robot_url, d.robot_baud, d.robot_command_timeout_s, d.reconnect_max_s) if d.robot_url else None
+    base = (BaseAdapter(d.robot_url, d.robot_baud, d.robot_command_timeout_s, d.reconnect_max_s,
+                        d.robot_command_period_s) if d.robot_url else None)
     camera = CameraAdapter(config) if d.camera_http_url else None
     path = log_path if log_path is not None else config.log.path
     try:

@@ -151,19 +151,23 @@ def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, 
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                         camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None) -> list[_Segment]:
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
+    finite = np.isfinite(r)
     in_camera = np.zeros(r.size, bool)
     for iv in camera:
-        in_camera |= _beams_in(iv, np.where(np.isfinite(r), r, np.nan), b, 0.0)
+        in_camera |= _beams_in(iv, np.where(finite, r, np.nan), b, 0.0)
+    xl, yl = r * np.cos(b), r * np.sin(b)
+    world = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)  # nan: no return
+    violating = np.zeros(r.size, bool)  # asked of the grid once per scan, not once per segment
+    violating[finite] = grid.violates(world[finite])
     out = []
     for a, z in segments(r, b, cfg):
         if z - a < cfg.min_beams or not _foreground(r, a, z, cfg):
             continue
-        xl, yl = r[a:z] * np.cos(b[a:z]), r[a:z] * np.sin(b[a:z])
-        pts = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)
+        pts = world[a:z]
         width = float(np.hypot(*(pts[-1] - pts[0])))
         if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
-        share = float(np.mean(grid.violates(pts)))
+        share = float(np.mean(violating[a:z]))
         cue = bool(np.mean(in_camera[a:z]) >= 0.5)
         if ahead is not None and width > cfg.max_leg_width_m:
             cue = cue or bool(np.mean(ahead[a:z]) >= 0.6)

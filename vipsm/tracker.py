@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 
 @dataclass(frozen=True)
@@ -109,22 +110,35 @@ def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
 def refine_fixed_radius(
     points: np.ndarray, cx: float, cy: float, radius: float, iterations: int = 6
 ) -> tuple[float, float]:
-    """Gauss-Newton on sum (|p - c| - R)^2 with R fixed."""
-    c = np.array([cx, cy], dtype=float)
+    """Gauss-Newton on sum (|p - c| - R)^2 with R fixed (compiled: it runs for every leg-sized
+    segment of every scan)."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    return _gauss_newton_fixed_radius(pts[:, 0], pts[:, 1], float(cx), float(cy), float(radius), int(iterations))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gauss_newton_fixed_radius(px, py, cx, cy, radius, iterations):  # pragma: no cover - compiled
     for _ in range(iterations):
-        d = points - c
-        rho = np.hypot(d[:, 0], d[:, 1])
-        rho = np.maximum(rho, 1e-9)
-        res = rho - radius
-        jac = -d / rho[:, None]
-        jtj = jac.T @ jac
-        if abs(np.linalg.det(jtj)) < 1e-12:
+        a11 = a12 = a22 = g1 = g2 = 0.0
+        for k in range(px.size):
+            dx, dy = px[k] - cx, py[k] - cy
+            rho = max(math.hypot(dx, dy), 1e-9)
+            jx, jy = -dx / rho, -dy / rho  # d(rho - R)/d(cx, cy)
+            res = rho - radius
+            a11 += jx * jx
+            a12 += jx * jy
+            a22 += jy * jy
+            g1 -= jx * res
+            g2 -= jy * res
+        det = a11 * a22 - a12 * a12
+        if abs(det) < 1e-12:
             break
-        step = np.linalg.solve(jtj, -jac.T @ res)
-        c += step
-        if float(np.hypot(step[0], step[1])) < 1e-5:
+        sx, sy = (a22 * g1 - a12 * g2) / det, (a11 * g2 - a12 * g1) / det
+        cx += sx
+        cy += sy
+        if math.hypot(sx, sy) < 1e-5:
             break
-    return float(c[0]), float(c[1])
+    return cx, cy
 
 
 def locate_body(
