@@ -52,6 +52,8 @@ class ScanSample:
     #: the ranges with REP 117's meanings for invalid readings (+inf, -inf, NaN), for ``/scan``;
     #: None: the scan's NaN stands for every invalid reading
     rep117_ranges_m: np.ndarray | None = None
+    #: when the host read the scan's last byte (the driver's clock, the loop's clock); None: unknown
+    host_stamp_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -398,7 +400,10 @@ class ControlLoop:
         self._publish(now_s, scanner_state, base_state, camera_state, healthy, est, coil, safety_stop)
         if est is not None and scan_sample is not None:  # obstacles are out (status registers, log queue)
             sc = scan_sample.scan
-            self.health.record_latency(self.clock() - (sc.stamp_s + max(len(sc.ranges_m) - 1, 0) * sc.beam_dt_s))
+            now = self.clock()
+            received = scan_sample.host_stamp_s
+            self.health.record_latency(now - (sc.stamp_s + max(len(sc.ranges_m) - 1, 0) * sc.beam_dt_s),
+                                       None if received is None else now - received)
         if healthy:
             if not self._ready_sent:
                 self.notifier.ready()

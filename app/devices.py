@@ -208,7 +208,8 @@ class ScannerAdapter(ClientAdapter[Utm30lxClient]):
         c = self.opener.client
         if c is None:
             return []
-        return [ScanSample(scan_from_driver(s), s.device_stamp_ms, s.rep117_ranges_m()) for s in drain(c.next_scan)]
+        return [ScanSample(scan_from_driver(s), s.device_stamp_ms, s.rep117_ranges_m(), s.host_stamp_s)
+                for s in drain(c.next_scan)]
 
 
 # ---------------------------------------------------------------------------------------------

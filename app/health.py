@@ -20,8 +20,10 @@ class LoopHealth:
         self.period_s = period_s
         self._jitter = deque[float](maxlen=window)
         self._compute = deque[float](maxlen=window)
-        #: per estimate: from the scan's last beam to the obstacles published (s)
+        #: per estimate: from the scan's last beam to the obstacles published (s), and the host's part
+        #: of it, from the scan's last byte read to the obstacles published
         self._latency = deque[float](maxlen=window)
+        self._host_latency = deque[float](maxlen=window)
         self.cycles = 0
         self.deadline_misses = 0
         self.skipped_periods = 0
@@ -36,8 +38,10 @@ class LoopHealth:
             self.deadline_misses += 1
         self.skipped_periods += skipped
 
-    def record_latency(self, latency_s: float) -> None:
+    def record_latency(self, latency_s: float, host_latency_s: float | None = None) -> None:
         self._latency.append(latency_s)
+        if host_latency_s is not None:
+            self._host_latency.append(host_latency_s)
 
     @staticmethod
     def _pct(values: deque[float], q: float) -> float:
@@ -66,6 +70,8 @@ class LoopHealth:
             "compute_p99_ms": round(self.compute_p99_s() * 1e3, 4),
             "scan_to_obstacles_ms_median": round(self._pct(self._latency, 50) * 1e3, 3),
             "scan_to_obstacles_ms_p99": round(self._pct(self._latency, 99) * 1e3, 3),
+            "scan_received_to_obstacles_ms_median": round(self._pct(self._host_latency, 50) * 1e3, 3),
+            "scan_received_to_obstacles_ms_p99": round(self._pct(self._host_latency, 99) * 1e3, 3),
         }
 
 

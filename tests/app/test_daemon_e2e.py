@@ -470,6 +470,9 @@ def test_sim_runs_the_estimator_on_every_scan_when_triggered_by_scans(tmp_path: 
     s = json.loads(proc.stdout)
     assert s["estimates"] >= 0.8 * s["scans"] and s["estimates"] >= 0.8 * 40 * 4  # every scan, not every fourth
     assert 0.0 < s["scan_to_obstacles_ms_median"] <= s["scan_to_obstacles_ms_p99"]
+    # the host's part (last byte read -> published) is part of the whole (last beam -> published)
+    assert 0.0 < s["scan_received_to_obstacles_ms_median"] <= s["scan_received_to_obstacles_ms_p99"]
+    assert s["scan_received_to_obstacles_ms_median"] < s["scan_to_obstacles_ms_median"]
     assert "scan matcher ready in" in proc.stderr
 
 

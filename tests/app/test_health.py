@@ -25,6 +25,18 @@ def test_health_counts_misses_and_percentiles() -> None:
     assert len(h._jitter) == 100  # noqa: SLF001 - bounded window
 
 
+def test_latency_whole_and_host_part() -> None:
+    h = LoopHealth(0.025, window=50)
+    for i in range(100):
+        h.record_latency(0.010 + 0.001 * (i % 10), 0.004 + 0.001 * (i % 10))
+    h.record_latency(0.02)  # a scan whose read time is unknown counts in the whole only
+    s = h.summary()
+    assert s["scan_to_obstacles_ms_median"] == pytest.approx(14.5, abs=0.6)
+    assert s["scan_received_to_obstacles_ms_median"] == pytest.approx(8.5, abs=0.6)
+    assert s["scan_received_to_obstacles_ms_p99"] <= 13.0
+    assert len(h._latency) == 50 and len(h._host_latency) == 50  # noqa: SLF001 - bounded windows
+
+
 def test_safety_stops_on_predicted_intrusion_and_resumes_after_clear() -> None:
     m = SafetyMonitor(radius_m=0.5, horizon_s=2.0, resume_after_clear_s=1.0)
     # obstacle 3 m ahead, still: robot at 0.2 m/s reaches 0.4 m in 2 s -> clear
