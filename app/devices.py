@@ -427,12 +427,12 @@ def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None
 
 
 def _warm_up_matcher(config: Config) -> None:
-    """The scan matcher's compiled kernels are loaded (compiled and cached the first time) here, not
-    in the control loop's first cycle; how long it took is said on stderr."""
-    from vipsm.psm import warm_up
+    """The estimator's compiled kernels are loaded (compiled and cached the first time) here, not in
+    the control loop's first cycle; how long it took is said on stderr."""
+    from vipsm.estimator import warm_up
 
     t0 = time.monotonic()
-    warm_up(config.estimator.psm)
+    warm_up(config.estimator)
     print(f"vipsm-robot: info: scan matcher ready in {time.monotonic() - t0:.2f} s (compiled kernels loaded; "
           "compiled and cached on the first run after an install)", file=sys.stderr, flush=True)
 

@@ -351,3 +351,17 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
         scan_index_stop=int(i1),
         age_cycles=int(t.age_cycles),
     )
+
+
+def warm_up(config: EstimatorConfig | None = None) -> None:
+    """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
+    machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
+    it: the scan matcher's, the static map's ray march and the body's circle refinement."""
+    from .psm import warm_up as psm_warm_up
+    from .tracker import refine_fixed_radius
+
+    cfg = config or EstimatorConfig()
+    psm_warm_up(cfg.psm)
+    b = np.linspace(-2.0, 2.0, 181)
+    FreeSpaceGrid(cfg.static_map).integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
+    refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)

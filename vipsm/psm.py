@@ -24,6 +24,7 @@ the *reference* scan's laser frame (x forward, y left), like the original's ``rx
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import functools
 import math
@@ -231,8 +232,9 @@ def prepare_scan(
     call (:func:`vipsm.psm_kernel.preprocess`)."""
     from .psm_kernel import preprocess
 
-    r_raw = np.asarray(ranges_m, dtype=np.float64)
-    b = np.asarray(bearings_rad, dtype=np.float64)
+    # contiguous, writable float64 (a copy only where needed): one compiled signature for every caller
+    r_raw = np.require(ranges_m, np.float64, ("C", "W"))
+    b = np.require(bearings_rad, np.float64, ("C", "W"))
     n = r_raw.size
     w = np.ones(n) if weights is None else np.clip(np.asarray(weights, dtype=np.float64), 0.0, 1.0)
     if w.shape != r_raw.shape:
@@ -538,13 +540,16 @@ def warm_up(config: PsmConfig | None = None) -> None:
     b = np.linspace(-2.0, 2.0, 181)
     r = 3.0 + 0.5 * np.sin(3.0 * b)
     scan = Scan(r, b, 0.0)
-    match(scan, scan, Pose2D(0.01, 0.0, 0.0), config or PsmConfig(min_valid_beams=10))
+    cfg = dataclasses.replace(config or PsmConfig(), min_valid_beams=10)  # a whole match on 181 beams
+    res = match(scan, scan, Pose2D(0.01, 0.0, 0.0), cfg)
+    if res.refused:
+        raise RuntimeError(f"the scan matcher's warm-up match was refused ({res.reason.value})")
 
 
 def _check_bearings(b: np.ndarray) -> None:
     from .psm_kernel import finite_ascending
 
-    if not finite_ascending(np.asarray(b, dtype=np.float64)):
+    if not finite_ascending(np.require(b, np.float64, ("C", "W"))):
         raise ValueError("bearings must be finite and strictly ascending")
 
 

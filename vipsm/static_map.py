@@ -114,7 +114,7 @@ class FreeSpaceGrid:
             self.free *= np.float32(k)
             self.occ *= np.float32(k)
         self.stamp_s = stamp_s
-        r = np.asarray(ranges_m, float)
+        r = np.require(ranges_m, np.float64, ("C", "W"))  # one compiled signature for every caller
         ang = laser_theta_rad + np.asarray(bearings_rad, float)
         hit = np.isfinite(r) if skip is None else np.isfinite(r) & ~np.asarray(skip, bool)
         steps = np.arange(c.min_free_range_m, c.max_free_range_m, c.cell_m / 2)

@@ -305,3 +305,40 @@ def test_the_obstacle_stages_run_at_most_every_obstacle_period() -> None:
         est.step(scan, odo, frame)
         updates += est._last_obstacle_s != before  # noqa: SLF001
     assert updates == 20  # 2 s at 0.1 s, not 80 scans
+
+
+def test_warm_up_loads_every_kernel_the_step_uses() -> None:
+    """In a fresh interpreter: after ``warm_up`` the estimator compiles nothing more, also on scans
+    with read-only arrays (as the driver hands them over), so no control-loop cycle pays for it."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent("""
+        import numpy as np, numba
+        import vipsm.psm_kernel, vipsm.static_map, vipsm.tracker
+        from vipsm.estimator import Estimator, warm_up
+        from tests.vipsm.test_estimator import CFG, _crossing_world, _sequence
+        def signatures():
+            out = {}
+            for mod in (vipsm.psm_kernel, vipsm.static_map, vipsm.tracker):
+                for name, obj in vars(mod).items():
+                    if isinstance(obj, numba.core.registry.CPUDispatcher):
+                        out[mod.__name__ + '.' + name] = len(obj.signatures)
+            return out
+        seq = _sequence(_crossing_world(), 8)
+        warm_up(CFG)
+        before = signatures()
+        est = Estimator(CFG)
+        for scan, odo, frame, _ in seq:
+            scan.ranges_m.setflags(write=False)
+            scan.bearings_rad.setflags(write=False)
+            est.step(scan, odo, frame)
+        after = signatures()
+        assert before['vipsm.psm_kernel.match_statistics'] and before['vipsm.psm_kernel.project_into'], before
+        grown = {k: (before.get(k, 0), v) for k, v in after.items() if v != before.get(k, 0)}
+        assert not grown, grown
+        print("ok")
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-3000:]
