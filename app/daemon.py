@@ -262,9 +262,9 @@ class ControlLoop:
         self._last_pan_tilt = (0.0, 0.0)
         if field_log is not None:
             field_log.on_event = lambda level, message: self.say(level, message, self.clock())
+            field_log.log("/vipsm/config", wall_clock(), {"log_version": lm.LOG_VERSION, **dataclasses.asdict(config)})
         if status is not None:
             status.on_event = lambda level, message: self.say(level, message, self.clock())
-            field_log.log("/vipsm/config", wall_clock(), {"log_version": lm.LOG_VERSION, **dataclasses.asdict(config)})
         #: device counters taken at shutdown (the clients are closed afterwards)
         self.final_counters: dict[str, dict[str, int]] = {}
         #: per-cycle records for the run summary: (stamp_s, estimate, truth)

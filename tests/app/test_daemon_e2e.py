@@ -32,8 +32,9 @@ from hil_fakes.utm30lx import Utm30lxModel
 SIM_S = 12.0
 
 
-def run_cli(*args: str, timeout_s: float = 240) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True, timeout=timeout_s)
+def run_cli(*args: str, timeout_s: float = 240, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True, timeout=timeout_s,
+                          cwd=cwd)
 
 
 @pytest.fixture(scope="module")
@@ -487,3 +488,13 @@ def test_the_lens_distortion_from_the_config_reaches_the_estimator_and_replays(t
     assert replay.returncode == 0, replay.stderr
     out = json.loads(replay.stdout)
     assert out["identical_to_recorded"] == out["cycles"] > 20
+
+
+def test_sim_without_a_field_log(tmp_path: Path) -> None:
+    """``--log ""`` (log.path empty: no log) runs with the status server on; it used to crash at start."""
+    proc = run_cli("sim", "--scenario", "2", "--duration", "2", "--json", "--no-progress", "--log", "",
+                   "--set", "status.port=0", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    s = json.loads(proc.stdout)
+    assert s["log_path"] in (None, "") and s["estimates"] > 0
+    assert not list(tmp_path.glob("*.mcap"))
