@@ -17,6 +17,7 @@ status registers:
 from __future__ import annotations
 
 import dataclasses
+import gc
 import math
 import sys
 import threading
@@ -191,6 +192,16 @@ def cycle_message(
 def normalised_bearings(first_rad: float, step_rad: float, n: int) -> np.ndarray:
     """The one formula for bearings used live and in replay, so both feed the estimator identical arrays."""
     return first_rad + step_rad * np.arange(n, dtype=float)
+
+
+def freeze_startup_objects() -> None:
+    """Collect once, then move every object alive now (modules, numba's and LLVM's compiled state,
+    the estimator: about 136 k tracked objects) out of the garbage collector's reach. A full
+    collection over them took 50-58 ms on the development machine, two deadline misses at 40 Hz
+    whenever Python's oldest generation came due in the loop; afterwards it takes about 0.01 ms.
+    Objects made later are collected as usual."""
+    gc.collect()
+    gc.freeze()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -523,6 +534,7 @@ class ControlLoop:
         (counted), never run back to back to catch up. With ``loop.trigger = "scan"`` a cycle runs as
         each scan arrives instead (:meth:`run_on_scans`).
         """
+        freeze_startup_objects()
         if self.config.loop.trigger == "scan" and self.scanner is not None:
             self.run_on_scans(stop, duration_s, progress)
             return

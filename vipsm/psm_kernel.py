@@ -1,19 +1,23 @@
-"""The polar scan matcher's iteration loop, compiled with numba (``cache=True``: compiled once per
-machine and kept beside this file, so only the first run after an install pays for it; the daemon
-warms it up before its control loop starts, :func:`warm_up`).
+"""The polar scan matcher's kernels, compiled with numba (``cache=True``: compiled once per machine
+and kept beside this file, so only the first run after an install pays for it; the daemon loads them
+before its control loop starts, ``vipsm.estimator.warm_up``).
 
-The arithmetic is the one of :mod:`vipsm.psm`'s numpy stages it replaces, stage for stage:
+The arithmetic is the one of the method (``vipsm.psm`` documents it), stage for stage:
 
+* :func:`preprocess`: invalid beams, median filter, range gating, segmentation, points, pairs, normals;
 * :func:`project_into`: the current scan placed at a pose and projected onto the reference bearings
   (ray/chord intersection or range linear in bearing, a z-buffer keeping the nearest range, pairs
-  seen from behind flagged occluded);
-* :func:`shift_cost`: the mean absolute range difference of the orientation search for one shift,
-  over the usable beams only (a loop with early exits instead of numpy's full (2w+1) x n matrix);
+  seen from behind flagged occluded); the points' bearings come from :func:`bearings_of`, a
+  branch-free atan2 the compiler vectorises;
+* :func:`orientation_search`: the mean absolute range difference for each shift, a branch-free loop
+  over dense arrays (vectorised), shifts abandoned as soon as they cannot beat the best;
 * :func:`translation_step`: the weighted least-squares translation with its refusals;
-* :func:`iterate`: PSM's alternation of orientation and translation steps until convergence.
+* :func:`iterate`: PSM's alternation of orientation and translation steps until convergence;
+* :func:`match_statistics`: residual, weights and the normals' information at the matched pose.
 
-Python's per-call overhead was most of the numpy version's time (about 0.8 us per tiny numpy call,
-dozens per iteration); here one call runs the whole loop.
+Every kernel uses ``error_model="numpy"``: numba's Python-style checks on division stop a loop from
+being vectorised; no divisor here can be zero where it is not guarded. numba does not inline one
+compiled function into another unless told (``inline="always"``), which the per-pair step is.
 """
 
 from __future__ import annotations
