@@ -182,10 +182,10 @@ class PreparedScan:
     x_m: np.ndarray  # Cartesian points of the filtered ranges (laser frame)
     y_m: np.ndarray
     dphi_rad: float  # mean bearing step
-    pair_ok: np.ndarray | None = None  # (n-1,) bool: beams i, i+1 form a pair
-    pair_w: np.ndarray | None = None  # (n-1,) weight of the pair (min of its two beams)
-    normal_x: np.ndarray | None = None  # unit surface normal per beam (0 where unknown)
-    normal_y: np.ndarray | None = None
+    pair_ok: np.ndarray  # (n-1,) bool: beams i, i+1 form a pair
+    pair_w: np.ndarray  # (n-1,) weight of the pair (min of its two beams)
+    normal_x: np.ndarray  # unit surface normal per beam (0 where unknown)
+    normal_y: np.ndarray
 
     @property
     def n_good(self) -> int:
@@ -229,7 +229,8 @@ def prepare_scan(
     """Preprocess one scan: invalid first, median filter, range gating, segmentation, short segments
     dropped. ``weights`` (default 1) are per-beam; beams with weight 0 stay in the geometry (they keep
     segments contiguous for projection) but never count in a matching step. The work is one compiled
-    call (:func:`vipsm.psm_kernel.preprocess`)."""
+    call (:func:`vipsm.psm_kernel.preprocess`). ValueError: bearings not finite and strictly
+    ascending, or weights or bearings of another shape than the ranges."""
     from .psm_kernel import preprocess
 
     # contiguous, writable float64 (a copy only where needed): one compiled signature for every caller
@@ -237,12 +238,12 @@ def prepare_scan(
     b = np.require(bearings_rad, np.float64, ("C", "W"))
     n = r_raw.size
     w = np.ones(n) if weights is None else np.clip(np.asarray(weights, dtype=np.float64), 0.0, 1.0)
-    if w.shape != r_raw.shape:
-        raise ValueError(f"weights shape {w.shape} != ranges shape {r_raw.shape}")
+    if w.shape != r_raw.shape or b.shape != r_raw.shape:
+        raise ValueError(f"weights {w.shape} and bearings {b.shape} must have the ranges' shape {r_raw.shape}")
     dphi = float((b[-1] - b[0]) / (n - 1)) if n > 1 else 1.0
     cos_b, sin_b = cur_cos_sin(b) if n else (b, b)
     rf, tags, seg, good, x, y, pair_ok, pair_w, nx, ny = preprocess(
-        r_raw, cos_b, sin_b, w, abs(dphi), config.min_range_m, config.max_range_m, config.median_window,
+        r_raw, b, cos_b, sin_b, w, abs(dphi), config.min_range_m, config.max_range_m, config.median_window,
         config.seg_jump_m, config.seg_jump_range_factor, config.min_segment_beams, _NORMAL_HALF_BEAMS,
         TAG_INVALID, TAG_RANGE, TAG_SEGMENT)
     pa = np.flatnonzero(pair_ok)
@@ -286,7 +287,7 @@ def project(cur: PreparedScan, ref_bearings_rad: np.ndarray, pose: Pose2D, confi
 
     n_ref = ref_bearings_rad.size
     out, wout, good = np.empty(n_ref), np.empty(n_ref), np.empty(n_ref, dtype=bool)
-    if cur.pair_a.size == 0 or n_ref == 0 or cur.pair_ok is None or cur.pair_w is None:
+    if cur.pair_a.size == 0 or n_ref == 0:
         return _Projection(np.full(n_ref, np.inf), np.zeros(n_ref, dtype=bool), np.zeros(n_ref))
     cos_b, sin_b = cur_cos_sin(ref_bearings_rad)
     project_into(cur.x_m, cur.y_m, cur.pair_ok, cur.pair_w, ref_bearings_rad, cos_b, sin_b,
@@ -524,9 +525,7 @@ def match(
     reference laser frame, e.g. from odometry). Never raises for bad data: a refused result carries
     the guess and the reason."""
     cfg = config or PsmConfig()
-    try:
-        _check_bearings(ref_scan.bearings_rad)
-        _check_bearings(cur_scan.bearings_rad)
+    try:  # a bad bearing table or weights of the wrong shape: ValueError from the preprocessing
         ref = prepare(ref_scan, cfg, ref_weights)
         cur = prepare(cur_scan, cfg, cur_weights)
     except ValueError:
@@ -544,13 +543,6 @@ def warm_up(config: PsmConfig | None = None) -> None:
     res = match(scan, scan, Pose2D(0.01, 0.0, 0.0), cfg)
     if res.refused:
         raise RuntimeError(f"the scan matcher's warm-up match was refused ({res.reason.value})")
-
-
-def _check_bearings(b: np.ndarray) -> None:
-    from .psm_kernel import finite_ascending
-
-    if not finite_ascending(np.require(b, np.float64, ("C", "W"))):
-        raise ValueError("bearings must be finite and strictly ascending")
 
 
 __all__ = [

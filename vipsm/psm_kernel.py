@@ -338,11 +338,14 @@ def finite_ascending(b):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def preprocess(r_raw, cos_b, sin_b, w, dphi, min_r, max_r, median_window, jump_m, range_factor, min_seg_beams,
+def preprocess(r_raw, bearings, cos_b, sin_b, w, dphi, min_r, max_r, median_window, jump_m, range_factor, min_seg_beams,
                normal_half, tag_invalid, tag_range, tag_segment):  # pragma: no cover - compiled
     """``vipsm.psm.prepare_scan`` in one call: invalid beams tagged, median filter over the valid
     ones (invalid counts as +inf), range gating, segmentation, short segments dropped, points, pairs
-    and normals. Returns (ranges, tags, segments, good, x, y, pair_ok, pair_w, normal_x, normal_y)."""
+    and normals. Returns (ranges, tags, segments, good, x, y, pair_ok, pair_w, normal_x, normal_y).
+    ``bearings`` must be finite and ascending (ValueError)."""
+    if not finite_ascending(bearings):
+        raise ValueError("bearings must be finite and strictly ascending")
     n = r_raw.size
     tags = np.zeros(n, dtype=np.uint8)
     r = np.empty(n)

@@ -189,9 +189,16 @@ def test_too_few_beams_refused() -> None:
 
 def test_bad_bearings_refused() -> None:
     s = box_room(6.0, 6.0).scan(Pose2D(0, 0, 0))
-    bad = Scan(s.ranges_m, s.bearings_rad[::-1].copy(), 0.0)
-    res = match(s, bad, Pose2D(0, 0, 0))
-    assert res.refused and res.reason is PsmRefusal.BAD_INPUT
+    nan = s.bearings_rad.copy()
+    nan[7] = np.nan
+    for b in (s.bearings_rad[::-1].copy(), nan):  # descending, NaN
+        bad = Scan(s.ranges_m, b, 0.0)
+        for res in (match(s, bad, Pose2D(0, 0, 0)), match(bad, s, Pose2D(0, 0, 0))):
+            assert res.refused and res.reason is PsmRefusal.BAD_INPUT
+    with pytest.raises(ValueError, match="ascending"):
+        prepare_scan(s.ranges_m, s.bearings_rad[::-1].copy(), PsmConfig())
+    with pytest.raises(ValueError, match="shape"):  # a table that does not fit is never read past its end
+        prepare_scan(s.ranges_m, s.bearings_rad[:-3].copy(), PsmConfig())
 
 
 def test_bearings_come_from_the_scan() -> None:
