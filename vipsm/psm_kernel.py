@@ -229,6 +229,18 @@ def _refine(refp, newp, usable_after, k, w, e0, max_error, min_cnt):  # pragma: 
     return shift, e0, curv, True
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _robust_weight(i, ref_r, ref_ok, ref_w, proj_r, proj_ok, proj_w, c_m2, max_error):  # pragma: no cover
+    """(used, residual, weight) of beam i in a translation step: both beams usable and the residual
+    inside the gate; weight C / (C + e^2) times both beams' own weights."""
+    if not (ref_ok[i] and proj_ok[i] and proj_w[i] > 0.0):
+        return False, 0.0, 0.0
+    e = ref_r[i] - proj_r[i]
+    if not abs(e) < max_error:
+        return False, e, 0.0
+    return True, e, c_m2 / (c_m2 + e * e) * ref_w[i] * proj_w[i]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def translation_step(ref_r, ref_ok, ref_w, cos_b, sin_b, proj_r, proj_ok, proj_w, c_m2, max_error, min_valid,
                      degenerate_eig, damping):  # pragma: no cover - compiled
@@ -236,12 +248,9 @@ def translation_step(ref_r, ref_ok, ref_w, cos_b, sin_b, proj_r, proj_ok, proj_w
     a11 = a12 = a22 = b1 = b2 = sw = 0.0
     used = 0
     for i in range(ref_r.size):
-        if not (ref_ok[i] and proj_ok[i] and proj_w[i] > 0.0):
+        ok, e, ww = _robust_weight(i, ref_r, ref_ok, ref_w, proj_r, proj_ok, proj_w, c_m2, max_error)
+        if not ok:
             continue
-        e = ref_r[i] - proj_r[i]
-        if not abs(e) < max_error:
-            continue
-        ww = c_m2 / (c_m2 + e * e) * ref_w[i] * proj_w[i]
         hc, hs = cos_b[i], sin_b[i]
         a11 += ww * hc * hc
         a12 += ww * hc * hs
@@ -467,12 +476,9 @@ def match_statistics(ref_r, ref_ok, ref_w, cos_b, sin_b, normal_x, normal_y, pro
     used = 0
     sum_abs = sw = swe2 = i11 = i12 = i22 = 0.0
     for i in range(ref_r.size):
-        if not (ref_ok[i] and proj_ok[i] and proj_w[i] > 0.0):
+        ok, e, w = _robust_weight(i, ref_r, ref_ok, ref_w, proj_r, proj_ok, proj_w, c_m2, max_error)
+        if not ok:
             continue
-        e = ref_r[i] - proj_r[i]
-        if not abs(e) < max_error:
-            continue
-        w = c_m2 / (c_m2 + e * e) * ref_w[i] * proj_w[i]
         used += 1
         sum_abs += abs(e)
         sw += w

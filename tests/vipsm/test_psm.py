@@ -326,6 +326,9 @@ def _sym(a: float, b: float, c: float) -> np.ndarray:
 
 
 _spd = st.tuples(st.floats(1e-6, 1e3), st.floats(1e-6, 1e3), st.floats(-0.999, 0.999), st.floats(0.0, math.pi))
+#: the covariance floors PSM uses are isotropic or a corridor's (4 m / 0.3 m: 178:1 in variance);
+#: whitening by a floor conditioned worse than 1e5 would lose the digits this test compares
+_floor = st.tuples(st.floats(1e-3, 1e2), st.floats(1e-3, 1e2), st.just(0.0), st.floats(0.0, math.pi))
 
 
 def _spd_matrix(t: tuple[float, float, float, float]) -> tuple[float, float, float]:
@@ -338,7 +341,7 @@ def _spd_matrix(t: tuple[float, float, float, float]) -> tuple[float, float, flo
 
 
 @settings(max_examples=200, deadline=None)
-@given(_spd, _spd)
+@given(_floor, _spd)
 def test_the_2x2_covariance_helpers_agree_with_numpy(fa: tuple, ca: tuple) -> None:
     """The scalar 2x2 helpers the covariance uses: eigen decomposition, and the Loewner maximum
     (floor-whitened, eigenvalues raised to 1, coloured back) computed with numpy's eigh."""
