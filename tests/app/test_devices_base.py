@@ -84,3 +84,13 @@ def test_period_zero_writes_every_cycle() -> None:
         assert len(c.sent) == 3
     finally:
         a.close()
+
+
+def test_the_period_is_a_config_key_with_its_bounds() -> None:
+    from app.config import Config, load_config
+    from app.errors import ConfigError
+
+    assert Config().devices.robot_command_period_s == 0.1
+    assert load_config(None, ["devices.robot_command_period_s=0"]).devices.robot_command_period_s == 0.0
+    with pytest.raises(ConfigError, match="robot_command_period_s"):
+        load_config(None, ["devices.robot_command_period_s=0.6"])  # above the maximum, 0.5 s
