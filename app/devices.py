@@ -235,7 +235,6 @@ class BaseAdapter(ClientAdapter[ArcosClient]):
         self.url = url
         self.command_period_s = command_period_s
         self._sent: tuple[float, float, float, ArcosClient] | None = None  # v, w, when, to which client
-        self.commands_sent = 0
         def open_fn() -> ArcosClient:
             client = ArcosClient(ArcosClientConfig(url=url, baudrate=baudrate, command_timeout_s=command_timeout_s))
             client.connect()
@@ -272,7 +271,6 @@ class BaseAdapter(ClientAdapter[ArcosClient]):
             c.heartbeat()
             c.set_velocity(v_mps, w_radps)
             self._sent = (v_mps, w_radps, now, c)
-            self.commands_sent += 1
         except DriverError:
             self._sent = None  # the client reconnects; state() shows it, the firmware watchdog stops the wheels
 
