@@ -55,6 +55,12 @@ class Utm30lxConfig:
     ii_sum_before_arrow: bool = False
     #: the sensor's ms counter runs this much fast (+) or slow (-) against the host clock
     clock_drift_ppm: float = 0.0
+    #: bytes per second the link carries to the host: a message reaches the host when its last byte
+    #: has crossed, after the ones queued before it (0: at once). USB Full Speed CDC-ACM: the recorded
+    #: session's 6717-byte ME frame came in runs of 0.84-0.85 MB/s (theoretical bulk maximum 1.216
+    #: MB/s) [DEV: one session; a host controller or hub may differ]; a 1081-step MD frame (3.4 kB)
+    #: takes about 4 ms
+    link_bytes_per_s: float = 840_000.0
 
     @property
     def scan_period_s(self) -> float:
@@ -98,6 +104,10 @@ _TAG_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123
 
 _MAX_CATCH_UP_SCANS = 8
 
+#: a sweep is measured in this many parts, each as soon as its beams' times have passed, so a sweep's
+#: data are ready when it ends, as on the sensor, instead of being computed all at once then
+_SWEEP_PARTS = 8
+
 
 class Utm30lxModel(DeviceModel):
     """The UTM-30LX state machine; serve it with :func:`serve_pty` / :func:`serve_tcp` or a DeviceServer."""
@@ -117,7 +127,9 @@ class Utm30lxModel(DeviceModel):
         self._singles: list[_PendingSingle] = []
         self._next_scan = 0  # index of the next scan whose sweep has not been processed
         self._scan_cache: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._parts: tuple[int, list[tuple[np.ndarray, np.ndarray]]] | None = None  # scan k, measured parts
         self._out: deque[tuple[float, bytes]] = deque()
+        self._link_free_s = -math.inf  # when the link has sent everything queued so far
         self._rb_armed_at: float | None = None
         self._status_faults: dict[str, deque[str]] = {}
         self._frame_status_faults: deque[str] = deque()
@@ -125,6 +137,7 @@ class Utm30lxModel(DeviceModel):
         self._silent_ack = False
         n = cfg.amax + 1
         self._all_angles = (np.arange(n, dtype=np.float64) - cfg.afrt) * (2.0 * math.pi / cfg.ares)
+        self._part_edges = [round(j * n / _SWEEP_PARTS) for j in range(_SWEEP_PARTS + 1)]
         #: what the fake did, for tests
         self.frames_sent = 0
         self.commands_seen: list[str] = []
@@ -194,8 +207,11 @@ class Utm30lxModel(DeviceModel):
         with self._lock:
             self._ensure_boot(now_s)
             self._advance(now_s)
+            part_due = self._measure_due_parts(now_s)
             self._flush(now_s)
             nxt = self._scan_done_s(self._next_scan)
+            if part_due is not None:
+                nxt = min(nxt, part_due)
             if self._out:
                 nxt = min(nxt, self._out[0][0])
             return nxt
@@ -266,7 +282,13 @@ class Utm30lxModel(DeviceModel):
 
     def _send(self, data: bytes, now_s: float, latency_s: float | None = None) -> None:
         delay = self.config.reply_latency_s if latency_s is None else latency_s
-        self._out.append((now_s + delay, data))
+        rate = self.config.link_bytes_per_s
+        if rate <= 0.0:
+            self._out.append((now_s + delay, data))
+            return
+        # the host has a message when its last byte has crossed the link, after everything queued before it
+        self._link_free_s = max(now_s + delay, self._link_free_s) + len(data) / rate
+        self._out.append((self._link_free_s, data))
 
     def _flush(self, now_s: float) -> None:
         while self._out and self._out[0][0] <= now_s:
@@ -546,15 +568,53 @@ class Utm30lxModel(DeviceModel):
         while self._scan_done_s(self._next_scan) <= now_s:
             k = self._next_scan
             self._next_scan += 1
-            self._complete_scan(k, now_s)
+            self._complete_scan(k, self._scan_done_s(k))  # on the link from the sweep's end
+
+    def _wanted(self, k: int) -> bool:
+        """Scan ``k`` will be sent (to a stream or a pending single request)."""
+        return self._laser_on and (self._stream_wants(k) or any(k >= s.not_before_scan for s in self._singles))
+
+    def _stream_wants(self, k: int) -> bool:
+        st = self._stream
+        return st is not None and k >= st.first_scan and (k - st.first_scan) % (st.interval + 1) == 0
+
+    def _part_end_s(self, k: int, j: int) -> float:
+        """When the last beam of part ``j`` of scan ``k`` has been taken."""
+        return self._scan_start_s(k) + self._part_edges[j + 1] * self.config.step_dt_s
+
+    def _parts_of(self, k: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        if self._parts is None or self._parts[0] != k:
+            self._parts = (k, [])
+        return self._parts[1]
+
+    def _measure_part(self, k: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = self._part_edges[j], self._part_edges[j + 1]
+        dt = self.config.step_dt_s
+        ranges_m, intensity = self.source.sweep(self._scan_start_s(k) + lo * dt, self._all_angles[lo:hi], dt)
+        return np.asarray(ranges_m, dtype=np.float64), np.asarray(intensity, dtype=np.float64)
+
+    def _measure_due_parts(self, now_s: float) -> float | None:
+        """Measure the parts of the next scan (if it will be sent) whose beams were taken by ``now_s``;
+        return when the next part is due (None: nothing to measure)."""
+        k = self._next_scan
+        if not self._wanted(k):
+            return None
+        parts = self._parts_of(k)
+        while len(parts) < _SWEEP_PARTS and self._part_end_s(k, len(parts)) <= now_s:
+            parts.append(self._measure_part(k, len(parts)))
+        return self._part_end_s(k, len(parts)) if len(parts) < _SWEEP_PARTS else None
 
     def _sweep(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Device values (mm codes) and intensities of every step 0..AMAX of scan ``k`` (cached)."""
         if self._scan_cache is not None and self._scan_cache[0] == k:
             return self._scan_cache[1], self._scan_cache[2]
         cfg = self.config
-        ranges_m, intensity = self.source.sweep(self._scan_start_s(k), self._all_angles, cfg.step_dt_s)
-        ranges_m = np.asarray(ranges_m, dtype=np.float64)
+        parts = self._parts_of(k)
+        while len(parts) < _SWEEP_PARTS:
+            parts.append(self._measure_part(k, len(parts)))
+        self._parts = None
+        ranges_m = np.concatenate([p[0] for p in parts])
+        intensity = np.concatenate([p[1] for p in parts])
         mm = np.round(np.nan_to_num(ranges_m, nan=-1.0) * 1000.0)
         codes = np.where(np.isnan(ranges_m) | (mm > cfg.dmax_mm), 1, np.where(mm < cfg.dmin_mm, 2, mm))
         codes = codes.astype(np.int64)
@@ -604,17 +664,17 @@ class Utm30lxModel(DeviceModel):
             block = block[:pos] + bytes([((block[pos] - 0x30 + 1) & 0x3F) + 0x30]) + block[pos + 1 :]
         return echo + b"\n" + status + tline + block + b"\n"
 
-    def _complete_scan(self, k: int, now_s: float) -> None:
+    def _complete_scan(self, k: int, done_s: float) -> None:
         if not self._laser_on:
             return
         if self._singles:
             ready = [s for s in self._singles if k >= s.not_before_scan]
             self._singles = [s for s in self._singles if k < s.not_before_scan]
             for s in ready:
-                self._send(self._scan_payload(k, s.start, s.end, s.cluster, s.command, s.echo, "00"), now_s, 0.0)
+                self._send(self._scan_payload(k, s.start, s.end, s.cluster, s.command, s.echo, "00"), done_s, 0.0)
                 self.frames_sent += 1
         st = self._stream
-        if st is None or k < st.first_scan or (k - st.first_scan) % (st.interval + 1):
+        if st is None or not self._stream_wants(k):
             return
         if st.count:
             st.remaining -= 1
@@ -624,9 +684,9 @@ class Utm30lxModel(DeviceModel):
         echo_text = f"{st.command}{st.params_prefix}{remaining:02d}" + (f";{st.tag}" if st.tag else "")
         echo = echo_text.encode("ascii")
         if self._frame_status_faults:
-            self._send(echo + b"\n" + status_line(self._frame_status_faults.popleft()) + b"\n", now_s, 0.0)
+            self._send(echo + b"\n" + status_line(self._frame_status_faults.popleft()) + b"\n", done_s, 0.0)
         else:
-            self._send(self._scan_payload(k, st.start, st.end, st.cluster, st.command, echo, "99"), now_s, 0.0)
+            self._send(self._scan_payload(k, st.start, st.end, st.cluster, st.command, echo, "99"), done_s, 0.0)
             self.frames_sent += 1
         st.sent += 1
         if st.count and st.remaining <= 0:

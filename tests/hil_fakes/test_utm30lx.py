@@ -13,6 +13,7 @@ import socket
 import time
 import tty
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,10 +26,12 @@ from tests.drivers.hokuyo_scip.helpers import load_session, sensor_bytes
 
 
 class Driven:
-    """A model driven by hand: explicit clock, output collected reply by reply."""
+    """A model driven by hand: explicit clock, output collected reply by reply. The link is instant
+    (a reply is out when ``send`` returns) unless ``paced``; the link's pace has tests of its own."""
 
-    def __init__(self, config: Utm30lxConfig | None = None, t0: float = 100.0) -> None:
-        self.model = Utm30lxModel(config)
+    def __init__(self, config: Utm30lxConfig | None = None, t0: float = 100.0, paced: bool = False) -> None:
+        config = config or Utm30lxConfig()
+        self.model = Utm30lxModel(config if paced else replace(config, link_bytes_per_s=0.0))
         self.out = bytearray()
         self.model.attach(self.out.extend)
         self.t = t0
@@ -141,6 +144,74 @@ def test_interval_and_finite_count() -> None:
     assert [f.remaining for f in frames] == [2, 1, 0]
     assert np.all(np.diff([f.timestamp_ms for f in frames]) == 50)  # interval 1: every other scan
     assert not fake.model.laser_on
+
+
+class _RecordingSource:
+    """FixedRoom that records, per call, the first beam's index and count and the model's clock then."""
+
+    def __init__(self, clock: list[float]) -> None:
+        self.room, self.clock, self.calls = FixedRoom(), clock, []
+
+    def sweep(self, t0_s: float, angles_rad: np.ndarray, beam_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        first = int(round(float(angles_rad[0]) / (2 * np.pi / 1440))) + 540
+        self.calls.append((t0_s, first, angles_rad.size, self.clock[0]))
+        return self.room.sweep(t0_s, angles_rad, beam_dt_s)  # type: ignore[no-any-return]
+
+
+def test_sweep_is_measured_as_its_beams_are_taken_and_only_for_scans_sent() -> None:
+    clock = [0.0]
+    source = _RecordingSource(clock)
+    model = Utm30lxModel(Utm30lxConfig(link_bytes_per_s=0.0), source=source)
+    out = bytearray()
+    model.attach(out.extend)
+    model.poll(0.0)
+    clock[0] = t = 0.001
+    model.on_bytes(b"MD0000108001102\n", t)  # mid-sweep; interval 1: every other scan; two scans
+    while t < 0.15:
+        t += 0.0005
+        clock[0] = t
+        model.poll(t)
+    step_dt = 0.025 / 1440
+    by_scan: dict[int, list[tuple[float, int, int, float]]] = {}
+    for call in source.calls:
+        by_scan.setdefault(int(round(call[0] / 0.025 - 0.4)), []).append(call)
+    assert sorted(by_scan) == [1, 3]  # scans 0 (mid-request), 2 (skipped by the interval), 4+ never measured
+    for k, calls in by_scan.items():
+        firsts = [c[1] for c in calls]
+        assert firsts[0] == 0 and sum(c[2] for c in calls) == 1081  # every beam once, in order
+        assert all(a[1] + a[2] == b[1] for a, b in zip(calls, calls[1:]))
+        for t0, first, count, measured_at in calls:
+            assert t0 == pytest.approx(k * 0.025 + first * step_dt)
+            last_beam_s = t0 + (count - 1) * step_dt
+            assert last_beam_s <= measured_at <= last_beam_s + 3 * step_dt + 0.0005  # taken, then measured
+        assert len(calls) > 1
+    frames = [e for e in ScipDecoder().feed(bytes(out)) if isinstance(e, ScanFrame)]
+    assert len(frames) == 2 and all(f.distances.size == 1081 for f in frames)
+    whole = np.round(FixedRoom().sweep(0, (np.arange(1081) - 540) * 2 * np.pi / 1440, 0)[0] * 1000)
+    assert frames[0].distances.tolist() == whole.astype(int).tolist()
+
+
+def test_link_pace_delays_each_message_by_its_size() -> None:
+    rate = 840_000.0
+    fake = Driven(Utm30lxConfig(link_bytes_per_s=rate), paced=True)
+    assert fake.send(b"VV") == b""  # not across the link yet
+    vv = fake.advance(0.001, step=0.00005)
+    assert vv.startswith(b"VV\n00P\n")
+    t_md = fake.t
+    fake.send(b"MD0000108001001")
+    arrivals: list[tuple[float, int]] = []
+    while fake.t < t_md + 0.08:
+        chunk = fake.advance(0.0001, step=0.0001)
+        if chunk:
+            arrivals.append((fake.t, len(chunk)))
+    ack_t, ack_len = arrivals[0]
+    frame_t, frame_len = arrivals[1]
+    assert ack_len == len(b"MD0000108001001\n00P\n\n")
+    assert ack_t == pytest.approx(t_md + ack_len / rate, abs=2e-4)
+    assert frame_len > 3300  # 1081 steps, 3 characters each, 64 per line with sum and LF
+    boot = 100.0
+    done = boot + (int(np.ceil((t_md - boot) / 0.025)) * 0.025) + 1081 * 0.025 / 1440
+    assert frame_t == pytest.approx(done + frame_len / rate, abs=2e-4)  # from the sweep's end, ~4 ms
 
 
 def test_cluster_and_short_encoding() -> None:
