@@ -5,7 +5,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
+import shlex
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -190,3 +193,36 @@ def cmd_replay(args: argparse.Namespace) -> int:
               f"{read.bad[0]}", file=sys.stderr)
         return 3
     return 0
+
+
+# ---------------------------------------------------------------------------------------------
+
+#: ``bench --only daemon``: the simulated robot at 40 Hz, a cycle on every scan, the field log on
+BENCH_SIM_S = 30.0
+BENCH_SIM_ARGV = ("sim", "--scenario", "1", "--mission", "hold", "--set", 'loop.trigger="scan"',
+                  "--set", "loop.period_s=0.025", "--no-progress")
+BENCH_KEYS = ("cycles", "deadline_misses", "scans", "estimates", "daemon_cpu_percent", "compute_median_ms",
+              "compute_p99_ms", "scan_to_obstacles_ms_median", "scan_to_obstacles_ms_p99",
+              "scan_received_to_obstacles_ms_median", "scan_received_to_obstacles_ms_p99")
+
+
+def bench(args: argparse.Namespace) -> dict[str, Any]:
+    """The daemon's loop at 40 Hz against the simulated devices (``vipsm-robot sim``, BENCH_SIM_S
+    seconds): latency from a scan's last beam to its obstacles published, deadline misses, CPU."""
+    from .evaluation.runner import tune_allocator
+    from .sim import run_sim
+
+    load_1min = os.getloadavg()[0]  # the machine's load before this run adds its own
+    parser = argparse.ArgumentParser(prog="vipsm-robot")
+    register(parser.add_subparsers())
+    with tempfile.TemporaryDirectory(prefix="vipsm-bench-") as tmp:
+        argv = [*BENCH_SIM_ARGV, "--duration", str(BENCH_SIM_S), "--log", os.path.join(tmp, "bench.mcap")]
+        sim_args = parser.parse_args(argv)
+        tune_allocator()
+        summary = run_sim(_config(sim_args), sim_args)
+    return {
+        "command": shlex.join(["vipsm-robot", *argv[:-2]]),  # without the temporary --log
+        "duration_s": BENCH_SIM_S,
+        **{key: summary[key] for key in BENCH_KEYS},
+        "load_average_1min": round(load_1min, 2),
+    }
