@@ -177,6 +177,10 @@ def locate_body(
     return cx, cy, radius, fitted
 
 
+#: detection kinds as numbers in a track's history
+_KIND_CODE = {"body": 0.0, "leg": 1.0, "person": 2.0}
+
+
 @dataclass
 class Track:
     track_id: int
@@ -188,8 +192,8 @@ class Track:
     hits: int = 1
     missed: int = 0
     age_cycles: int = 1
-    #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0)
-    history: list[tuple[float, float, float, float]] = field(default_factory=list)
+    #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code)
+    history: list[tuple[float, float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
     #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
@@ -262,24 +266,30 @@ class Tracker:
         t.kind = det.kind
         t.recent.append((t.stamp_s, det.x_m, det.y_m))
         del t.recent[: -c.report_window]
-        t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence)))
+        t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0)))
         del t.history[: -c.confirm_window]
         recent = sum(h[3] for h in t.history)
-        if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence or len(t.history) < 3:
+        if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
             return
+        # a lone leg's centre and a leg pair's midpoint are different points of a body (and a pair's
+        # midpoint jumps when the pairing changes): displacement counts between detections of one kind
         hist = np.array(t.history)
+        hist = hist[hist[:, 4] == hist[-1, 4]]
+        if hist.shape[0] < 3:
+            return
         xy = hist[:, 1:3]
         net = float(np.hypot(*(xy[-1] - xy[0])))
         path = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
         # every detection of the window with evidence: a smaller, still consistent displacement will do
-        needed = c.confirm_displacement_sustained_m if recent == len(t.history) >= 4 else c.confirm_displacement_m
+        sustained = recent == len(t.history) and hist.shape[0] >= 4
+        needed = c.confirm_displacement_sustained_m if sustained else c.confirm_displacement_m
         if net >= needed and net >= c.confirm_straightness * path and self._steady(hist):
             t.confirmed = True
 
     def _stale(self, t: Track) -> bool:
         """An unconfirmed track whose recent detections all lacked motion evidence: a static thing."""
         h = t.history
-        return not t.confirmed and len(h) >= self.config.confirm_window and not any(e for *_, e in h)
+        return not t.confirmed and len(h) >= self.config.confirm_window and not any(row[3] for row in h)
 
     def reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
