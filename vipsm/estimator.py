@@ -37,7 +37,7 @@ from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
-from .prefilter import PrefilterConfig, drop_veiling
+from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
 from .static_map import FreeSpaceGrid, StaticMapConfig
@@ -130,24 +130,25 @@ class Estimator:
     def step(self, scan: Scan, odometry: Odometry, frame: Frame | None = None) -> Estimate:
         flags = EstimateFlag.PLAIN_PSM if self.plain_psm else EstimateFlag.NONE
         scan, scan_ok = _checked(scan)
-        scan = self._prefilter(scan)
+        scan, lone_m = self._prefilter(scan)
         predicted = self._predict(odometry.pose)
         camera, flags = self._visual_bearings(scan, odometry, frame, flags)
         masks = camera + self._track_masks(scan.stamp_s, predicted)
         rest = restore(scan.ranges_m, scan.bearings_rad, masks, self.config.restore, self.config.psm.min_range_m)
         match = self._match(scan, rest, predicted, scan_ok)
         laser = compose(match.pose, self.config.laser_mount)
-        bodies, tracked = self._obstacles(scan, laser, camera, match)
+        bodies, tracked = self._obstacles(scan, lone_m, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
         return self._estimate(scan, odometry, match, rest, flags | match.flags | _rest_flags(rest, self.plain_psm),
                               tracked, laser)
 
     # ------------------------------------------------------------------ stages
-    def _obstacles(self, scan: Scan, laser: Pose2D, camera: list[BearingInterval], match: MatchOutcome
-                   ) -> tuple[list[Body], list[tuple[Track, Detection | None]]]:
+    def _obstacles(self, scan: Scan, lone_m: np.ndarray, laser: Pose2D, camera: list[BearingInterval],
+                   match: MatchOutcome) -> tuple[list[Body], list[tuple[Track, Detection | None]]]:
         """Bodies, tracking and the static map at most every ``obstacle_period_s`` (the cycle their
         thresholds are counted in); a scan in between (the 40 Hz loop) publishes the tracks predicted
-        to its stamp."""
+        to its stamp. ``lone_m``: the lone returns the pre-filter dropped (NaN elsewhere), which the
+        static map takes back."""
         last = self._last_obstacle_s
         if last is not None and scan.stamp_s - last < 0.8 * self.config.obstacle_period_s:
             return [], [(t, None) for t in self._tracker.tracks]
@@ -155,12 +156,15 @@ class Estimator:
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match))
         tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
-        self._update_static(scan, laser, bodies)
+        self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
-    def _prefilter(self, scan: Scan) -> Scan:
-        ranges = drop_veiling(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
-        return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities)
+    def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray]:
+        """The scan without mixed pixels and lone returns, and the lone returns (NaN elsewhere)."""
+        mixed, lone = veiling_masks(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
+        ranges = np.where(mixed | lone, np.nan, scan.ranges_m)
+        lone_m = np.where(lone, scan.ranges_m, np.nan)
+        return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities), lone_m
 
     def _predict(self, odo: Pose2D) -> Pose2D:
         if self._last_pose is None or self._last_odo is None:
@@ -221,16 +225,19 @@ class Estimator:
         return self._matcher.match(cur, n_good_w, predicted, self._last_pose, self._last_cov, not too_large,
                                    too_large or not scan_ok)
 
-    def _update_static(self, scan: Scan, laser: Pose2D, bodies: list[Body]) -> None:
+    def _update_static(self, scan: Scan, lone_m: np.ndarray, laser: Pose2D, bodies: list[Body]) -> None:
         """Add the scan to the free/occupied grid (the moving-body candidates add no occupancy, so a body
         that moves on leaves no trail and its own earlier footprint never hides it) and drop coasting
-        tracks whose space is now seen free."""
+        tracks whose space is now seen free. The lone returns count: a chair leg a few metres away is
+        often one return, and without it the beams beside it mark its cell free until, seen from
+        nearer, it violates that free space."""
         skip = np.zeros(scan.ranges_m.size, bool)
         for b in bodies:
             if b.evidence:
                 skip[b.scan_index_start : b.scan_index_stop] = True
         skip |= self._near_tracks(scan, laser)
-        self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, scan.ranges_m,
+        ranges = np.where(np.isfinite(lone_m), lone_m, scan.ranges_m)
+        self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
         self._tracker.drop_seen_free(self._static.seen_free_now)
 

@@ -39,11 +39,21 @@ def _islands(valid: np.ndarray, breaks: np.ndarray) -> np.ndarray:
 
 def drop_veiling(ranges_m: np.ndarray, bearings_rad: np.ndarray, cfg: PrefilterConfig) -> np.ndarray:
     """A copy of ``ranges_m`` with mixed pixels and lone returns set to NaN."""
+    mixed, lone = veiling_masks(ranges_m, bearings_rad, cfg)
+    return np.where(mixed | lone, np.nan, np.asarray(ranges_m, dtype=float))
+
+
+def veiling_masks(ranges_m: np.ndarray, bearings_rad: np.ndarray, cfg: PrefilterConfig
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Per beam: a mixed pixel (an island between two surfaces), a lone return (any other single-beam
+    island). Both are dropped before segmentation; a lone return in front of its neighbours can be
+    a thin real thing (a chair leg at a few metres), which the static map still needs to see."""
     r = np.asarray(ranges_m, dtype=float)
-    out = r.copy()
     n = r.size
+    mixed = np.zeros(n, dtype=bool)
+    lone = np.zeros(n, dtype=bool)
     if not cfg.enabled or n < 3:
-        return out
+        return mixed, lone
     valid = np.isfinite(r)
     dphi = float(abs(bearings_rad[-1] - bearings_rad[0]) / max(n - 1, 1))
     rr = np.where(valid, r, 0.0)
@@ -65,6 +75,8 @@ def drop_veiling(ranges_m: np.ndarray, bearings_rad: np.ndarray, cfg: PrefilterC
             between = bool(np.all((island > lo + thr[i0]) & (island < hi - thr[i0])))
         else:
             between = False
-        if between or cnt == 1:
-            out[i0 : i1 + 1] = np.nan
-    return out
+        if between:
+            mixed[i0 : i1 + 1] = True
+        elif cnt == 1:
+            lone[i0] = True
+    return mixed, lone

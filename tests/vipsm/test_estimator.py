@@ -342,3 +342,23 @@ def test_warm_up_loads_every_kernel_the_step_uses() -> None:
     """)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-3000:]
+
+
+def test_a_thin_leg_seen_by_one_beam_is_no_free_space_for_the_static_map() -> None:
+    """A 25 mm chair leg 4.9 m away is one return between two beams that pass it to the wall behind:
+    the pre-filter drops it as a lone return, but the static map must still see it occupied, or the
+    passing beams mark its cell free and, seen from nearer, the leg violates free space (the phantoms
+    of the furnished room)."""
+    world = box_room(10.0, 6.0)
+    leg = Circle(5.0, 0.6, 0.0125)
+    world.circles.append(leg)
+    est = Estimator(CFG)
+    for k in range(20):
+        t = 0.1 * k
+        scan = world.scan(compose(Pose2D(0.0, 0.0, 0.0), LASER), t_s=t, stamp_s=t)
+        bearing = math.atan2(leg.y_m, leg.x_m - LASER.x_m)
+        lone = np.isfinite(scan.ranges_m) & (scan.ranges_m < 5.0) & (np.abs(scan.bearings_rad - bearing) < 0.01)
+        assert np.count_nonzero(lone) == 1  # exactly one beam on the leg
+        est.step(scan, Odometry(0.0, 0.0, 0.0, 0.0, 0.0, t))
+    near_side = np.array([[leg.x_m - leg.radius_m, leg.y_m]])
+    assert not est._static.violates(near_side)[0]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vipsm.prefilter import PrefilterConfig, drop_veiling
+from vipsm.prefilter import PrefilterConfig, drop_veiling, veiling_masks
 
 from .sim import UTM_BEARINGS, Circle, box_room
 
@@ -29,6 +29,8 @@ def test_two_mixed_pixels_and_a_lone_return_are_dropped() -> None:
     out = drop_veiling(r, UTM_BEARINGS[:30], CFG)
     assert np.isnan(out[14:16]).all() and np.isnan(out[22])
     assert np.isfinite(out[10:14]).all() and np.isfinite(out[16:22]).all()
+    mixed, lone = veiling_masks(r, UTM_BEARINGS[:30], CFG)  # told apart: the static map keeps lone ones
+    assert np.flatnonzero(mixed).tolist() == [14, 15] and np.flatnonzero(lone).tolist() == [22]
 
 
 def test_a_real_scan_of_legs_and_walls_keeps_every_body_beam() -> None:
