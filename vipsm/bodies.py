@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .restore import BearingInterval, _beams_in
+from .seen_through import ScanMemory
 from .static_map import FreeSpaceGrid
 from .tracker import TrackerConfig, locate_body
 from .types import Pose2D
@@ -71,6 +72,9 @@ class Body:
     bearing_min_rad: float
     bearing_max_rad: float
     evidence: bool = True
+    #: partly hidden by something nearer beside it (not by its own other leg): its visible part, and
+    #: so its estimated centre, moves with the occluder's edge, not with the body
+    occluded: bool = False
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,8 @@ class _Segment:
     width_m: float
     free_share: float
     camera: bool
+    #: beams of nearer returns right beside it: something in front hides part of it
+    occluders: tuple[int, ...] = ()
 
 
 def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig) -> list[tuple[int, int]]:
@@ -105,24 +111,27 @@ def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig) -> list[tuple[int,
     return out
 
 
-def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> bool:
+def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool, list[int]]:
     """The segment stands in front of what lies beside it. Each side's neighbour is the nearest return
     within ``neighbour_beams`` (a dropped mixed pixel does not hide the surface next to it): a side on
     the same surface (within ``foreground_m``) means the segment is part of something larger; nearer
     neighbours on both sides mean it is background seen between two occluders (a wall between a
-    person's legs); one nearer side is a body partly hidden by another, which is kept."""
+    person's legs); one nearer side is a body partly hidden by another, which is kept. Returns
+    (foreground, the beams of the nearer neighbours: its occluders)."""
     near = float(np.min(r[a:z]))
-    occluded = 0
-    for side in (r[max(a - cfg.neighbour_beams, 0) : a][::-1], r[z : z + cfg.neighbour_beams]):
-        finite = side[np.isfinite(side)]
+    occluders: list[int] = []  # the beam of each nearer neighbour
+    nb = cfg.neighbour_beams
+    sides = (np.arange(a - 1, max(a - nb, 0) - 1, -1), np.arange(z, min(z + nb, r.size)))
+    for idx in sides:
+        finite = idx[np.isfinite(r[idx])]
         if not finite.size:
             continue
-        if finite[0] >= near + cfg.foreground_m:
+        if r[finite[0]] >= near + cfg.foreground_m:
             continue
-        if finite[0] > near - cfg.foreground_m:
-            return False
-        occluded += 1
-    return occluded < 2
+        if r[finite[0]] > near - cfg.foreground_m:
+            return False, []
+        occluders.append(int(finite[0]))
+    return len(occluders) < 2, occluders
 
 
 def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, z: int, laser: Pose2D,
@@ -148,8 +157,21 @@ def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, 
     return False
 
 
+def _violating(world: np.ndarray, finite: np.ndarray, grid: FreeSpaceGrid, memory: ScanMemory | None) -> np.ndarray:
+    """Per beam: its return lies where the grid saw free space and, at beam resolution, a recent scan
+    saw through (``memory``; a thin leg uncovered from behind another sits in cells the grid took
+    for free)."""
+    violating = np.zeros(finite.size, bool)  # asked once per scan, not once per segment
+    violating[finite] = grid.violates(world[finite])
+    if memory is not None:
+        idx = np.flatnonzero(violating)
+        violating[idx] = memory.seen_through(world[idx])
+    return violating
+
+
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
-                        camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None) -> list[_Segment]:
+                        camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None,
+                        memory: ScanMemory | None) -> list[_Segment]:
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     finite = np.isfinite(r)
     in_camera = np.zeros(r.size, bool)
@@ -157,11 +179,13 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         in_camera |= _beams_in(iv, np.where(finite, r, np.nan), b, 0.0)
     xl, yl = r * np.cos(b), r * np.sin(b)
     world = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)  # nan: no return
-    violating = np.zeros(r.size, bool)  # asked of the grid once per scan, not once per segment
-    violating[finite] = grid.violates(world[finite])
+    violating = _violating(world, finite, grid, memory)
     out = []
     for a, z in segments(r, b, cfg):
-        if z - a < cfg.min_beams or not _foreground(r, a, z, cfg):
+        if z - a < cfg.min_beams:
+            continue
+        fg, occluders = _foreground(r, a, z, cfg)
+        if not fg:
             continue
         pts = world[a:z]
         width = float(np.hypot(*(pts[-1] - pts[0])))
@@ -171,7 +195,7 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         cue = bool(np.mean(in_camera[a:z]) >= 0.5)
         if ahead is not None and width > cfg.max_leg_width_m:
             cue = cue or bool(np.mean(ahead[a:z]) >= 0.6)
-        out.append(_Segment(a, z, pts, width, share, cue))
+        out.append(_Segment(a, z, pts, width, share, cue, tuple(occluders)))
     return out
 
 
@@ -194,12 +218,13 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
 
 def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                    camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig,
-                   ahead: np.ndarray | None = None) -> list[Body]:
+                   ahead: np.ndarray | None = None, memory: ScanMemory | None = None) -> list[Body]:
     """The foreground bodies of one scan (world frame, placed with the matched laser pose), each with
     its motion evidence. ``ahead`` (per beam, optional): the return stands clearly in front of what the
-    keyframe saw in that direction (counts like the camera's motion cue)."""
+    keyframe saw in that direction (counts like the camera's motion cue). ``memory`` (optional): recent
+    scans; a free-space violation must then also have been seen through at beam resolution."""
     sensor = (laser.x_m, laser.y_m)
-    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, ahead)
+    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, ahead, memory)
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:
@@ -225,5 +250,7 @@ def _body(x: float, y: float, radius: float, fitted: bool, kind: str, segs: list
     n_pts = sum(sg.points.shape[0] for sg in segs)
     share = sum(sg.free_share * sg.points.shape[0] for sg in segs) / max(n_pts, 1)
     evidence = any(sg.free_share >= cfg.min_free_share or sg.camera for sg in segs)
+    # an occluder that is another segment of this body (one leg in front of the other) hides nothing
+    occluded = any(not any(o.start <= k < o.stop for o in segs) for sg in segs for k in sg.occluders)
     return Body(x, y, radius, fitted, kind, float(share), any(sg.camera for sg in segs), a, z,
-                float(bearings_rad[a]), float(bearings_rad[z - 1]), evidence)
+                float(bearings_rad[a]), float(bearings_rad[z - 1]), evidence, occluded)

@@ -9,7 +9,8 @@
    predicted, are cut and bridged with weight 0 (the plain-PSM baseline skips this step);
 4. matching (:mod:`vipsm.keyframes`, :mod:`vipsm.psm`): PSM against a keyframe, seeded by odometry;
 5. body extraction (:mod:`vipsm.bodies`): foreground segments that moved into space the laser saw
-   free (:mod:`vipsm.static_map`) or that the camera saw move; legs paired into people;
+   free (:mod:`vipsm.static_map`, confirmed at beam resolution by :mod:`vipsm.seen_through`) or that
+   the camera saw move; legs paired into people;
 6. tracking (:mod:`vipsm.tracker`): constant-velocity Kalman tracks, reported once confirmed;
 7. static evidence: the scan is added to the free/occupied grid, tracks whose space is now seen free
    are dropped.
@@ -40,6 +41,7 @@ from .keyframes import KeyframeMatcher, MatchOutcome
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
+from .seen_through import ScanMemory, SeenThroughConfig
 from .static_map import FreeSpaceGrid, StaticMapConfig
 from .tracker import Detection, Track, Tracker, TrackerConfig
 from .types import Estimate, EstimateFlag, Frame, Obstacle, Odometry, Pose2D, Scan
@@ -67,6 +69,7 @@ class EstimatorConfig:
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     prefilter: PrefilterConfig = field(default_factory=PrefilterConfig)
     static_map: StaticMapConfig = field(default_factory=StaticMapConfig)
+    seen_through: SeenThroughConfig = field(default_factory=SeenThroughConfig)
     bodies: BodiesConfig = field(default_factory=BodiesConfig)
     keyframe_dist_m: float = 0.30
     keyframe_angle_rad: float = math.radians(10.0)
@@ -120,6 +123,7 @@ class Estimator:
         self._tracker = Tracker(cfg.tracker)
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
+        self._memory = ScanMemory(cfg.seen_through)
         self._last_pose: Pose2D | None = None
         self._last_obstacle_s: float | None = None
         self._last_odo: Pose2D | None = None
@@ -154,7 +158,7 @@ class Estimator:
             return [], [(t, None) for t in self._tracker.tracks]
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
-                                self.config.tracker, self._ahead_of_keyframe(scan, match))
+                                self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
@@ -239,6 +243,7 @@ class Estimator:
         ranges = np.where(np.isfinite(lone_m), lone_m, scan.ranges_m)
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
+        self._memory.push(laser, ranges, scan.bearings_rad)
         self._tracker.drop_seen_free(self._static.seen_free_now)
 
     def _estimate(self, scan: Scan, odometry: Odometry, match: MatchOutcome, rest: Restoration,
@@ -332,7 +337,8 @@ def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
 
 def _detection(b: Body) -> Detection:
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
-                     b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind], kind=b.kind)
+                     b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind], kind=b.kind,
+                     occluded=b.occluded)
 
 
 def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, float]) -> Obstacle:

@@ -4,9 +4,10 @@ Tracks are born from moving-body candidates (:mod:`vipsm.bodies`) and reported o
 **confirmed**: seen in ``confirm_hits`` cycles, with motion evidence (free-space violation or camera)
 in ``confirm_evidence`` of them, and displaced at least ``confirm_displacement_m`` from where it was
 born. Furniture never moves, so a camera flow error or a stray return on it never confirms. A track
-dies after ``max_missed`` cycles without a detection, or at once when a beam of the current scan
-passes through where it should be (its space is seen free). At most ``max_tracks`` live at once (the
-least supported are dropped first), so the cost is bounded however cluttered the room.
+dies after ``max_missed`` cycles without a detection (``tentative_max_missed`` before it is confirmed,
+and unconfirmed at ``tentative_max_age``), or at once when a beam of the current scan passes through
+where it should be (its space is seen free). At most ``max_tracks`` live at once (the least
+supported are dropped first), so the cost is bounded however cluttered the room.
 
 The filter is a constant-velocity Kalman filter; the process noise ``accel_sigma_mps2`` is that of
 walking people (accelerations of about 1 m/s^2 when starting, stopping or turning), the measurement
@@ -37,6 +38,13 @@ class TrackerConfig:
     #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
     gate_m: float = 0.35
     max_missed: int = 10  # cycles without a detection before a track is dropped
+    #: ... before an unconfirmed one is dropped (its covariance, and so its gate, grows fast: coasting
+    #: longer it would take a detection a metre away as its own)
+    tentative_max_missed: int = 3
+    #: an unconfirmed track older than this many cycles is dropped: in 1 s the slowest body of interest
+    #: (0.15 m/s) moves 0.15 m, far more than confirmation needs; what has not moved is static, and
+    #: left alive it would grab a neighbour's detection one day and "move"
+    tentative_max_age: int = 10
     report_missed: int = 2  # tracks coasting for at most this many cycles are still reported
     default_radius_m: float = 0.30  # used before any fit gave a radius
     min_radius_m: float = 0.05
@@ -53,6 +61,12 @@ class TrackerConfig:
     confirm_window: int = 6
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
+    #: ... made step by step: at least this share of the steps advance along the net displacement (a
+    #: static thing's detection sits still and then jumps once, e.g. a box corner's circle fit)
+    confirm_advancing: float = 0.7
+    #: a circle fit whose radius differs from the track's by more than this share is no displacement
+    #: evidence (a rigid round body keeps its radius; a box corner's fit changes with the visible part)
+    confirm_radius_tol: float = 0.3
     #: detections of one body never jump faster than this plus ``step_noise_m`` between cycles (a flip
     #: of the association between two nearby things, e.g. a chair's legs, does)
     max_speed_mps: float = 2.5
@@ -86,6 +100,10 @@ class Detection:
     #: position noise of this detection (None: the tracker's meas_sigma_m)
     sigma_m: float | None = None
     kind: str = "body"
+    #: partly hidden by something nearer: a centre placed an assumed radius behind the visible points
+    #: (no circle fit) follows the occluder's edge, so it does not count as displacement for
+    #: confirmation; a fitted circle's centre does not depend on which part is visible
+    occluded: bool = False
 
 
 def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
@@ -192,8 +210,9 @@ class Track:
     hits: int = 1
     missed: int = 0
     age_cycles: int = 1
-    #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code)
-    history: list[tuple[float, float, float, float, float]] = field(default_factory=list)
+    #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
+    #: 1.0 if it was occluded else 0.0)
+    history: list[tuple[float, float, float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
     #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
@@ -232,7 +251,11 @@ class Tracker:
         track.cov = f @ track.cov @ f.T + q
         track.stamp_s = stamp_s
 
-    def _update(self, track: Track, det: Detection) -> None:
+    def _update(self, track: Track, det: Detection) -> bool:
+        """Fold the detection in; whether its fitted radius (if any) agreed with the track's."""
+        c = self.config
+        agrees = not (det.radius_fitted and track.radius_known
+                      and abs(det.radius_m - track.radius_m) > c.confirm_radius_tol * track.radius_m)
         h = np.zeros((2, 4))
         h[0, 0] = h[1, 1] = 1.0
         sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
@@ -250,6 +273,7 @@ class Tracker:
             else:
                 track.radius_m = det.radius_m
                 track.radius_known = True
+        return agrees
 
     def _steady(self, pts: np.ndarray) -> bool:
         """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker."""
@@ -258,32 +282,45 @@ class Tracker:
         step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
         return bool(np.all(step <= self.config.max_speed_mps * np.diff(pts[:, 0]) + self.config.step_noise_m))
 
-    def _confirm(self, t: Track, det: Detection) -> None:
+    def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
+        """The detection into the track's bounded windows (the birth detection too: it is where the
+        body's displacement starts). Its position is unreliable for displacement when it was placed an
+        assumed radius behind a partly occluded segment, or fitted with a radius unlike the track's."""
+        t.kind = det.kind
+        t.recent.append((t.stamp_s, det.x_m, det.y_m))
+        del t.recent[: -self.config.report_window]
+        t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
+                          float(not reliable or (det.occluded and not det.radius_fitted))))
+        del t.history[: -self.config.confirm_window]
+
+    def _confirm(self, t: Track, det: Detection, radius_agrees: bool = True) -> None:
         """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
         (net distance over the recent window, along a nearly straight path)."""
         c = self.config
         t.evidence += int(det.evidence)
-        t.kind = det.kind
-        t.recent.append((t.stamp_s, det.x_m, det.y_m))
-        del t.recent[: -c.report_window]
-        t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0)))
-        del t.history[: -c.confirm_window]
+        self._remember(t, det, radius_agrees)
         recent = sum(h[3] for h in t.history)
         if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
             return
         # a lone leg's centre and a leg pair's midpoint are different points of a body (and a pair's
         # midpoint jumps when the pairing changes): displacement counts between detections of one kind
         hist = np.array(t.history)
+        if hist[:, 5].any():  # an unreliable position in the window: no judging its path until it is gone
+            return
         hist = hist[hist[:, 4] == hist[-1, 4]]
         if hist.shape[0] < 3:
             return
         xy = hist[:, 1:3]
         net = float(np.hypot(*(xy[-1] - xy[0])))
         path = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
-        # every detection of the window with evidence: a smaller, still consistent displacement will do
-        sustained = recent == len(t.history) and hist.shape[0] >= 4
+        # every detection of the window with evidence: a smaller, still consistent displacement will do,
+        # for a circle-fitted body (good to 2-3 cm); a leg's centre jitters by more than that
+        sustained = recent == len(t.history) and hist.shape[0] >= 4 and hist[-1, 4] == _KIND_CODE["body"]
         needed = c.confirm_displacement_sustained_m if sustained else c.confirm_displacement_m
-        if net >= needed and net >= c.confirm_straightness * path and self._steady(hist):
+        steps = np.diff(xy, axis=0)
+        advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
+        if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
+                and self._steady(hist)):
             t.confirmed = True
 
     def _stale(self, t: Track) -> bool:
@@ -339,10 +376,10 @@ class Tracker:
         for ti, t in enumerate(self.tracks):
             t.age_cycles += 1
             if ti in got:
-                self._update(t, got[ti])
+                agrees = self._update(t, got[ti])
                 t.hits += 1
                 t.missed = 0
-                self._confirm(t, got[ti])
+                self._confirm(t, got[ti], agrees)
             else:
                 t.missed += 1
         for di, d in enumerate(detections):
@@ -363,12 +400,15 @@ class Tracker:
                     kind=d.kind,
                 )
             )
+            self._remember(self.tracks[-1], d)
             got[len(self.tracks) - 1] = d
             self._next_id += 1
         out: list[tuple[Track, Detection | None]] = []
         keep: list[Track] = []
         for ti, t in enumerate(self.tracks):
-            if t.missed > self.config.max_missed or self._stale(t):
+            c = self.config
+            too_old = not t.confirmed and t.age_cycles > c.tentative_max_age
+            if t.missed > (c.max_missed if t.confirmed else c.tentative_max_missed) or too_old or self._stale(t):
                 continue
             if any(
                 math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < self.config.merge_m for k in keep

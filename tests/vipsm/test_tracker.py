@@ -181,3 +181,77 @@ def test_a_person_who_stops_is_no_longer_reported_though_the_detection_keeps_jum
                 elif 0.6 <= t <= 2.0:
                     assert tr.reported(trk)  # while walking: reported
     assert reported <= 0.02 * standing
+
+
+def test_the_birth_detection_counts_toward_confirmation() -> None:
+    tr = Tracker(TrackerConfig())
+    first = None
+    for k in range(10):
+        out = tr.step(0.1 * k, [_det(1.0 + 0.1 * k, 0.5)])
+        if first is None and any(tr.reported(t) for t, _ in out):
+            first = k
+    assert first == TrackerConfig().confirm_hits - 1  # the third detection, the birth one included
+
+
+def test_an_unconfirmed_track_coasting_does_not_grab_a_detection_far_away() -> None:
+    """cylinder_clutter seed 7: a tentative track coasted 7 cycles, its gate grew to metres and it took
+    a table leg 1.1 m away as its own, which "moved" it far enough to confirm."""
+    tr = Tracker(TrackerConfig())
+    tr.step(0.0, [_det(8.06, 1.52, kind="leg")])
+    tr.step(0.1, [_det(8.08, 1.55, kind="leg")])
+    for k in range(2, 9):
+        tr.step(0.1 * k, [])
+    out = tr.step(0.9, [_det(6.95, 1.24, kind="leg")])
+    assert [t.track_id for t, _ in out] == [2] and not out[0][0].confirmed
+
+
+def test_an_unconfirmed_track_that_never_moves_dies_young() -> None:
+    cfg = TrackerConfig()
+    tr = Tracker(cfg)
+    rng = np.random.default_rng(1)
+    ids = set()
+    for k in range(40):  # a post with camera evidence every cycle (the moving body beside it)
+        for t, _ in tr.step(0.1 * k, [_det(5.93 + rng.normal(0, 0.005), -1.2, kind="leg")]):
+            assert t.age_cycles <= cfg.tentative_max_age + 1 and not t.confirmed
+            ids.add(t.track_id)
+    assert len(ids) >= 3  # born again and again, never old enough to take a neighbour's detection
+
+
+def test_a_detection_that_sits_still_then_jumps_once_does_not_confirm() -> None:
+    """A box corner's circle fit: still for a few cycles, then 0.1 m off in one jump (seed 3)."""
+    tr = Tracker(TrackerConfig())
+    xs = [7.30, 7.30, 7.29, 7.30, 7.26, 7.21]
+    for k, x in enumerate(xs):
+        for t, _ in tr.step(0.1 * k, [_det(x, 1.45 + 0.5 * (7.30 - x), kind="body")]):
+            assert not t.confirmed
+
+
+def test_an_occluded_detection_drifting_with_the_occluders_edge_does_not_confirm() -> None:
+    """A bin being hidden by the cylinder passing in front: its visible part shrinks, its estimated
+    centre drifts steadily. The same drift unoccluded is motion and confirms."""
+    for occluded, expect in ((True, False), (False, True)):
+        tr = Tracker(TrackerConfig())
+        confirmed = False
+        for k in range(8):
+            det = Detection(6.83, -1.14 - 0.02 * k, 0.25, False, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.12,
+                            kind="leg", occluded=occluded)
+            confirmed |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
+        assert confirmed is expect
+
+
+def test_a_fitted_circle_whose_radius_keeps_changing_is_no_displacement_evidence() -> None:
+    """A box corner uncovered behind a passing body (cylinder_clutter seed 2, the detections as they
+    were): circle fits of 0.09, 0.11, 0.17, 0.11 m, the centre jumping with the visible part. A rigid
+    round body keeps its radius: the same positions with a steady radius would be motion."""
+    xy = [(5.98, -0.98), (5.99, -1.00), (6.04, -1.05), (5.98, -1.02)]
+
+    def run(radii: list[float]) -> bool:
+        tr = Tracker(TrackerConfig())
+        confirmed = False
+        for k, ((x, y), r) in enumerate(zip(xy, radii, strict=True)):
+            det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", occluded=True)
+            confirmed |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
+        return confirmed
+
+    assert not run([0.090, 0.108, 0.172, 0.112])
+    assert run([0.10, 0.10, 0.10, 0.10])

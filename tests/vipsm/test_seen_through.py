@@ -1,0 +1,94 @@
+"""vipsm.seen_through: the free-space test at beam resolution (a thin leg uncovered from behind
+another was never seen through, though its 10 cm grid cell was crossed)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vipsm.seen_through import ScanMemory, SeenThroughConfig
+from vipsm.static_map import FreeSpaceGrid
+from vipsm.types import Pose2D
+
+from .sim import UTM_BEARINGS, Circle, box_room
+
+A = Pose2D(0.0, 0.0, 0.0)
+
+
+def _points(scan, pose: Pose2D) -> np.ndarray:
+    ang = pose.theta_rad + scan.bearings_rad
+    return np.stack([pose.x_m + scan.ranges_m * np.cos(ang), pose.y_m + scan.ranges_m * np.sin(ang)], axis=1)
+
+
+def test_a_table_leg_uncovered_from_behind_a_chair_leg_was_never_seen_through() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    world.circles = [Circle(1.5, 0.0, 0.0125), Circle(3.0, 0.0, 0.0225)]  # chair leg hides the table leg
+    grid, memory = FreeSpaceGrid(), ScanMemory()
+    for k in range(10):
+        scan = world.scan(A)
+        grid.integrate(0.1 * k, (0.0, 0.0), 0.0, scan.ranges_m, scan.bearings_rad)
+        memory.push(A, scan.ranges_m, scan.bearings_rad)
+    b = Pose2D(0.0, 0.4, 0.0)  # the robot moved aside: the table leg comes into view
+    pts = _points(world.scan(b), b)
+    leg = pts[np.hypot(pts[:, 0] - 3.0, pts[:, 1]) < 0.05]
+    assert leg.shape[0] >= 3
+    assert grid.violates(leg).all()  # the grid's cells around it were crossed by beams beside the shadow
+    assert not memory.seen_through(leg).any()  # no beam ever passed beyond the leg itself
+
+
+def test_space_the_beams_passed_is_seen_through_surfaces_and_unknown_space_are_not() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    memory = ScanMemory()
+    scan = world.scan(A)
+    memory.push(A, scan.ranges_m, scan.bearings_rad)
+    pts = np.array([[2.0, 0.5], [5.95, 0.0], [6.5, 0.0], [-1.0, 0.1], [2.0, 0.0]])
+    # open floor / at the far wall (x = 6) / behind it / behind the laser (outside its 270 deg) / open floor
+    assert memory.seen_through(pts).tolist() == [True, False, False, False, True]
+
+
+def test_a_beam_without_return_is_no_evidence_of_free_space() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    scan = world.scan(A)
+    r = scan.ranges_m.copy()
+    k = int(np.argmin(np.abs(scan.bearings_rad)))
+    r[k - 3 : k + 4] = np.nan  # dropped (a mixed pixel, a dark surface)
+    memory = ScanMemory()
+    memory.push(A, r, scan.bearings_rad)
+    assert not memory.seen_through(np.array([[3.0, 0.0]]))[0]
+    assert memory.seen_through(np.array([[3.0, 0.5]]))[0]
+
+
+def test_any_kept_scan_counts_and_the_memory_is_bounded() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    memory = ScanMemory(SeenThroughConfig(scans=3))
+    world.circles = [Circle(3.0, 0.0, 0.2)]
+    scan = world.scan(A)
+    memory.push(A, scan.ranges_m, scan.bearings_rad)  # the body stood there
+    world.circles = []
+    empty = world.scan(A)
+    memory.push(A, empty.ranges_m, empty.bearings_rad)  # then the space was free
+    assert memory.seen_through(np.array([[2.9, 0.0]]))[0]
+    for _ in range(5):
+        memory.push(A, scan.ranges_m, scan.bearings_rad)
+    assert len(memory) == 3 and not memory.seen_through(np.array([[2.9, 0.0]]))[0]
+
+
+def test_a_moved_laser_is_taken_into_account() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    pose = Pose2D(1.0, 1.0, math.radians(30.0))
+    scan = world.scan(pose)
+    memory = ScanMemory()
+    memory.push(pose, scan.ranges_m, scan.bearings_rad)
+    wall = _points(scan, pose)[540]
+    ahead = pose.x_m + 0.5 * (wall[0] - pose.x_m), pose.y_m + 0.5 * (wall[1] - pose.y_m)
+    assert memory.seen_through(np.array([ahead]))[0] and not memory.seen_through(wall[None, :])[0]
+
+
+def test_bad_input_is_refused() -> None:
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(scans=0))
+    with pytest.raises(ValueError):
+        ScanMemory().push(A, np.ones(5), UTM_BEARINGS)
+    assert ScanMemory().seen_through(np.zeros((0, 2))).shape == (0,)
