@@ -53,12 +53,14 @@ class ScanMemory:
         return len(self._scans)
 
     def push(self, laser: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray) -> None:
-        """Keep a scan (copied) taken from ``laser`` (world frame); the oldest falls out."""
+        """Keep a scan (copied, in bearing order) taken from ``laser`` (world frame); the oldest falls
+        out. A scan without beams is kept too (it saw nothing through)."""
         r = np.array(ranges_m, dtype=np.float64)
         b = np.array(bearings_rad, dtype=np.float64)
-        if r.shape != b.shape or r.ndim != 1 or r.size < 2:
-            raise ValueError("ranges and bearings must be 1-D arrays of one length (at least 2 beams)")
-        self._scans.append((laser, r, b))
+        if r.shape != b.shape or r.ndim != 1:
+            raise ValueError("ranges and bearings must be 1-D arrays of one length")
+        order = np.argsort(b, kind="stable")
+        self._scans.append((laser, r[order], b[order]))
 
     def seen_through(self, points_xy: np.ndarray) -> np.ndarray:
         """Per point (world frame, k x 2): some kept scan's beams all passed beyond it."""
@@ -69,16 +71,15 @@ class ScanMemory:
             todo = ~out
             if not todo.any():
                 break
-            out[todo] = _passed_beyond(pts[todo, 0], pts[todo, 1], laser.x_m, laser.y_m, laser.theta_rad, r,
-                                       b[0], (b[-1] - b[0]) / (b.size - 1), c.lateral_tol_m, c.range_margin_m)
+            out[todo] = _passed_beyond(pts[todo, 0], pts[todo, 1], laser.x_m, laser.y_m, laser.theta_rad, r, b,
+                                       c.lateral_tol_m, c.range_margin_m)
         return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _passed_beyond(px, py, lx, ly, lth, r, b0, db, lateral_m, margin_m):  # pragma: no cover - compiled
-    """Per point: every beam of the scan (uniform bearings b0 + k db) whose ray passes within
+def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m):  # pragma: no cover - compiled
+    """Per point: every beam of the scan (bearings ``b`` ascending) whose ray passes within
     ``lateral_m`` of the point returned at least ``margin_m`` beyond it (and there is such a beam)."""
-    n = r.size
     out = np.zeros(px.size, np.bool_)
     ct, st = math.cos(lth), math.sin(lth)
     for k in range(px.size):
@@ -89,13 +90,12 @@ def _passed_beyond(px, py, lx, ly, lth, r, b0, db, lateral_m, margin_m):  # prag
             continue  # the point is at the laser: nothing to say
         bearing = math.atan2(yl, xl)
         half = math.asin(lateral_m / dist)
-        lo = math.ceil((bearing - half - b0) / db) if db > 0 else math.ceil((bearing + half - b0) / db)
-        hi = math.floor((bearing + half - b0) / db) if db > 0 else math.floor((bearing - half - b0) / db)
-        lo, hi = max(lo, 0), min(hi, n - 1)
-        if lo > hi:
+        lo = np.searchsorted(b, bearing - half, side="left")
+        hi = np.searchsorted(b, bearing + half, side="right")
+        if lo >= hi:
             continue  # outside the scan's field of view, or between two beams: unknown
         ok = True
-        for j in range(lo, hi + 1):
+        for j in range(lo, hi):
             if not (math.isfinite(r[j]) and r[j] >= dist + margin_m):
                 ok = False
                 break

@@ -92,3 +92,16 @@ def test_bad_input_is_refused() -> None:
     with pytest.raises(ValueError):
         ScanMemory().push(A, np.ones(5), UTM_BEARINGS)
     assert ScanMemory().seen_through(np.zeros((0, 2))).shape == (0,)
+    empty = ScanMemory()
+    empty.push(A, np.zeros(0), np.zeros(0))  # an unusable, empty scan saw nothing through
+    assert not empty.seen_through(np.array([[1.0, 0.0]]))[0]
+
+
+def test_a_scan_in_falling_bearing_order_is_read_the_same() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    scan = world.scan(A)
+    fwd, rev = ScanMemory(), ScanMemory()
+    fwd.push(A, scan.ranges_m, scan.bearings_rad)
+    rev.push(A, scan.ranges_m[::-1], scan.bearings_rad[::-1])
+    pts = np.array([[2.0, 0.5], [5.95, 0.0], [1.0, -1.0], [6.5, 0.0]])
+    assert fwd.seen_through(pts).tolist() == rev.seen_through(pts).tolist() == [True, False, True, False]
