@@ -211,7 +211,7 @@ class Track:
     missed: int = 0
     age_cycles: int = 1
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
-    #: 1.0 if it was occluded else 0.0)
+    #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``)
     history: list[tuple[float, float, float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
@@ -251,11 +251,12 @@ class Tracker:
         track.cov = f @ track.cov @ f.T + q
         track.stamp_s = stamp_s
 
-    def _update(self, track: Track, det: Detection) -> bool:
-        """Fold the detection in; whether its fitted radius (if any) agreed with the track's."""
-        c = self.config
-        agrees = not (det.radius_fitted and track.radius_known
-                      and abs(det.radius_m - track.radius_m) > c.confirm_radius_tol * track.radius_m)
+    def _radius_agrees(self, track: Track, det: Detection) -> bool:
+        """A fitted radius (if any) within ``confirm_radius_tol`` of the track's (before it is folded in)."""
+        tol = self.config.confirm_radius_tol * track.radius_m
+        return not (det.radius_fitted and track.radius_known and abs(det.radius_m - track.radius_m) > tol)
+
+    def _update(self, track: Track, det: Detection) -> None:
         h = np.zeros((2, 4))
         h[0, 0] = h[1, 1] = 1.0
         sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
@@ -273,7 +274,6 @@ class Tracker:
             else:
                 track.radius_m = det.radius_m
                 track.radius_known = True
-        return agrees
 
     def _steady(self, pts: np.ndarray) -> bool:
         """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker."""
@@ -376,7 +376,8 @@ class Tracker:
         for ti, t in enumerate(self.tracks):
             t.age_cycles += 1
             if ti in got:
-                agrees = self._update(t, got[ti])
+                agrees = self._radius_agrees(t, got[ti])
+                self._update(t, got[ti])
                 t.hits += 1
                 t.missed = 0
                 self._confirm(t, got[ti], agrees)
@@ -405,8 +406,8 @@ class Tracker:
             self._next_id += 1
         out: list[tuple[Track, Detection | None]] = []
         keep: list[Track] = []
+        c = self.config
         for ti, t in enumerate(self.tracks):
-            c = self.config
             too_old = not t.confirmed and t.age_cycles > c.tentative_max_age
             if t.missed > (c.max_missed if t.confirmed else c.tentative_max_missed) or too_old or self._stale(t):
                 continue
