@@ -250,9 +250,9 @@ def _leg_centre(points: np.ndarray, sensor: tuple[float, float], cfg: BodiesConf
     """A leg's centre: one leg radius behind its points. With fewer than ``min_fit_points`` returns (a
     thin leg at range: 3-4 beams) the mean of the points, pushed back along the ray to it: a
     fixed-radius fit to so few noisy points slides along and across the ray by several centimetres
-    (with 2 cm range noise a 45 mm leg's fitted centre jittered 2.5 cm across and 1.7 cm along the
-    ray, sd, against none across and 1.1 cm along for the mean; a table leg's detection jumped 9 cm
-    in two cycles and was confirmed as moving, cylinder_clutter seed 9)."""
+    (with the UTM-30LX's 2 cm range noise a 45 mm leg's fitted centre jittered 3 cm across and 2 cm
+    along the ray, against 1 cm along and none across for the mean; a table leg's detection jumped
+    9 cm in two cycles and was confirmed as moving, cylinder_clutter seed 9)."""
     if points.shape[0] >= cfg.min_fit_points:
         lx, ly, _, _ = locate_body(points, sensor, cfg.leg_radius_m, tracker_cfg)
         return lx, ly
