@@ -44,8 +44,6 @@ class BodiesConfig:
     #: a leg at the laser's height (shin, trousered): 0.05-0.25 m across the segment
     max_leg_width_m: float = 0.25
     leg_radius_m: float = 0.06
-    #: a leg with fewer returns is placed from their mean, not by a fit (see ``_leg_centre``)
-    min_fit_points: int = 5
     #: two legs of one person: centres at most this far apart (stride at laser height ~0.6 m)
     leg_pair_max_m: float = 0.65
     max_body_width_m: float = 1.2
@@ -230,7 +228,7 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:
-            lx, ly = _leg_centre(sg.points, sensor, cfg, tracker_cfg)
+            lx, ly, _, _ = locate_body(sg.points, sensor, cfg.leg_radius_m, tracker_cfg)
             legs.append((sg, lx, ly))
         else:
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
@@ -243,23 +241,6 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
         kind = "person" if j is not None else "leg"
         bodies.append(_body(x, y, cfg.person_radius_m, False, kind, [g[0] for g in group], bearings_rad, cfg))
     return bodies
-
-
-def _leg_centre(points: np.ndarray, sensor: tuple[float, float], cfg: BodiesConfig, tracker_cfg: TrackerConfig
-                ) -> tuple[float, float]:
-    """A leg's centre: one leg radius behind its points. With fewer than ``min_fit_points`` returns (a
-    thin leg at range: 3-4 beams) the mean of the points, pushed back along the ray to it: a
-    fixed-radius fit to so few noisy points slides along and across the ray by several centimetres
-    (with the UTM-30LX's 2 cm range noise a 45 mm leg's fitted centre jittered 3 cm across and 2 cm
-    along the ray, against 1 cm along and none across for the mean; a table leg's detection jumped
-    9 cm in two cycles and was confirmed as moving, cylinder_clutter seed 9)."""
-    if points.shape[0] >= cfg.min_fit_points:
-        lx, ly, _, _ = locate_body(points, sensor, cfg.leg_radius_m, tracker_cfg)
-        return lx, ly
-    centroid = points.mean(axis=0)
-    ray = centroid - np.asarray(sensor, dtype=float)
-    c = centroid + cfg.leg_radius_m * ray / max(float(np.hypot(ray[0], ray[1])), 1e-9)
-    return float(c[0]), float(c[1])
 
 
 def _body(x: float, y: float, radius: float, fitted: bool, kind: str, segs: list[_Segment],
