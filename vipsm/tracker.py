@@ -71,6 +71,9 @@ class TrackerConfig:
     #: of the association between two nearby things, e.g. a chair's legs, does)
     max_speed_mps: float = 2.5
     step_noise_m: float = 0.1
+    #: ... plus this when the detection's kind changes between them: a lone leg's centre lies up to half
+    #: the widest leg pair (``BodiesConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
+    kind_change_m: float = 0.33
     #: confirmed tracks slower than this (a body that stopped) are not reported: both the filter's
     #: speed and the net displacement of the detections over the last ``report_window`` of them
     report_min_speed_mps: float = 0.08
@@ -199,6 +202,24 @@ def locate_body(
 _KIND_CODE = {"body": 0.0, "leg": 1.0, "person": 2.0}
 
 
+def kind_aligned(rows: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+    """(stamp_s, x_m, y_m, kind) rows of one body: the least-squares velocity common to all rows with
+    an offset per kind (a lone leg's centre and a leg pair's midpoint are different points of a person,
+    so a change of kind moves the detection without the body moving), and the positions moved onto the
+    newest row's kind by those offsets. A kind seen once carries no velocity information."""
+    t, xy, kinds = rows[:, 0], rows[:, 1:3].copy(), rows[:, 3]
+    tc, xyc = t.copy(), xy.copy()
+    for k in np.unique(kinds):
+        m = kinds == k
+        tc[m] -= t[m].mean()
+        xyc[m] -= xy[m].mean(axis=0)
+    den = float(tc @ tc)
+    v = (tc @ xyc) / den if den > 0.0 else np.zeros(2)
+    offsets = {k: xy[kinds == k].mean(axis=0) - v * t[kinds == k].mean() for k in np.unique(kinds)}
+    aligned = xy - np.array([offsets[k] for k in kinds]) + offsets[kinds[-1]]
+    return aligned, (float(v[0]), float(v[1]))
+
+
 @dataclass
 class Track:
     track_id: int
@@ -216,7 +237,7 @@ class Track:
     evidence: int = 0
     confirmed: bool = False
     #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
-    recent: list[tuple[float, float, float]] = field(default_factory=list)
+    recent: list[tuple[float, float, float, float]] = field(default_factory=list)  # stamp, x, y, kind
     birth_xy: tuple[float, float] = (0.0, 0.0)
     kind: str = "body"
 
@@ -275,19 +296,24 @@ class Tracker:
                 track.radius_m = det.radius_m
                 track.radius_known = True
 
-    def _steady(self, pts: np.ndarray) -> bool:
-        """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker."""
+    def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None) -> bool:
+        """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker (``kinds``: per row, the
+        detection's kind code; a step between kinds may also move between a leg and a pair's midpoint)."""
         if pts.shape[0] < 2:
             return True
+        c = self.config
         step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
-        return bool(np.all(step <= self.config.max_speed_mps * np.diff(pts[:, 0]) + self.config.step_noise_m))
+        allowed = c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m
+        if kinds is not None:
+            allowed = allowed + c.kind_change_m * (np.diff(kinds) != 0.0)
+        return bool(np.all(step <= allowed))
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
         """The detection into the track's bounded windows (the birth detection too: it is where the
         body's displacement starts). Its position is unreliable for displacement when it was placed an
         assumed radius behind a partly occluded segment, or fitted with a radius unlike the track's."""
         t.kind = det.kind
-        t.recent.append((t.stamp_s, det.x_m, det.y_m))
+        t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
                           float(not reliable or (det.occluded and not det.radius_fitted))))
@@ -334,18 +360,16 @@ class Tracker:
         if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
             return False
         rec = np.array(t.recent)
-        if not self._steady(rec):
+        if not self._steady(rec, rec[:, 3]):
             return False
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
-        step = np.hypot(np.diff(rec[:, 1]), np.diff(rec[:, 2]))
-        net = math.hypot(rec[-1, 1] - rec[0, 1], rec[-1, 2] - rec[0, 2])
+        xy, v = kind_aligned(rec)
+        step = np.hypot(*np.diff(xy, axis=0).T)
+        net = float(np.hypot(*(xy[-1] - xy[0])))
         if net < c.report_straightness * float(step.sum()):
             return False  # back and forth: a standing body's detection jumping between legs and wall
-        tt = rec[:, 0] - rec[:, 0].mean()
-        vx = float(tt @ (rec[:, 1] - rec[:, 1].mean()) / (tt @ tt))
-        vy = float(tt @ (rec[:, 2] - rec[:, 2].mean()) / (tt @ tt))
-        return math.hypot(vx, vy) >= c.report_window_speed_mps
+        return math.hypot(*v) >= c.report_window_speed_mps
 
     def drop_seen_free(self, seen_free: Any) -> None:
         """Drop coasting tracks whose predicted position a beam of the current scan passed through."""
