@@ -23,6 +23,7 @@ nearest point along the viewing ray.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -86,6 +87,12 @@ class TrackerConfig:
     #: share of the path (a standing person's detections jump back and forth by 0.1-0.3 m)
     report_straightness: float = 0.35
     max_tracks: int = 24
+    #: a track born from motion evidence starts at its body's detections in up to this many earlier
+    #: cycles that no track took (chained back nearest first within a walker's step): a slow body is
+    #: seen before its motion is (the camera's flow needs frames 0.3 s apart, the free-space grid a
+    #: cell's width of motion), and that stretch already shows whether it moves. They count as hits
+    #: without motion evidence, so confirmation still needs a second cycle with evidence.
+    retro_cycles: int = 5
 
 
 @dataclass(frozen=True)
@@ -253,6 +260,9 @@ class Tracker:
         self.config = config or TrackerConfig()
         self.tracks: list[Track] = []
         self._next_id = 1
+        #: the last ``retro_cycles`` cycles' detections that no confirmed track took and that started no
+        #: track: (stamp_s, detections)
+        self._past: deque[tuple[float, list[Detection]]] = deque(maxlen=self.config.retro_cycles)
 
     def predict_position(self, track: Track, stamp_s: float) -> tuple[float, float]:
         dt = max(stamp_s - track.stamp_s, 0.0)
@@ -375,6 +385,51 @@ class Tracker:
         """Drop coasting tracks whose predicted position a beam of the current scan passed through."""
         self.tracks = [t for t in self.tracks if t.missed == 0 or not seen_free(float(t.state[0]), float(t.state[1]))]
 
+    def _chain_back(self, stamp_s: float, det: Detection) -> list[tuple[float, Detection]]:
+        """The body's detections in the kept earlier cycles, oldest first: from ``det`` back, the
+        nearest one within a walker's step of the last found, until a cycle has none (each taken out
+        of the memory: it starts no other track). A detection whose position is unreliable (placed an
+        assumed radius behind a partly occluded segment) ends the chain: it would hold confirmation
+        back for a whole window."""
+        c = self.config
+        chain: list[tuple[float, Detection]] = []
+        head_s, head = stamp_s, det
+        for past_s, dets in reversed(self._past):
+            reach = c.max_speed_mps * (head_s - past_s) + c.step_noise_m
+            near = []
+            for i, d in enumerate(dets):
+                dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m)
+                slack = c.kind_change_m if d.kind != head.kind else 0.0
+                if dist <= reach + slack and not (d.occluded and not d.radius_fitted):
+                    near.append((dist - slack, i))
+            if not near:
+                break
+            head_s, head = past_s, dets.pop(min(near)[1])
+            chain.append((head_s, head))
+        return chain[::-1]
+
+    def _start(self, stamp_s: float, det: Detection) -> Track:
+        """A new track from a detection with motion evidence, run through its body's earlier detections."""
+        chain = self._chain_back(stamp_s, det) + [(stamp_s, det)]
+        t0_s, d0 = chain[0]
+        sigma = self.config.meas_sigma_m if d0.sigma_m is None else d0.sigma_m
+        p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
+        track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
+                      evidence=int(d0.evidence), birth_xy=(d0.x_m, d0.y_m), kind=d0.kind)
+        self._next_id += 1
+        self._remember(track, d0)
+        for t_s, d in chain[1:]:
+            self._predict(track, t_s)
+            agrees = self._radius_agrees(track, d)
+            self._update(track, d)
+            track.hits += 1
+            track.age_cycles += 1
+            self._confirm(track, d, agrees)
+        # the report window judges whether the body moves now: it starts where motion was first seen
+        # (the earlier stretch may be the body standing before it started, e.g. the paper's cylinder)
+        del track.recent[:-1]
+        return track
+
     def step(self, stamp_s: float, detections: list[Detection]) -> list[tuple[Track, Detection | None]]:
         """Advance all tracks to ``stamp_s`` and fold in the detections. Returns the live tracks with
         the detection each received (None when coasting)."""
@@ -407,27 +462,18 @@ class Tracker:
                 self._confirm(t, got[ti], agrees)
             else:
                 t.missed += 1
+        # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
+        # where it was should see the same static past, not start afresh with a short window)
+        held = {id(d) for ti, d in got.items() if self.tracks[ti].confirmed}
+        spare = [di for di, d in enumerate(detections) if id(d) not in held]
+        born = set()
         for di, d in enumerate(detections):
             if di in used_d or not d.evidence:
                 continue  # only motion evidence starts a track
-            sigma = self.config.meas_sigma_m if d.sigma_m is None else d.sigma_m
-            p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
-            self.tracks.append(
-                Track(
-                    self._next_id,
-                    np.array([d.x_m, d.y_m, 0.0, 0.0]),
-                    p,
-                    d.radius_m,
-                    d.radius_fitted,
-                    stamp_s,
-                    evidence=int(d.evidence),
-                    birth_xy=(d.x_m, d.y_m),
-                    kind=d.kind,
-                )
-            )
-            self._remember(self.tracks[-1], d)
+            born.add(di)
+            self.tracks.append(self._start(stamp_s, d))
             got[len(self.tracks) - 1] = d
-            self._next_id += 1
+        self._past.append((stamp_s, [detections[di] for di in spare if di not in born]))
         out: list[tuple[Track, Detection | None]] = []
         keep: list[Track] = []
         c = self.config
