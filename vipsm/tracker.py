@@ -9,9 +9,14 @@ and unconfirmed at ``tentative_max_age``), or at once when a beam of the current
 where it should be (its space is seen free). At most ``max_tracks`` live at once (the least
 supported are dropped first), so the cost is bounded however cluttered the room.
 
-The filter is a constant-velocity Kalman filter; the process noise ``accel_sigma_mps2`` is that of
-walking people (accelerations of about 1 m/s^2 when starting, stopping or turning), the measurement
-noise comes with each detection (a leg-pair midpoint jitters with the gait more than a circle fit).
+The filter is an interacting-multiple-model (IMM) filter of two constant-velocity models, one with
+the small process noise of steady walking (0.2 m/s^2: a walker's speed wanders by about 0.1 m/s over a
+few seconds) and one with that of a manoeuvre (2 m/s^2: starting, stopping, turning, stepping aside
+take about half a second); the mode probabilities follow which one explains the detections. One
+model would have to choose: steady enough to average out the gait's 0.1-0.2 m/s wobble of the leg
+midpoint, or quick enough to follow a sidestep. The measurement noise comes with each detection (a
+leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
+changed (another point of the body).
 
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
@@ -33,7 +38,10 @@ from numba import njit
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    accel_sigma_mps2: float = 0.5  # process noise of the constant-velocity model
+    #: process noise of each constant-velocity model of the IMM: steady walking, manoeuvring
+    accel_sigmas_mps2: tuple[float, ...] = (0.2, 2.0)
+    #: probability per cycle of switching from one model to another (mean stay 2 s at 0.1 s cycles)
+    mode_switch_prob: float = 0.05
     meas_sigma_m: float = 0.03  # position measurement noise
     init_speed_sigma_mps: float = 1.0
     #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
@@ -86,6 +94,9 @@ class TrackerConfig:
     #: ... and over that window the detections must go somewhere: net displacement at least this
     #: share of the path (a standing person's detections jump back and forth by 0.1-0.3 m)
     report_straightness: float = 0.35
+    #: ... and so must the newest this many of them (a walker who stopped 0.5 s ago: the window's older
+    #: half still shows the walk)
+    report_recent: int = 5
     max_tracks: int = 24
     #: a track born from motion evidence starts at its body's detections in up to this many earlier
     #: cycles that no track took (chained back nearest first within a walker's step): a slow body is
@@ -93,6 +104,16 @@ class TrackerConfig:
     #: cell's width of motion), and that stretch already shows whether it moves. They count as hits
     #: without motion evidence, so confirmation still needs a second cycle with evidence.
     retro_cycles: int = 5
+
+    def __post_init__(self) -> None:
+        if not self.accel_sigmas_mps2 or min(self.accel_sigmas_mps2) <= 0.0:
+            raise ValueError(f"accel_sigmas_mps2 needs at least one positive value, got {self.accel_sigmas_mps2}")
+        if not 0.0 <= self.mode_switch_prob < 1.0:
+            raise ValueError(f"mode_switch_prob must be in [0, 1), got {self.mode_switch_prob}")
+        if min(self.report_window, self.report_recent) < 2 or self.confirm_window < 3:
+            raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
+        if self.max_tracks < 1 or self.retro_cycles < 0:
+            raise ValueError("need max_tracks >= 1 and retro_cycles >= 0")
 
 
 @dataclass(frozen=True)
@@ -205,6 +226,14 @@ def locate_body(
     return cx, cy, radius, fitted
 
 
+def _combine(track: Track) -> None:
+    """The track's state and covariance from its models' (a mixture's mean and spread)."""
+    mu, xs = track.model_probs, track.model_states
+    track.state = mu @ xs
+    d = xs - track.state
+    track.cov = np.einsum("i,ikl->kl", mu, track.model_covs + d[:, :, None] * d[:, None, :])
+
+
 #: detection kinds as numbers in a track's history
 _KIND_CODE = {"body": 0.0, "leg": 1.0, "person": 2.0}
 
@@ -247,6 +276,11 @@ class Track:
     recent: list[tuple[float, float, float, float]] = field(default_factory=list)  # stamp, x, y, kind
     birth_xy: tuple[float, float] = (0.0, 0.0)
     kind: str = "body"
+    #: the IMM's models: state (n, 4), covariance (n, 4, 4) and probability (n) of each; ``state`` and
+    #: ``cov`` are their combination
+    model_states: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    model_covs: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    model_probs: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def speed_mps(self) -> float:
@@ -269,17 +303,32 @@ class Tracker:
         return float(track.state[0] + track.state[2] * dt), float(track.state[1] + track.state[3] * dt)
 
     def _predict(self, track: Track, stamp_s: float) -> None:
+        """The IMM's prediction: mix the models' estimates by the switching probabilities, predict each
+        with its own process noise, combine."""
         dt = stamp_s - track.stamp_s
         if dt <= 0.0:
             return
+        xs, ps, mu = track.model_states, track.model_covs, track.model_probs
+        n = mu.shape[0]
+        sw = self.config.mode_switch_prob if n > 1 else 0.0
+        trans = np.full((n, n), sw / max(n - 1, 1))
+        np.fill_diagonal(trans, 1.0 - sw)
+        prior = trans.T @ mu
+        w = trans * mu[:, None] / np.maximum(prior[None, :], 1e-300)  # w[i, j]: from model i into j
         f = np.eye(4)
         f[0, 2] = f[1, 3] = dt
-        q1 = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]) * self.config.accel_sigma_mps2**2
-        q = np.zeros((4, 4))
-        q[np.ix_([0, 2], [0, 2])] = q1
-        q[np.ix_([1, 3], [1, 3])] = q1
-        track.state = f @ track.state
-        track.cov = f @ track.cov @ f.T + q
+        q1 = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+        for j, sigma in enumerate(self.config.accel_sigmas_mps2):
+            x0 = w[:, j] @ xs
+            d = xs - x0
+            p0 = np.einsum("i,ikl->kl", w[:, j], ps + d[:, :, None] * d[:, None, :])
+            q = np.zeros((4, 4))
+            q[np.ix_([0, 2], [0, 2])] = q1 * sigma**2
+            q[np.ix_([1, 3], [1, 3])] = q1 * sigma**2
+            track.model_states[j] = f @ x0
+            track.model_covs[j] = f @ p0 @ f.T + q
+        track.model_probs = prior
+        _combine(track)
         track.stamp_s = stamp_s
 
     def _radius_agrees(self, track: Track, det: Detection) -> bool:
@@ -288,16 +337,29 @@ class Tracker:
         return not (det.radius_fitted and track.radius_known and abs(det.radius_m - track.radius_m) > tol)
 
     def _update(self, track: Track, det: Detection) -> None:
-        h = np.zeros((2, 4))
-        h[0, 0] = h[1, 1] = 1.0
+        """The IMM's update: each model's Kalman update, the mode probabilities by how well each model
+        predicted the detection, combine."""
         sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
+        if det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
+            sigma = math.hypot(sigma, 0.5 * self.config.kind_change_m)
         r = np.eye(2) * sigma**2
         z = np.array([det.x_m, det.y_m])
-        s = h @ track.cov @ h.T + r
-        k = track.cov @ h.T @ np.linalg.inv(s)
-        track.state = track.state + k @ (z - h @ track.state)
-        track.cov = (np.eye(4) - k @ h) @ track.cov
-        track.cov = 0.5 * (track.cov + track.cov.T)
+        likelihood = np.empty(track.model_probs.shape[0])
+        for j in range(likelihood.shape[0]):
+            x, p = track.model_states[j], track.model_covs[j]
+            s = p[:2, :2] + r
+            s_inv = np.linalg.inv(s)
+            nu = z - x[:2]
+            k = p[:, :2] @ s_inv
+            track.model_states[j] = x + k @ nu
+            pj = p - k @ p[:2, :]
+            track.model_covs[j] = 0.5 * (pj + pj.T)
+            likelihood[j] = math.exp(-0.5 * float(nu @ s_inv @ nu)) / (2.0 * math.pi * math.sqrt(np.linalg.det(s)))
+        mu = track.model_probs * likelihood
+        total = float(mu.sum())
+        if total > 0.0 and math.isfinite(total):  # else (a detection no model expects) keep the prior
+            track.model_probs = mu / total
+        _combine(track)
         if det.radius_fitted:
             if track.radius_known:
                 a = self.config.radius_smoothing
@@ -375,10 +437,12 @@ class Tracker:
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
         xy, v = kind_aligned(rec)
-        step = np.hypot(*np.diff(xy, axis=0).T)
-        net = float(np.hypot(*(xy[-1] - xy[0])))
-        if net < c.report_straightness * float(step.sum()):
-            return False  # back and forth: a standing body's detection jumping between legs and wall
+        # back and forth, over the window or its newest part: a standing body's detection jumping
+        # between legs and wall, or a walker who stopped half a window ago
+        for part in (xy, xy[-c.report_recent :]):
+            step = np.hypot(*np.diff(part, axis=0).T)
+            if float(np.hypot(*(part[-1] - part[0]))) < c.report_straightness * float(step.sum()):
+                return False
         return math.hypot(*v) >= c.report_window_speed_mps
 
     def drop_seen_free(self, seen_free: Any) -> None:
@@ -417,6 +481,9 @@ class Tracker:
         track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
                       evidence=int(d0.evidence), birth_xy=(d0.x_m, d0.y_m), kind=d0.kind)
         self._next_id += 1
+        n = len(self.config.accel_sigmas_mps2)
+        track.model_states, track.model_covs = np.tile(track.state, (n, 1)), np.tile(track.cov, (n, 1, 1))
+        track.model_probs = np.full(n, 1.0 / n)
         self._remember(track, d0)
         for t_s, d in chain[1:]:
             self._predict(track, t_s)

@@ -44,6 +44,8 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("nope=1", "nope", "unknown key"),
         ("loop=3", "loop", "expected a table"),
         ("log.queue_size=10000000000", "log.queue_size", "<= 65536"),
+        ("estimator.tracker.accel_sigmas_mps2=[]", "estimator.tracker", "at least one positive"),
+        ("estimator.tracker.mode_switch_prob=1.5", "estimator.tracker", "mode_switch_prob must be in [0, 1)"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )

@@ -376,3 +376,96 @@ def test_a_track_born_where_an_unconfirmed_one_died_sees_its_static_past() -> No
         det = _slow_body(xs.get(k, 7.30), evidence=k in (0, 3, 6, 11, 12))
         for t, _ in tr.step(0.1 * k, [det]):
             assert not t.confirmed, k
+
+
+def _walk_with_sidestep(cfg: TrackerConfig, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A leg-pair midpoint walking at 1 m/s along -x with the gait's wobble (+-6 cm along the path,
+    0.55 s period) and 2 cm noise, stepping aside by 45 deg at t = 4 s. Per cycle after 1 s: time and
+    velocity error of the track."""
+    rng = np.random.default_rng(seed)
+    tr = Tracker(cfg)
+    times, errs = [], []
+    x, y = 8.0, 0.0
+    for k in range(80):
+        t = 0.1 * k
+        v = (-1.0, 0.0) if t < 4.0 else (-math.sqrt(0.5), -math.sqrt(0.5))
+        if k:
+            x, y = x + 0.1 * v[0], y + 0.1 * v[1]
+        wobble = 0.06 * math.sin(2 * math.pi * t / 0.55)
+        det = _det(x - wobble * v[0] + rng.normal(0, 0.02), y - wobble * v[1] + rng.normal(0, 0.02))
+        tr.step(t, [det])
+        if t >= 1.0:
+            trk = tr.tracks[0]
+            times.append(t)
+            errs.append(math.hypot(trk.state[2] - v[0], trk.state[3] - v[1]))
+    return np.array(times), np.array(errs)
+
+
+def test_the_two_models_follow_a_sidestep_and_still_average_out_the_gait() -> None:
+    """One steady model (0.2 m/s^2) averages out the gait's wobble but lags a sidestep by a second; one
+    manoeuvring model (2 m/s^2) follows the step but passes the wobble on. The IMM has both: over 10
+    walkers its velocity error while walking straight is close to the steady model's (0.06 against
+    0.05 m/s; the manoeuvring one 0.34), and 0.3 s after the step it is below 0.25 m/s (0.15) where the
+    steady model's is not (0.36)."""
+    imm = TrackerConfig()
+    steady, quick = TrackerConfig(accel_sigmas_mps2=(0.2,)), TrackerConfig(accel_sigmas_mps2=(2.0,))
+    straight = {id(c): [] for c in (imm, steady, quick)}
+    after = {id(c): [] for c in (imm, steady, quick)}
+    for seed in range(10):
+        for cfg in (imm, steady, quick):
+            t, e = _walk_with_sidestep(cfg, seed)
+            straight[id(cfg)].append(e[(t >= 2.0) & (t < 4.0)].mean())
+            after[id(cfg)].append(e[np.isclose(t, 4.3)][0])
+    m = {k: float(np.mean(v)) for k, v in straight.items()}
+    a = {k: float(np.mean(v)) for k, v in after.items()}
+    assert m[id(imm)] < 0.7 * m[id(quick)] and m[id(imm)] < 1.5 * m[id(steady)]
+    assert a[id(imm)] < 0.25 < a[id(steady)]
+
+
+def test_one_model_is_the_plain_constant_velocity_kalman_filter() -> None:
+    tr = Tracker(TrackerConfig(accel_sigmas_mps2=(0.5,)))
+    zs = [(0.0, 0.0), (0.11, 0.02), (0.19, -0.01), (0.32, 0.03)]
+    for k, (x, y) in enumerate(zs):
+        tr.step(0.1 * k, [_det(x, y)])
+    # the same filter written out
+    xs, p = np.array([0.0, 0.0, 0.0, 0.0]), np.diag([0.06**2] * 2 + [1.0] * 2)
+    f, h = np.eye(4), np.zeros((2, 4))
+    f[0, 2] = f[1, 3] = 0.1
+    h[0, 0] = h[1, 1] = 1.0
+    q1 = np.array([[0.1**3 / 3, 0.1**2 / 2], [0.1**2 / 2, 0.1]]) * 0.25
+    q = np.zeros((4, 4))
+    q[np.ix_([0, 2], [0, 2])] = q[np.ix_([1, 3], [1, 3])] = q1
+    for x, y in zs[1:]:
+        xs, p = f @ xs, f @ p @ f.T + q
+        k = p @ h.T @ np.linalg.inv(h @ p @ h.T + np.eye(2) * 0.06**2)
+        xs, p = xs + k @ (np.array([x, y]) - h @ xs), (np.eye(4) - k @ h) @ p
+    np.testing.assert_allclose(tr.tracks[0].state, xs, atol=1e-9)
+    np.testing.assert_allclose(tr.tracks[0].cov, p, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"accel_sigmas_mps2": ()}, {"accel_sigmas_mps2": (0.2, 0.0)}, {"mode_switch_prob": 1.0}, {"report_window": 1}],
+)
+def test_a_wrong_tracker_setting_is_refused(bad: dict) -> None:
+    with pytest.raises(ValueError):
+        TrackerConfig(**bad)
+
+
+def test_a_walker_who_stopped_half_a_second_ago_is_no_longer_reported() -> None:
+    """Walk 2 s at 1 m/s, then stand; the detection alternates, two cycles each, between the pair's
+    midpoint and one leg 0.23 m off (two_people_opposite, a person stopping beside the robot's path).
+    The 1 s window still holds the walk; its newest half does not go anywhere."""
+    tr = Tracker(TrackerConfig())
+    for k in range(50):
+        t = 0.1 * k
+        if t <= 2.0:
+            det = _det(3.9, 0.0 + 1.0 * t)
+        else:
+            lone = (k // 2) % 2 == 1
+            det = _det(3.9 - (0.09 if lone else 0.0), 2.0 - (0.21 if lone else 0.0), kind="leg" if lone else "person")
+        for trk, _ in tr.step(t, [det]):
+            if t >= 2.6:
+                assert not tr.reported(trk), t
+            elif 0.6 <= t <= 2.0:
+                assert tr.reported(trk), t
