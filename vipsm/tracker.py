@@ -451,29 +451,41 @@ class Tracker:
 
     def _chain_back(self, stamp_s: float, det: Detection) -> list[tuple[float, Detection]]:
         """The body's detections in the kept earlier cycles, oldest first: from ``det`` back, the
-        nearest one within a walker's step of the last found, until a cycle has none (each taken out
-        of the memory: it starts no other track). A detection whose position is unreliable (placed an
-        assumed radius behind a partly occluded segment) ends the chain: it would hold confirmation
-        back for a whole window."""
+        nearest one within a walker's step of the last found, each taken out of the memory (it starts
+        no other track). Up to ``tentative_max_missed`` cycles without one are passed over (a table leg
+        unseen for two scans), as a coasting track would, but the reach stays one cycle's step: what
+        jumped further in the gap is not known to be the same body. A detection whose position is unreliable
+        (placed an assumed radius behind a partly occluded segment) ends the chain: it would hold
+        confirmation back for a whole window."""
         c = self.config
         chain: list[tuple[float, Detection]] = []
         head_s, head = stamp_s, det
+        missed = 0
         for past_s, dets in reversed(self._past):
-            reach = c.max_speed_mps * (head_s - past_s) + c.step_noise_m
-            near = []
+            reach = c.max_speed_mps * (head_s - past_s) / (missed + 1) + c.step_noise_m
+            near, blocked = [], False
             for i, d in enumerate(dets):
-                dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m)
                 slack = c.kind_change_m if d.kind != head.kind else 0.0
-                if dist <= reach + slack and not (d.occluded and not d.radius_fitted):
-                    near.append((dist - slack, i))
+                dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m) - slack
+                if dist > reach:
+                    continue
+                if d.occluded and not d.radius_fitted:
+                    blocked = True
+                else:
+                    near.append((dist, i))
             if not near:
-                break
+                missed += 1
+                if blocked or missed > c.tentative_max_missed:
+                    break
+                continue
+            missed = 0
             head_s, head = past_s, dets.pop(min(near)[1])
             chain.append((head_s, head))
         return chain[::-1]
 
     def _start(self, stamp_s: float, det: Detection) -> Track:
-        """A new track from a detection with motion evidence, run through its body's earlier detections."""
+        """A new track from a detection with motion evidence, run through its body's earlier detections
+        (remembered, not judged: confirmation comes at the earliest with the next cycle's detection)."""
         chain = self._chain_back(stamp_s, det) + [(stamp_s, det)]
         t0_s, d0 = chain[0]
         sigma = self.config.meas_sigma_m if d0.sigma_m is None else d0.sigma_m
@@ -491,7 +503,8 @@ class Tracker:
             self._update(track, d)
             track.hits += 1
             track.age_cycles += 1
-            self._confirm(track, d, agrees)
+            track.evidence += int(d.evidence)
+            self._remember(track, d, agrees)
         # the report window judges whether the body moves now: it starts where motion was first seen
         # (the earlier stretch may be the body standing before it started, e.g. the paper's cylinder)
         del track.recent[:-1]

@@ -469,3 +469,17 @@ def test_a_walker_who_stopped_half_a_second_ago_is_no_longer_reported() -> None:
                 assert not tr.reported(trk), t
             elif 0.6 <= t <= 2.0:
                 assert tr.reported(trk), t
+
+
+def test_the_chain_of_earlier_detections_passes_over_a_scan_or_two_without_the_body() -> None:
+    """A table leg (cylinder_clutter seed 9) unseen for two scans, then camera evidence from the
+    cylinder passing, while its centre slides 8 cm along the occluder: with its earlier detections
+    across the gap the slide is no straight motion; without them three fresh detections confirmed."""
+    seen = {0: (5.32, 1.09), 1: (5.32, 1.07), 2: (5.33, 1.12), 3: (5.32, 1.05), 6: (5.33, 1.12), 7: (5.29, 1.14),
+            8: (5.24, 1.14), 9: (5.32, 1.11), 10: (5.32, 1.07), 11: (5.30, 1.14), 12: (5.32, 1.13)}
+    tr = Tracker(TrackerConfig())
+    for k in range(13):
+        dets = [] if k not in seen else [_det(*seen[k], evidence=k in (6, 7), kind="leg")]
+        for t, _ in tr.step(0.1 * k, dets):
+            assert not t.confirmed, k
+    assert tr.tracks[0].hits == 10  # k = 1-3 (k = 0 is older than retro_cycles), 6, and 7-12
