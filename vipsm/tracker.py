@@ -131,9 +131,10 @@ class Detection:
     #: position noise of this detection (None: the tracker's meas_sigma_m)
     sigma_m: float | None = None
     kind: str = "body"
-    #: partly hidden by something nearer: a centre placed an assumed radius behind the visible points
-    #: (no circle fit) follows the occluder's edge, so it does not count as displacement for
-    #: confirmation; a fitted circle's centre does not depend on which part is visible
+    #: partly hidden by something nearer: its centre does not count as displacement for confirmation.
+    #: One placed an assumed radius behind the visible points follows the occluder's edge; a circle
+    #: fitted to a round body would not, but to a box's visible part it does (a box uncovered by the
+    #: passing cylinder: its fit moved 11 cm as the radius went 0.33 -> 0.24 m, cylinder_clutter seed 19)
     occluded: bool = False
 
 
@@ -382,13 +383,13 @@ class Tracker:
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
         """The detection into the track's bounded windows (the birth detection too: it is where the
-        body's displacement starts). Its position is unreliable for displacement when it was placed an
-        assumed radius behind a partly occluded segment, or fitted with a radius unlike the track's."""
+        body's displacement starts). Its position is unreliable for displacement when its segment is
+        partly occluded, or fitted with a radius unlike the track's."""
         t.kind = det.kind
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
-                          float(not reliable or (det.occluded and not det.radius_fitted))))
+                          float(not reliable or det.occluded)))
         del t.history[: -self.config.confirm_window]
 
     def _confirm(self, t: Track, det: Detection, radius_agrees: bool = True) -> None:
@@ -454,9 +455,8 @@ class Tracker:
         nearest one within a walker's step of the last found, each taken out of the memory (it starts
         no other track). Up to ``tentative_max_missed`` cycles without one are passed over (a table leg
         unseen for two scans), as a coasting track would, but the reach stays one cycle's step: what
-        jumped further in the gap is not known to be the same body. A detection whose position is unreliable
-        (placed an assumed radius behind a partly occluded segment) ends the chain: it would hold
-        confirmation back for a whole window."""
+        jumped further in the gap is not known to be the same body. A partly occluded detection (its
+        position unreliable) ends the chain: it would hold confirmation back for a whole window."""
         c = self.config
         chain: list[tuple[float, Detection]] = []
         head_s, head = stamp_s, det
@@ -469,7 +469,7 @@ class Tracker:
                 dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m) - slack
                 if dist > reach:
                     continue
-                if d.occluded and not d.radius_fitted:
+                if d.occluded:
                     blocked = True
                 else:
                     near.append((dist, i))
