@@ -16,7 +16,8 @@ take about half a second); the mode probabilities follow which one explains the 
 model would have to choose: steady enough to average out the gait's 0.1-0.2 m/s wobble of the leg
 midpoint, or quick enough to follow a sidestep. The measurement noise comes with each detection (a
 leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
-changed (another point of the body).
+changed (another point of the body). A lone leg of a track seen as a leg pair before is one of a
+person's legs: it bounds the centre to a disc around it rather than placing it.
 
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
@@ -277,6 +278,8 @@ class Track:
     recent: list[tuple[float, float, float, float]] = field(default_factory=list)  # stamp, x, y, kind
     birth_xy: tuple[float, float] = (0.0, 0.0)
     kind: str = "body"
+    #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
+    seen_as_person: bool = False
     #: the IMM's models: state (n, 4), covariance (n, 4, 4) and probability (n) of each; ``state`` and
     #: ``cov`` are their combination
     model_states: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
@@ -341,10 +344,18 @@ class Tracker:
         """The IMM's update: each model's Kalman update, the mode probabilities by how well each model
         predicted the detection, combine."""
         sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
-        if det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
+        z = np.array([det.x_m, det.y_m])
+        if det.kind == "leg" and track.seen_as_person:
+            # a person's lone leg: the centre lies within kind_change_m of it, and no nearer it than that
+            # is known; the update takes the point of that disc nearest the prediction
+            e = track.state[:2] - z
+            dist = float(np.hypot(*e))
+            if dist <= self.config.kind_change_m:
+                return
+            z = z + e * (self.config.kind_change_m / dist)
+        elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
             sigma = math.hypot(sigma, 0.5 * self.config.kind_change_m)
         r = np.eye(2) * sigma**2
-        z = np.array([det.x_m, det.y_m])
         likelihood = np.empty(track.model_probs.shape[0])
         for j in range(likelihood.shape[0]):
             x, p = track.model_states[j], track.model_covs[j]
@@ -386,6 +397,7 @@ class Tracker:
         body's displacement starts). Its position is unreliable for displacement when its segment is
         partly occluded, or fitted with a radius unlike the track's."""
         t.kind = det.kind
+        t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),

@@ -499,3 +499,22 @@ def test_a_box_uncovered_by_a_passing_body_does_not_confirm_on_its_shifting_fit(
         det = Detection(x, y, r, True, 0, 20, 0.0, 0.1, evidence=ev, sigma_m=0.03, kind="body", occluded=True)
         for t, _ in tr.step(0.1 * k, [det]):
             assert not t.confirmed, k
+
+
+def test_a_person_who_stops_and_is_then_seen_by_one_leg_gets_no_velocity_towards_it() -> None:
+    """two_people_opposite, seed 61: a person walks at 1.2 m/s away from the robot's path and stops;
+    then only the nearer leg is seen, 0.27 m back towards the path, scan after scan. A lone leg says
+    the centre is within half a leg pair of it, not where it is: taken as the centre, the manoeuvre
+    model read 0.8 m/s back towards the path, and the robot stopped for 11 cycles."""
+    tr = Tracker(TrackerConfig())
+    for k in range(35):
+        t = 0.1 * k
+        if t <= 2.0:
+            det = _det(3.92, -0.3 + 1.2 * t)
+        elif t <= 2.3:
+            det = _det(3.93, 2.10)
+        else:
+            det = _det(3.83, 1.89, kind="leg")
+        tr.step(t, [det])
+        if t > 2.3:
+            assert tr.tracks[0].state[3] > -0.2, t  # never heading back towards the path
