@@ -17,7 +17,7 @@ model would have to choose: steady enough to average out the gait's 0.1-0.2 m/s 
 midpoint, or quick enough to follow a sidestep. The measurement noise comes with each detection (a
 leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
 changed (another point of the body). A lone leg of a track seen as a leg pair before is one of a
-person's legs: it bounds the centre to a disc around it rather than placing it.
+person's legs: the centre lies anywhere within half the widest pair of it, its noise that wide.
 
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
@@ -346,13 +346,8 @@ class Tracker:
         sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
         z = np.array([det.x_m, det.y_m])
         if det.kind == "leg" and track.seen_as_person:
-            # a person's lone leg: the centre lies within kind_change_m of it, and no nearer it than that
-            # is known; the update takes the point of that disc nearest the prediction
-            e = track.state[:2] - z
-            dist = float(np.hypot(*e))
-            if dist <= self.config.kind_change_m:
-                return
-            z = z + e * (self.config.kind_change_m / dist)
+            # a person's lone leg: the centre lies anywhere within kind_change_m of it
+            sigma = math.hypot(sigma, self.config.kind_change_m)
         elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
             sigma = math.hypot(sigma, 0.5 * self.config.kind_change_m)
         r = np.eye(2) * sigma**2
