@@ -77,6 +77,8 @@ class TrackerConfig:
     #: a circle fit whose radius differs from the track's by more than this share is no displacement
     #: evidence (a rigid round body keeps its radius; a box corner's fit changes with the visible part)
     confirm_radius_tol: float = 0.3
+    #: ... and within this share for a partly occluded fit (a round body's partial fit keeps its radius)
+    confirm_occluded_radius_tol: float = 0.1
     #: detections of one body never jump faster than this plus ``step_noise_m`` between cycles (a flip
     #: of the association between two nearby things, e.g. a chair's legs, does)
     max_speed_mps: float = 2.5
@@ -132,10 +134,11 @@ class Detection:
     #: position noise of this detection (None: the tracker's meas_sigma_m)
     sigma_m: float | None = None
     kind: str = "body"
-    #: partly hidden by something nearer: its centre does not count as displacement for confirmation.
-    #: One placed an assumed radius behind the visible points follows the occluder's edge; a circle
-    #: fitted to a round body would not, but to a box's visible part it does (a box uncovered by the
-    #: passing cylinder: its fit moved 11 cm as the radius went 0.33 -> 0.24 m, cylinder_clutter seed 19)
+    #: partly hidden by something nearer: a centre placed an assumed radius behind the visible points
+    #: follows the occluder's edge and does not count as displacement for confirmation; a circle fitted
+    #: to a round body's visible part keeps the body's radius, one fitted to a box's does not (a box
+    #: uncovered by the passing cylinder: its fit moved 11 cm as the radius went 0.33 -> 0.24 m,
+    #: cylinder_clutter seed 19), so it counts only with its radius within confirm_occluded_radius_tol
     occluded: bool = False
 
 
@@ -337,7 +340,11 @@ class Tracker:
 
     def _radius_agrees(self, track: Track, det: Detection) -> bool:
         """A fitted radius (if any) within ``confirm_radius_tol`` of the track's (before it is folded in)."""
-        tol = self.config.confirm_radius_tol * track.radius_m
+        c = self.config
+        if det.occluded and det.radius_fitted:  # a round body's partial fit keeps its radius; a box's does not
+            tol = c.confirm_occluded_radius_tol * track.radius_m
+            return track.radius_known and abs(det.radius_m - track.radius_m) <= tol
+        tol = c.confirm_radius_tol * track.radius_m
         return not (det.radius_fitted and track.radius_known and abs(det.radius_m - track.radius_m) > tol)
 
     def _update(self, track: Track, det: Detection) -> None:
@@ -389,14 +396,14 @@ class Tracker:
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
         """The detection into the track's bounded windows (the birth detection too: it is where the
-        body's displacement starts). Its position is unreliable for displacement when its segment is
-        partly occluded, or fitted with a radius unlike the track's."""
+        body's displacement starts). Its position is unreliable for displacement when it was placed an
+        assumed radius behind a partly occluded segment, or fitted with a radius unlike the track's."""
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
-                          float(not reliable or det.occluded)))
+                          float(not reliable or (det.occluded and not det.radius_fitted))))
         del t.history[: -self.config.confirm_window]
 
     def _confirm(self, t: Track, det: Detection, radius_agrees: bool = True) -> None:
