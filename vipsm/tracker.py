@@ -102,10 +102,10 @@ class TrackerConfig:
     report_recent: int = 5
     max_tracks: int = 24
     #: a track born from motion evidence starts at its body's detections in up to this many earlier
-    #: cycles that no track took (chained back nearest first within a walker's step): a slow body is
-    #: seen before its motion is (the camera's flow needs frames 0.3 s apart, the free-space grid a
-    #: cell's width of motion), and that stretch already shows whether it moves. They count as hits
-    #: without motion evidence, so confirmation still needs a second cycle with evidence.
+    #: cycles that no confirmed track holds (chained back nearest first within a walker's step): a slow
+    #: body is seen before its motion is (the camera's flow needs frames 0.3 s apart, the free-space grid
+    #: a cell's width of motion), and that stretch already shows whether it moves. They are remembered,
+    #: not judged: confirmation comes at the earliest with the next cycle's detection.
     retro_cycles: int = 5
 
     def __post_init__(self) -> None:
