@@ -68,6 +68,10 @@ class TrackerConfig:
     confirm_displacement_m: float = 0.06
     #: ... or this far when every detection of the window (at least 4) showed motion evidence
     confirm_displacement_sustained_m: float = 0.03
+    #: ... or, between lone legs, this far: a static leg's centre placed from 4-5 returns drifts up to
+    #: 7 cm in half a second as the robot drives past (a table leg, cylinder_clutter seed 84); a walker
+    #: covers 10 cm in 0.1-0.3 s
+    confirm_displacement_leg_m: float = 0.10
     confirm_window: int = 6
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
@@ -430,6 +434,8 @@ class Tracker:
         # for a circle-fitted body (good to 2-3 cm); a leg's centre jitters by more than that
         sustained = recent == len(t.history) and hist.shape[0] >= 4 and hist[-1, 4] == _KIND_CODE["body"]
         needed = c.confirm_displacement_sustained_m if sustained else c.confirm_displacement_m
+        if hist[-1, 4] == _KIND_CODE["leg"]:
+            needed = c.confirm_displacement_leg_m
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
