@@ -283,7 +283,6 @@ class Track:
     confirmed: bool = False
     #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
     recent: list[tuple[float, float, float, float]] = field(default_factory=list)  # stamp, x, y, kind
-    birth_xy: tuple[float, float] = (0.0, 0.0)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
     seen_as_person: bool = False
@@ -410,12 +409,19 @@ class Tracker:
                           float(not reliable or (det.occluded and not det.radius_fitted))))
         del t.history[: -self.config.confirm_window]
 
-    def _confirm(self, t: Track, det: Detection, radius_agrees: bool = True) -> None:
+    def _fold(self, t: Track, det: Detection) -> None:
+        """A detection into the track (already predicted to its stamp): the filter, the counts, the
+        windows (its radius judged against the track's before the update folds it in)."""
+        agrees = self._radius_agrees(t, det)
+        self._update(t, det)
+        t.hits += 1
+        t.evidence += int(det.evidence)
+        self._remember(t, det, agrees)
+
+    def _confirm(self, t: Track) -> None:
         """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
         (net distance over the recent window, along a nearly straight path)."""
         c = self.config
-        t.evidence += int(det.evidence)
-        self._remember(t, det, radius_agrees)
         recent = sum(h[3] for h in t.history)
         if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
             return
@@ -430,12 +436,15 @@ class Tracker:
         xy = hist[:, 1:3]
         net = float(np.hypot(*(xy[-1] - xy[0])))
         path = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
-        # every detection of the window with evidence: a smaller, still consistent displacement will do,
-        # for a circle-fitted body (good to 2-3 cm); a leg's centre jitters by more than that
-        sustained = recent == len(t.history) and hist.shape[0] >= 4 and hist[-1, 4] == _KIND_CODE["body"]
-        needed = c.confirm_displacement_sustained_m if sustained else c.confirm_displacement_m
-        if hist[-1, 4] == _KIND_CODE["leg"]:
+        # the displacement needed by kind: a lone leg's centre drifts with the viewing angle; a
+        # circle-fitted body (good to 2-3 cm) with evidence in every detection of the window needs less
+        kind = hist[-1, 4]
+        if kind == _KIND_CODE["leg"]:
             needed = c.confirm_displacement_leg_m
+        elif kind == _KIND_CODE["body"] and recent == len(t.history) and hist.shape[0] >= 4:
+            needed = c.confirm_displacement_sustained_m
+        else:
+            needed = c.confirm_displacement_m
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
@@ -511,7 +520,7 @@ class Tracker:
         sigma = self.config.meas_sigma_m if d0.sigma_m is None else d0.sigma_m
         p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
         track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
-                      evidence=int(d0.evidence), birth_xy=(d0.x_m, d0.y_m), kind=d0.kind)
+                      evidence=int(d0.evidence), kind=d0.kind)
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
         track.model_states, track.model_covs = np.tile(track.state, (n, 1)), np.tile(track.cov, (n, 1, 1))
@@ -519,12 +528,8 @@ class Tracker:
         self._remember(track, d0)
         for t_s, d in chain[1:]:
             self._predict(track, t_s)
-            agrees = self._radius_agrees(track, d)
-            self._update(track, d)
-            track.hits += 1
+            self._fold(track, d)
             track.age_cycles += 1
-            track.evidence += int(d.evidence)
-            self._remember(track, d, agrees)
         # the report window judges whether the body moves now: it starts where motion was first seen
         # (the earlier stretch may be the body standing before it started, e.g. the paper's cylinder)
         del track.recent[:-1]
@@ -555,11 +560,9 @@ class Tracker:
         for ti, t in enumerate(self.tracks):
             t.age_cycles += 1
             if ti in got:
-                agrees = self._radius_agrees(t, got[ti])
-                self._update(t, got[ti])
-                t.hits += 1
+                self._fold(t, got[ti])
                 t.missed = 0
-                self._confirm(t, got[ti], agrees)
+                self._confirm(t)
             else:
                 t.missed += 1
         # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
