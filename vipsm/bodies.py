@@ -117,21 +117,25 @@ def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool,
     the same surface (within ``foreground_m``) means the segment is part of something larger; nearer
     neighbours on both sides mean it is background seen between two occluders (a wall between a
     person's legs); one nearer side is a body partly hidden by another, which is kept. Returns
-    (foreground, the beams of the nearer neighbours: its occluders)."""
+    (foreground, the beams of the nearer neighbours: its occluders). The edge of the scanner's field
+    of view hides like a nearer neighbour (its beam index is -1 or the scan's size): a body leaving the
+    field of view shows a shrinking part whose centre moves with the edge, not with the body."""
     near = float(np.min(r[a:z]))
     occluders: list[int] = []  # the beam of each nearer neighbour
     nb = cfg.neighbour_beams
     sides = (np.arange(a - 1, max(a - nb, 0) - 1, -1), np.arange(z, min(z + nb, r.size)))
-    for idx in sides:
+    for idx, edge in zip(sides, (-1, r.size), strict=True):
         finite = idx[np.isfinite(r[idx])]
         if not finite.size:
+            if idx.size < nb:  # the scan's first or last beam is beside it: the field of view's edge
+                occluders.append(edge)
             continue
         if r[finite[0]] >= near + cfg.foreground_m:
             continue
         if r[finite[0]] > near - cfg.foreground_m:
             return False, []
         occluders.append(int(finite[0]))
-    return len(occluders) < 2, occluders
+    return sum(0 <= k < r.size for k in occluders) < 2, occluders
 
 
 def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, z: int, laser: Pose2D,

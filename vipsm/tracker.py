@@ -360,6 +360,8 @@ class Tracker:
             sigma = math.hypot(sigma, self.config.kind_change_m)
         elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
             sigma = math.hypot(sigma, 0.5 * self.config.kind_change_m)
+        if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
+            sigma = math.hypot(sigma, 0.5 * track.radius_m)
         r = np.eye(2) * sigma**2
         likelihood = np.empty(track.model_probs.shape[0])
         for j in range(likelihood.shape[0]):
@@ -544,7 +546,12 @@ class Tracker:
         for ti, t in enumerate(self.tracks):
             for di, d in enumerate(detections):
                 dist = math.hypot(d.x_m - t.state[0], d.y_m - t.state[1])
-                gate = self.config.gate_m + 2.0 * math.sqrt(max(t.cov[0, 0] + t.cov[1, 1], 0.0))
+                gate = self.config.gate_m
+                if d.evidence or not t.missed:
+                    # a coasting track's covariance grows with the manoeuvres the body might have made; a
+                    # detection that far off is the body only if it shows motion (else it is likely the
+                    # furniture the track's prediction drifted onto)
+                    gate += 2.0 * math.sqrt(max(t.cov[0, 0] + t.cov[1, 1], 0.0))
                 if dist < gate:
                     pairs.append((dist, ti, di))
         pairs.sort()

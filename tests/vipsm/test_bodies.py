@@ -88,3 +88,19 @@ def test_a_body_partly_hidden_by_a_nearer_one_is_occluded_a_leg_behind_its_partn
     bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, FreeSpaceGrid(), [], CFG, TrackerConfig())
     people = [b for b in bodies if b.kind == "person"]
     assert len(people) == 1 and not people[0].occluded
+
+
+def test_a_body_cut_by_the_edge_of_the_field_of_view_is_occluded() -> None:
+    """cylinder_clutter seed 101: a cylinder leaving the scanner's 270 deg showed a shrinking sliver whose
+    centre moved with the edge; its track followed the sliver, lost it and took furniture as its own."""
+    world = box_room(8.0, 6.0, pillars=False)
+    edge = float(np.min(world.scan(ORIGIN).bearings_rad))
+    cut = (2.0 * np.cos(edge + 0.05), 2.0 * np.sin(edge + 0.05))  # a 0.3 m body straddling the edge
+    whole = (2.0 * np.cos(edge + 0.8), 2.0 * np.sin(edge + 0.8))
+    world.circles = [Circle(*cut, 0.3), Circle(*whole, 0.3)]
+    scan = world.scan(ORIGIN)
+    bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, FreeSpaceGrid(), [], CFG, TrackerConfig())
+    at_edge = [b for b in bodies if b.scan_index_start == 0]
+    inside = [b for b in bodies if np.hypot(b.x_m - whole[0], b.y_m - whole[1]) < 0.1]
+    assert at_edge and at_edge[0].occluded
+    assert inside and not inside[0].occluded

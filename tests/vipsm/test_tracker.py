@@ -544,3 +544,49 @@ def test_a_walker_seen_only_by_one_leg_is_still_confirmed_quickly() -> None:
         if first is None and any(tr.reported(t) for t, _ in out):
             first = k
     assert first is not None and first <= 3
+
+
+def _body_track(tr: Tracker, n: int = 20) -> None:
+    """A round body (radius 0.3 m) confirmed moving at 0.15 m/s along x."""
+    for k in range(n):
+        tr.step(0.1 * k, [Detection(1.0 + 0.015 * k, 0.0, 0.3, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03,
+                                    kind="body")])
+    assert tr.tracks[0].confirmed
+
+
+def test_a_coasting_track_takes_a_far_detection_only_when_it_shows_motion() -> None:
+    """cylinder_clutter seed 101: the cylinder's track coasted while the cylinder was out of view, its
+    covariance (and so its gate) grew, and it took a box 0.7 m away, then a table leg, at 2-3 m/s."""
+    for evidence in (False, True):
+        tr = Tracker(TrackerConfig())
+        _body_track(tr)
+        for k in range(20, 26):
+            tr.step(0.1 * k, [])
+        t = tr.tracks[0]
+        tr._predict(t, 2.6)
+        gate = tr.config.gate_m + 2.0 * math.sqrt(t.cov[0, 0] + t.cov[1, 1])
+        x, y = float(t.state[0]), float(t.state[1]) + 0.6
+        assert tr.config.gate_m < 0.6 < gate  # inside the grown gate, outside a cycle's reach
+        out = tr.step(2.6, [Detection(x, y, 0.3, True, 0, 3, 0.0, 0.1, evidence=evidence, sigma_m=0.03, kind="body")])
+        got = [d for trk, d in out if trk.track_id == 1]
+        assert (got[0] is not None) == evidence
+    tr = Tracker(TrackerConfig())  # near its prediction a static-looking detection is still the body
+    _body_track(tr)
+    tr.step(2.0, [])
+    x, y = tr.predict_position(tr.tracks[0], 2.1)
+    out = tr.step(2.1, [Detection(x, y + 0.1, 0.3, True, 0, 3, 0.0, 0.1, evidence=False, sigma_m=0.03, kind="body")])
+    assert out[0][1] is not None
+
+
+def test_a_partly_occluded_detection_pulls_the_track_less() -> None:
+    """Only part of the body is seen: its centre is uncertain by about a radius, so the filter trusts
+    it less than a whole view."""
+    pulled = {}
+    for occluded in (False, True):
+        tr = Tracker(TrackerConfig())
+        _body_track(tr)
+        x, y = tr.predict_position(tr.tracks[0], 2.0)
+        tr.step(2.0, [Detection(x, y + 0.15, 0.3, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body",
+                                occluded=occluded)])
+        pulled[occluded] = float(tr.tracks[0].state[1])
+    assert pulled[True] < 0.5 * pulled[False]
