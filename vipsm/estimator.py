@@ -227,7 +227,7 @@ class Estimator:
         n_good_w = int(np.count_nonzero(cur.good & (cur.weights > 0)))
         too_large = rest.too_large and not self.plain_psm
         return self._matcher.match(cur, n_good_w, predicted, self._last_pose, self._last_cov, not too_large,
-                                   too_large or not scan_ok)
+                                   too_large or not scan_ok, scan.ranges_m.copy())
 
     def _update_static(self, scan: Scan, lone_m: np.ndarray, laser: Pose2D, bodies: list[Body]) -> None:
         """Add the scan to the free/occupied grid (the moving-body candidates add no occupancy, so a body
@@ -288,7 +288,14 @@ class Estimator:
             return None
         j = np.clip(np.searchsorted(kb, phi), 1, kb.size - 1)
         j -= (np.abs(kb[j - 1] - phi) < np.abs(kb[j] - phi)).astype(np.intp)
-        kr = np.where(kf.prep.good, kf.prep.ranges_m, np.nan)[j]
+        kr = np.where(kf.prep.good, kf.prep.ranges_m, np.nan)
+        if kf.seen_m is not None:
+            # where restoration bridged a cut (a body the camera or a track flagged, rightly or not) the
+            # keyframe holds an interpolation between the surfaces beside it, not what the laser saw:
+            # a box in front of that line would look "ahead" for as long as the keyframe lives
+            # (cylinder_clutter seed 91). There the measured range counts.
+            kr = np.where(kf.prep.weights > 0.0, kr, kf.seen_m)
+        kr = kr[j]
         with np.errstate(invalid="ignore"):
             return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - cfg.ahead_min_m)
 

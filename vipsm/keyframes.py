@@ -32,6 +32,8 @@ class Keyframe:
     pose: Pose2D  # robot pose (world)
     cov: np.ndarray
     n_good_weighted: int
+    #: the ranges the laser measured (before restoration bridged any cut): what the keyframe saw
+    seen_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -52,9 +54,9 @@ class KeyframeMatcher:
         self.keyframe: Keyframe | None = None
 
     def match(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D | None,
-              last_cov: np.ndarray, usable: bool, refuse: bool) -> MatchOutcome:
+              last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None = None) -> MatchOutcome:
         """``usable``: the scan can become a keyframe; ``refuse``: do not match (restoration too large,
-        bad bearings)."""
+        bad bearings); ``seen_m``: the measured ranges of ``cur`` before restoration (kept with it)."""
         cfg = self.cfg
         if last_pose is None or self.keyframe is None:
             first = last_pose is None
@@ -62,11 +64,11 @@ class KeyframeMatcher:
             cov = np.zeros((3, 3)) if first else last_cov.copy()
             replaced = usable and n_good_w >= cfg.psm.min_valid_beams  # type: ignore[attr-defined]
             if replaced:
-                self.keyframe = Keyframe(cur, predicted, cov, n_good_w)
+                self.keyframe = Keyframe(cur, predicted, cov, n_good_w, seen_m)
             return MatchOutcome(predicted, cov, MatchQuality(0, 0, float("nan"), False), flags, None, replaced)
         res, cand = (None, None) if refuse else self._psm(cur, predicted)
         if cand is None:
-            return self._fallback(cur, n_good_w, predicted, last_pose, last_cov, usable, res)
+            return self._fallback(cur, n_good_w, predicted, last_pose, last_cov, usable, res, seen_m)
         kf = self.keyframe
         th = kf.pose.theta_rad + cfg.laser_theta_rad  # type: ignore[attr-defined]
         c, s = math.cos(th), math.sin(th)
@@ -80,7 +82,7 @@ class KeyframeMatcher:
             or res.beams_used < cfg.keyframe_min_overlap * max(kf.n_good_weighted, 1)  # type: ignore[attr-defined]
         )
         if replaced:
-            self.keyframe = Keyframe(cur, cand, cov, n_good_w)
+            self.keyframe = Keyframe(cur, cand, cov, n_good_w, seen_m)
         return MatchOutcome(cand, cov, quality, EstimateFlag.NONE, res, replaced)
 
     def _psm(self, cur: PreparedScan, predicted: Pose2D) -> tuple[PsmResult | None, Pose2D | None]:
@@ -101,7 +103,8 @@ class KeyframeMatcher:
         return res, cand
 
     def _fallback(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D,
-                  last_cov: np.ndarray, usable: bool, res: PsmResult | None) -> MatchOutcome:
+                  last_cov: np.ndarray, usable: bool, res: PsmResult | None,
+                  seen_m: np.ndarray | None) -> MatchOutcome:
         cfg = self.cfg
         step = between(last_pose, predicted)
         dist = math.hypot(step.x_m, step.y_m)
@@ -113,7 +116,7 @@ class KeyframeMatcher:
         since = between(self.keyframe.pose, predicted)
         replaced = math.hypot(since.x_m, since.y_m) > cfg.keyframe_stale_dist_m and usable  # type: ignore[attr-defined]
         if replaced:
-            self.keyframe = Keyframe(cur, predicted, cov, n_good_w)
+            self.keyframe = Keyframe(cur, predicted, cov, n_good_w, seen_m)
         return MatchOutcome(predicted, cov, quality, EstimateFlag.ODOMETRY_FALLBACK, res, replaced)
 
     def _constrain_weak_directions(self, res: PsmResult, guess: Pose2D) -> Pose2D:

@@ -362,3 +362,30 @@ def test_a_thin_leg_seen_by_one_beam_is_no_free_space_for_the_static_map() -> No
         est.step(scan, Odometry(0.0, 0.0, 0.0, 0.0, 0.0, t))
     near_side = np.array([[leg.x_m - leg.radius_m, leg.y_m]])
     assert not est._static.violates(near_side)[0]
+
+
+def test_a_static_body_the_keyframe_had_cut_out_is_not_ahead_of_it() -> None:
+    """cylinder_clutter seed 91: the camera's flow flagged a box, restoration bridged it in the keyframe,
+    and for as long as that keyframe lived the box stood "in front of what the keyframe saw" in every
+    scan: motion evidence every cycle, a phantom. What the keyframe saw is the measured range."""
+    from vipsm.keyframes import Keyframe, MatchOutcome
+    from vipsm.psm import prepare_scan
+    from vipsm.restore import BearingInterval, restore
+    from vipsm.types import MatchQuality
+
+    world = box_room(9.0, 6.0, x0=-1.0, y0=-3.0)
+    world.circles = [Circle(3.0, 0.0, 0.3)]
+    pose = Pose2D(0.0, 0.0, 0.0)
+    scan = world.scan(compose(pose, LASER), noise_m=0.0)
+    half = math.asin(0.35 / (3.0 - LASER.x_m))
+    cut = [BearingInterval(-half, half)]
+    rest = restore(scan.ranges_m, scan.bearings_rad, cut, RestoreConfig(), CFG.psm.min_range_m)
+    assert rest.cut  # the body was cut out and bridged with the wall behind it
+    body = np.abs(scan.bearings_rad) < 0.5 * half
+    est = Estimator(CFG)
+    match = MatchOutcome(pose, np.zeros((3, 3)), MatchQuality(0, 0, 0.0, True), EstimateFlag.NONE, None, False)
+    prep = prepare_scan(rest.ranges_m, scan.bearings_rad, CFG.psm, rest.weights)
+    for seen, expect_ahead in ((scan.ranges_m.copy(), False), (None, True)):
+        est._matcher.keyframe = Keyframe(prep, pose, np.zeros((3, 3)), 100, seen)
+        ahead = est._ahead_of_keyframe(scan, match)
+        assert ahead is not None and bool(np.all(ahead[body])) == expect_ahead
