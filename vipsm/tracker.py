@@ -277,8 +277,9 @@ class Track:
     missed: int = 0
     age_cycles: int = 1
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
-    #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``)
-    history: list[tuple[float, float, float, float, float, float]] = field(default_factory=list)
+    #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``, the
+    #: radius of a circle fitted to a partly occluded view, else NaN)
+    history: list[tuple[float, float, float, float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
     #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
@@ -408,7 +409,8 @@ class Tracker:
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
-                          float(not reliable or (det.occluded and not det.radius_fitted))))
+                          float(not reliable or (det.occluded and not det.radius_fitted)),
+                          det.radius_m if det.occluded and det.radius_fitted else math.nan))
         del t.history[: -self.config.confirm_window]
 
     def _fold(self, t: Track, det: Detection) -> None:
@@ -431,6 +433,11 @@ class Tracker:
         # midpoint jumps when the pairing changes): displacement counts between detections of one kind
         hist = np.array(t.history)
         if hist[:, 5].any():  # an unreliable position in the window: no judging its path until it is gone
+            return
+        # a round body's partial views keep their radius: a fit that shrinks or grows over the window
+        # follows the occluder's edge over something else (a box face beside a passing body)
+        partial = hist[np.isfinite(hist[:, 6]), 6]
+        if partial.size > 1 and np.ptp(partial) > c.confirm_occluded_radius_tol * t.radius_m:
             return
         hist = hist[hist[:, 4] == hist[-1, 4]]
         if hist.shape[0] < 3:
