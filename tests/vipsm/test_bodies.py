@@ -104,3 +104,24 @@ def test_a_body_cut_by_the_edge_of_the_field_of_view_is_occluded() -> None:
     inside = [b for b in bodies if np.hypot(b.x_m - whole[0], b.y_m - whole[1]) < 0.1]
     assert at_edge and at_edge[0].occluded
     assert inside and not inside[0].occluded
+
+
+def test_a_camera_interval_that_holds_a_bodys_occluder_gives_the_hidden_body_no_cue() -> None:
+    """cylinder_clutter seed 107: the flow's blob of the cylinder passing in front of a box spread over
+    the box's edge, which the cylinder covered and uncovered; the box got camera evidence, its partial
+    fit drifted, and it was confirmed. The camera sees the front surface move."""
+    from vipsm.restore import BearingInterval
+
+    world = box_room(8.0, 6.0, pillars=False)
+    world.circles = [Circle(2.0, 0.0, 0.2), Circle(4.0, 0.25, 0.3)]  # the near body hides the far one's edge
+    scan = world.scan(ORIGIN)
+
+    def far_cue(lo_deg: float, hi_deg: float) -> bool:
+        cam = [BearingInterval(np.radians(lo_deg), np.radians(hi_deg))]
+        bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, FreeSpaceGrid(), cam, CFG, TrackerConfig())
+        far = [b for b in bodies if b.x_m > 3.0]
+        assert far and far[0].occluded
+        return far[0].camera
+
+    assert not far_cue(-7.0, 9.0)  # the interval holds the near body: its motion, not the far one's
+    assert far_cue(6.2, 9.0)  # only the far body's own beams
