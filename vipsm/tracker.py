@@ -476,9 +476,26 @@ class Tracker:
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
         xy, v = kind_aligned(rec)
+        parts = [xy, xy[-c.report_recent :]]
+        if t.seen_as_person:
+            # a person's lone leg is either leg, ahead of the pelvis or behind it: no point of a path (two
+            # lone legs in a row, front then back, read as a step back: stand_then_walk seed 127). The
+            # pair's midpoints alone while the pair is what is seen now (3 of the newest detections; a
+            # person who stopped with the legs apart and is seen by one leg keeps the kinds aligned).
+            # They must also cover the window's speed (a few centimetres of midpoint jitter after the
+            # person stopped are "straight" too: curve_crossing seed 5).
+            pair = rec[:, 3] != _KIND_CODE["leg"]
+            newest = rec[-c.report_recent :][pair[-c.report_recent :]]
+            if newest.shape[0] >= 3:
+                net = float(np.hypot(*(newest[-1, 1:3] - newest[0, 1:3])))
+                if net < c.report_window_speed_mps * (newest[-1, 0] - newest[0, 0]):
+                    return False
+                parts[1] = newest[:, 1:3]
+                if np.ptp(rec[pair, 0]) >= 0.5:
+                    parts[0], v = kind_aligned(rec[pair])
         # back and forth, over the window or its newest part: a standing body's detection jumping
         # between legs and wall, or a walker who stopped half a window ago
-        for part in (xy, xy[-c.report_recent :]):
+        for part in parts:
             step = np.hypot(*np.diff(part, axis=0).T)
             if float(np.hypot(*(part[-1] - part[0]))) < c.report_straightness * float(step.sum()):
                 return False
