@@ -244,7 +244,10 @@ class Estimator:
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
         self._memory.push(laser, ranges, scan.bearings_rad)
-        self._tracker.drop_seen_free(self._static.seen_free_now)
+        c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
+        xl, yl = ranges * np.cos(scan.bearings_rad), ranges * np.sin(scan.bearings_rad)
+        returns = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)
+        self._tracker.drop_seen_free(self._static.seen_free_now, returns)
 
     def _estimate(self, scan: Scan, odometry: Odometry, match: MatchOutcome, rest: Restoration,
                   flags: EstimateFlag, tracked: list[tuple[Track, Detection | None]], laser: Pose2D) -> Estimate:

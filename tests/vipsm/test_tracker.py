@@ -648,3 +648,23 @@ def test_a_partly_occluded_detection_pulls_the_track_less() -> None:
                                 occluded=occluded)])
         pulled[occluded] = float(tr.tracks[0].state[1])
     assert pulled[True] < 0.5 * pulled[False]
+
+
+def test_a_coasting_person_is_kept_while_a_return_lies_where_a_leg_could_stand() -> None:
+    """cross_60 and curve_crossing seed 163: a walker whose leg was split by a dropped return was no
+    body for one scan; the beams between the legs crossed the predicted centre's cell and the track
+    was dropped, its successor unreported for 3 cycles. A return within half the widest leg pair of
+    the centre may be a leg; with none there the space is free."""
+    def coasting() -> Tracker:
+        tr = Tracker(TrackerConfig())
+        for k in range(10):
+            tr.step(0.1 * k, [_det(3.8, 2.0 - 0.1 * k)])
+        tr.step(1.0, [])
+        assert tr.tracks and tr.tracks[0].missed == 1 and tr.tracks[0].seen_as_person
+        return tr
+
+    x, y = coasting().predict_position(coasting().tracks[0], 1.0)
+    for leg, kept in (((x - 0.14, y - 0.06), True), ((x - 0.6, y), False)):
+        tr = coasting()
+        tr.drop_seen_free(lambda px, py: True, np.array([leg, (np.nan, np.nan)]))
+        assert bool(tr.tracks) == kept
