@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .geometry import scan_points
 from .restore import BearingInterval, _beams_in
 from .seen_through import ScanMemory
 from .static_map import FreeSpaceGrid
@@ -176,11 +177,9 @@ def _violating(world: np.ndarray, finite: np.ndarray, grid: FreeSpaceGrid, memor
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                         camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None,
                         memory: ScanMemory | None) -> list[_Segment]:
-    c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     finite = np.isfinite(r)
     in_camera = [_beams_in(iv, np.where(finite, r, np.nan), b, 0.0) for iv in camera]
-    xl, yl = r * np.cos(b), r * np.sin(b)
-    world = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)  # nan: no return
+    world = scan_points(laser, r, b)  # nan: no return
     violating = _violating(world, finite, grid, memory)
     out = []
     for a, z in segments(r, b, cfg):

@@ -36,7 +36,7 @@ import numpy as np
 
 from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
-from .geometry import between, compose, wrap_angle
+from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
@@ -244,10 +244,8 @@ class Estimator:
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
         self._memory.push(laser, ranges, scan.bearings_rad)
-        c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
-        xl, yl = ranges * np.cos(scan.bearings_rad), ranges * np.sin(scan.bearings_rad)
-        returns = np.stack([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl], axis=1)
-        self._tracker.drop_seen_free(self._static.seen_free_now, returns)
+        if any(t.missed for t in self._tracker.tracks):  # only a coasting track can be dropped
+            self._tracker.drop_seen_free(self._static.seen_free_now, scan_points(laser, ranges, scan.bearings_rad))
 
     def _estimate(self, scan: Scan, odometry: Odometry, match: MatchOutcome, rest: Restoration,
                   flags: EstimateFlag, tracked: list[tuple[Track, Detection | None]], laser: Pose2D) -> Estimate:
@@ -323,10 +321,7 @@ class Estimator:
     def _laser_to_robot_points(self, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
         ok = np.isfinite(ranges) & (ranges >= self.config.psm.min_range_m)
         r, b = ranges[ok], bearings[ok]
-        m = self.config.laser_mount
-        xl, yl = r * np.cos(b), r * np.sin(b)
-        c, s = math.cos(m.theta_rad), math.sin(m.theta_rad)
-        return np.stack([m.x_m + c * xl - s * yl, m.y_m + s * xl + c * yl], axis=1)
+        return scan_points(self.config.laser_mount, r, b)
 
 
 def _checked(scan: Scan) -> tuple[Scan, bool]:

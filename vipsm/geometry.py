@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .types import Pose2D
 
 
@@ -36,6 +38,13 @@ def between(a: Pose2D, b: Pose2D) -> Pose2D:
 def transform_point(pose: Pose2D, x_m: float, y_m: float) -> tuple[float, float]:
     c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
     return pose.x_m + c * x_m - s * y_m, pose.y_m + s * x_m + c * y_m
+
+
+def scan_points(pose: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray) -> np.ndarray:
+    """(k, 2) points of polar returns taken from ``pose``, in ``pose``'s parent frame (NaN stays NaN)."""
+    c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
+    xl, yl = ranges_m * np.cos(bearings_rad), ranges_m * np.sin(bearings_rad)
+    return np.stack([pose.x_m + c * xl - s * yl, pose.y_m + s * xl + c * yl], axis=1)
 
 
 IDENTITY = Pose2D(0.0, 0.0, 0.0)

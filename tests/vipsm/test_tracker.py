@@ -291,19 +291,20 @@ def test_a_fitted_circle_whose_radius_keeps_changing_is_no_displacement_evidence
     round body keeps its radius: the same positions with a steady radius would be motion (partly
     occluded too, a partial fit of a round body keeping its radius within 10 %)."""
     xy = [(5.98, -0.98), (5.99, -1.00), (6.04, -1.05), (5.98, -1.02)]
+    assert not _confirmed_by_fits(xy, [0.090, 0.108, 0.172, 0.112])
+    assert not _confirmed_by_fits(xy, [0.090, 0.108, 0.172, 0.112], occluded=False)
+    assert _confirmed_by_fits(xy, [0.10, 0.10, 0.10, 0.10])
+    assert _confirmed_by_fits(xy, [0.10, 0.10, 0.10, 0.10], occluded=False)
 
-    def run(radii: list[float], occluded: bool = True) -> bool:
-        tr = Tracker(TrackerConfig())
-        confirmed = False
-        for k, ((x, y), r) in enumerate(zip(xy, radii, strict=True)):
-            det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", occluded=occluded)
-            confirmed |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
-        return confirmed
 
-    assert not run([0.090, 0.108, 0.172, 0.112])
-    assert not run([0.090, 0.108, 0.172, 0.112], occluded=False)
-    assert run([0.10, 0.10, 0.10, 0.10])
-    assert run([0.10, 0.10, 0.10, 0.10], occluded=False)
+def _confirmed_by_fits(xy: list[tuple[float, float]], radii: list[float], occluded: bool = True) -> bool:
+    """A track fed circle fits (with motion evidence) at these centres and radii, 0.1 s apart, is confirmed."""
+    tr = Tracker(TrackerConfig())
+    confirmed = False
+    for k, ((x, y), r) in enumerate(zip(xy, radii, strict=True)):
+        det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", occluded=occluded)
+        confirmed |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
+    return confirmed
 
 
 def test_a_partly_hidden_fit_that_shrinks_steadily_is_no_displacement_evidence() -> None:
@@ -312,17 +313,8 @@ def test_a_partly_hidden_fit_that_shrinks_steadily_is_no_displacement_evidence()
     it, its centre drifting 4 cm. Each fit was within 10 % of the track's smoothed radius, which lags;
     a round body's partial views keep one radius over the window."""
     xy = [(6.050, -1.298), (6.031, -1.296), (6.019, -1.296), (6.007, -1.294), (6.000, -1.301)]
-
-    def run(radii: list[float]) -> bool:
-        tr = Tracker(TrackerConfig())
-        confirmed = False
-        for k, ((x, y), r) in enumerate(zip(xy, radii, strict=True)):
-            det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", occluded=True)
-            confirmed |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
-        return confirmed
-
-    assert not run([0.304, 0.289, 0.283, 0.269, 0.266])
-    assert run([0.300, 0.295, 0.302, 0.297, 0.299])
+    assert not _confirmed_by_fits(xy, [0.304, 0.289, 0.283, 0.269, 0.266])
+    assert _confirmed_by_fits(xy, [0.300, 0.295, 0.302, 0.297, 0.299])
 
 
 def _slow_body(x: float, evidence: bool) -> Detection:
