@@ -282,8 +282,8 @@ class Track:
     history: list[tuple[float, float, float, float, float, float, float]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
-    #: the last ``report_window`` detected positions (stamp_s, x_m, y_m)
-    recent: list[tuple[float, float, float, float]] = field(default_factory=list)  # stamp, x, y, kind
+    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code)
+    recent: list[tuple[float, float, float, float]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
     seen_as_person: bool = False
@@ -475,24 +475,10 @@ class Tracker:
             return False
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
-        xy, v = kind_aligned(rec)
-        parts = [xy, xy[-c.report_recent :]]
-        if t.seen_as_person:
-            # a person's lone leg is either leg, ahead of the pelvis or behind it: no point of a path (two
-            # lone legs in a row, front then back, read as a step back: stand_then_walk seed 127). The
-            # pair's midpoints alone while the pair is what is seen now (3 of the newest detections; a
-            # person who stopped with the legs apart and is seen by one leg keeps the kinds aligned).
-            # They must also cover the window's speed (a few centimetres of midpoint jitter after the
-            # person stopped are "straight" too: curve_crossing seed 5).
-            pair = rec[:, 3] != _KIND_CODE["leg"]
-            newest = rec[-c.report_recent :][pair[-c.report_recent :]]
-            if newest.shape[0] >= 3:
-                net = float(np.hypot(*(newest[-1, 1:3] - newest[0, 1:3])))
-                if net < c.report_window_speed_mps * (newest[-1, 0] - newest[0, 0]):
-                    return False
-                parts[1] = newest[:, 1:3]
-                if np.ptp(rec[pair, 0]) >= 0.5:
-                    parts[0], v = kind_aligned(rec[pair])
+        path = self._window_path(rec, t.seen_as_person)
+        if path is None:
+            return False
+        parts, v = path
         # back and forth, over the window or its newest part: a standing body's detection jumping
         # between legs and wall, or a walker who stopped half a window ago
         for part in parts:
@@ -500,6 +486,31 @@ class Tracker:
             if float(np.hypot(*(part[-1] - part[0]))) < c.report_straightness * float(step.sum()):
                 return False
         return math.hypot(*v) >= c.report_window_speed_mps
+
+    def _window_path(self, rec: np.ndarray, person: bool) -> tuple[list[np.ndarray], tuple[float, float]] | None:
+        """The report window's positions (kinds aligned) and its newest part, and its velocity; None when
+        a person's newest leg-pair midpoints do not cover a walker's speed. For a person (``person``),
+        a lone leg is either leg, ahead of the pelvis or behind it: no point of a path (two lone legs in
+        a row, front then back, read as a step back: stand_then_walk seed 127). The pair's midpoints
+        alone while the pair is what is seen now (3 of the newest detections; a person who stopped with
+        the legs apart and is seen by one leg keeps the kinds aligned); they must also cover the
+        window's speed (a few centimetres of midpoint jitter after the person stopped are "straight"
+        too: curve_crossing seed 5)."""
+        c = self.config
+        xy, v = kind_aligned(rec)
+        parts = [xy, xy[-c.report_recent :]]
+        if not person:
+            return parts, v
+        pair = rec[:, 3] != _KIND_CODE["leg"]
+        newest = rec[-c.report_recent :][pair[-c.report_recent :]]
+        if newest.shape[0] < 3:
+            return parts, v
+        if float(np.hypot(*(newest[-1, 1:3] - newest[0, 1:3]))) < c.report_window_speed_mps * np.ptp(newest[:, 0]):
+            return None
+        parts[1] = newest[:, 1:3]
+        if np.ptp(rec[pair, 0]) >= 0.5:
+            parts[0], v = kind_aligned(rec[pair])
+        return parts, v
 
     def drop_seen_free(self, seen_free: Any, returns_xy: np.ndarray | None = None) -> None:
         """Drop coasting tracks whose predicted centre a beam of the current scan passed through, except
