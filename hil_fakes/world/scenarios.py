@@ -455,6 +455,7 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
             for i in range(len(o.waypoints) - 1)
         )
         clutter = furnish(rng, prm["clutter"], (0.3, ROOM_LENGTH_M), (-half, half), ROBOT_RADIUS_M + 0.45, keepout)
+    _check_robot_path(prm, clutter)
     return Scenario(
         name=str(prm["name"]),
         params=prm,
@@ -476,6 +477,32 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
         robot_yaw_rate_radps=prm["robot_yaw_rate_radps"],
         robot_turn_start_s=prm["robot_turn_start_s"],
     )
+
+
+def robot_path(prm: dict[str, Any], step_s: float = 0.05) -> np.ndarray:
+    """(N, 3) times and centre positions of the commanded robot path: ``robot_speed_mps`` reached
+    under the acceleration limit, ``robot_yaw_rate_radps`` from ``robot_turn_start_s``."""
+    t = np.arange(0.0, prm["duration_s"] + step_s, step_s)
+    x = np.array([robot_x_at(float(ti), 0.0, prm["robot_speed_mps"]) for ti in t])
+    ds = np.diff(x, prepend=0.0)  # distance covered per step
+    heading = ROBOT_START[2] + prm["robot_yaw_rate_radps"] * np.clip(t - prm["robot_turn_start_s"], 0.0, None)
+    px = ROBOT_START[0] + np.cumsum(ds * np.cos(heading))
+    py = ROBOT_START[1] + np.cumsum(ds * np.sin(heading))
+    return np.stack([t, px, py], axis=1)
+
+
+def _check_robot_path(prm: dict[str, Any], clutter: Clutter) -> None:
+    """The robot's commanded path stays inside the room's walls and off the furniture: a run in which
+    it drives through a wall or a table measures nothing."""
+    key = "robot_yaw_rate_radps" if prm["robot_yaw_rate_radps"] else "robot_speed_mps"
+    half = ROOM_WIDTH_M / 2 - ROBOT_RADIUS_M
+    for t, x, y in robot_path(prm):
+        if x > ROOM_LENGTH_M - ROBOT_RADIUS_M or abs(y) > half:
+            raise ScenarioError(key, f"the robot's path reaches a wall at {t:.1f} s ({x:.2f}, {y:.2f}) m: "
+                                     "shorten duration_s or change the speed or turn")
+        for cx, cy, r, kind in clutter.footprints():
+            if math.hypot(x - cx, y - cy) < r + ROBOT_RADIUS_M:
+                raise ScenarioError(key, f"the robot's path runs into a {kind} at {t:.1f} s ({x:.2f}, {y:.2f}) m")
 
 
 def laser_effects(prm: dict[str, Any]) -> LaserEffects:

@@ -25,7 +25,14 @@ from hil_fakes.world import (
     load_scenario_file,
     paper_scenario,
 )
-from hil_fakes.world.scenarios import ROOM_LENGTH_M, ROOM_WIDTH_M, robot_x_at
+from hil_fakes.world.scenarios import (
+    ROBOT_START,
+    ROOM_LENGTH_M,
+    ROOM_WIDTH_M,
+    default_params,
+    robot_path,
+    robot_x_at,
+)
 
 HALF_W = ROOM_WIDTH_M / 2
 NOISELESS = LaserModel(sigma_near_m=0.0, sigma_far_m=0.0)
@@ -124,6 +131,21 @@ def test_fast_obstacle_starts_where_its_path_enters_the_room() -> None:
     assert ob.start_s > 5.0 and sc.notes
     x, y = ob.waypoints[0]
     assert ob.radius_m <= x <= ROOM_LENGTH_M - ob.radius_m and abs(y) <= HALF_W - ob.radius_m + 1e-9
+
+
+def test_a_robot_path_through_a_wall_or_the_furniture_is_refused() -> None:
+    """A run in which the commanded robot drives through the far wall (0.45 m/s for 25 s in the 8 m
+    room) or turns into a piece of furniture measures nothing: the scenario names the key."""
+    with pytest.raises(ScenarioError, match="'robot_speed_mps'.*reaches a wall at 16.5 s"):
+        build_scenario({"obstacles": 0, "robot_speed_mps": 0.45, "duration_s": 25.0})
+    build_scenario({"obstacles": 0, "robot_speed_mps": 0.45, "duration_s": 15.0})  # stops short of it
+    with pytest.raises(ScenarioError, match="'robot_yaw_rate_radps'.*runs into a"):
+        build_scenario({"obstacles": 0, "clutter": 3, "duration_s": 25.0, "robot_yaw_rate_radps": 0.3,
+                        "robot_turn_start_s": 3.0, "seed": 401})
+    with pytest.raises(ScenarioError, match="'robot_yaw_rate_radps'.*reaches a wall"):
+        build_scenario({"obstacles": 0, "robot_yaw_rate_radps": 0.1, "robot_turn_start_s": 2.0})
+    path = robot_path({**default_params(), "robot_speed_mps": 0.2, "duration_s": 10.0})
+    assert path[-1, 1] == pytest.approx(robot_x_at(10.0, ROBOT_START[0], 0.2), abs=0.01)
 
 
 def test_scenario_errors_name_the_key(tmp_path: Path) -> None:
