@@ -628,6 +628,26 @@ def test_a_coasting_track_takes_a_far_detection_only_when_it_shows_motion() -> N
     assert out[0][1] is not None
 
 
+def test_an_unconfirmed_coasting_track_takes_no_far_detection_even_with_motion() -> None:
+    """Recorded path ucy_zara01 13: a table leg a passer-by uncovered started a track; it coasted, its
+    covariance grew, and it took the next table leg 0.6 m away (with motion evidence of its own), was
+    confirmed by that jump and reported at 1.7 m/s. A track that has not shown it moves keeps gate_m."""
+    tr = Tracker(TrackerConfig())
+    for k in range(3):
+        tr.step(0.1 * k, [Detection(5.76 + 0.004 * k, -1.48, 0.06, False, 0, 3, 0.0, 0.1, evidence=True,
+                                    sigma_m=0.03, kind="leg")])
+    tr.step(0.3, [])
+    tr.step(0.4, [])
+    t = tr.tracks[0]
+    assert not t.confirmed and t.missed == 2
+    tr._predict(t, 0.5)
+    assert tr.config.gate_m + 2.0 * math.sqrt(t.cov[0, 0] + t.cov[1, 1]) > 0.6  # the grown gate would take it
+    far = Detection(6.3, -1.03, 0.06, False, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="leg")
+    out = tr.step(0.5, [far])
+    assert all(d is None for trk, d in out if trk.track_id == t.track_id)
+    assert not any(trk.confirmed for trk, _ in out)
+
+
 def test_a_partly_occluded_detection_pulls_the_track_less() -> None:
     """Only part of the body is seen: its centre is uncertain by about a radius, so the filter trusts
     it less than a whole view."""
