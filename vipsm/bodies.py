@@ -20,6 +20,9 @@ the two leg centres (the pelvis); a lone leg (the other hidden) is a person at t
 segments (up to ``max_body_width_m``) are round bodies when a circle fits them (centre behind the
 points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
 candidate when either leg shows evidence: the stance leg stands still while the swing leg moves.
+
+Segments bridge a gap of up to ``max_gap_beams`` beams with no echo (a dropout inside a leg), never
+one where the pre-filter removed a return (a thin thing in front).
 """
 
 from __future__ import annotations
@@ -42,6 +45,11 @@ class BodiesConfig:
     seg_jump_m: float = 0.15
     seg_jump_range_factor: float = 3.0
     min_beams: int = 3
+    #: a run of at most this many beams with no return between two returns on one surface does not
+    #: split the segment (a dropout inside a leg: each half would see the other as the same surface
+    #: beside it and neither would be a body); a gap where the pre-filter removed a return is never
+    #: bridged (a thin thing in front)
+    max_gap_beams: int = 2
     #: a leg at the laser's height (shin, trousered): 0.05-0.25 m across the segment
     max_leg_width_m: float = 0.25
     leg_radius_m: float = 0.06
@@ -55,6 +63,10 @@ class BodiesConfig:
     surface_tol_m: float = 0.05
     min_free_share: float = 0.5
     person_radius_m: float = 0.25
+
+    def __post_init__(self) -> None:
+        if self.max_gap_beams < 0 or self.min_beams < 1:
+            raise ValueError(f"need max_gap_beams >= 0 and min_beams >= 1, got {self.max_gap_beams}, {self.min_beams}")
 
 
 @dataclass(frozen=True)
@@ -90,26 +102,31 @@ class _Segment:
     occluders: tuple[int, ...] = ()
 
 
-def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig) -> list[tuple[int, int]]:
-    """[start, stop) runs of consecutive valid returns on one surface."""
+def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig, dropped: np.ndarray | None = None
+             ) -> list[tuple[int, int]]:
+    """[start, stop) runs of returns on one surface: consecutive, or across at most ``max_gap_beams``
+    beams that had no echo when the returns on both sides of the gap are within the jump threshold
+    (its range-scaled part widened by the gap's beams, the fixed part not: a leg 0.15 m in front of a
+    wall stays apart from it across the mixed pixel dropped between them). ``dropped`` (per beam,
+    optional): the pre-filter removed a return there (a thin thing in front, a mixed pixel): a gap
+    holding one is an occluder's, never bridged. A segment starts and ends with a return; it may hold
+    NaN beams."""
     n = r.size
-    valid = np.isfinite(r)
-    if n == 0:
+    idx = np.flatnonzero(np.isfinite(r))
+    if idx.size == 0:
         return []
     dphi = float(abs(b[-1] - b[0]) / max(n - 1, 1))
-    rr = np.where(valid, r, 0.0)
-    thr = np.maximum(cfg.seg_jump_m, cfg.seg_jump_range_factor * rr * dphi)
-    brk = np.ones(n, bool)
-    brk[1:] = ~valid[:-1] | (np.abs(rr[1:] - rr[:-1]) >= thr[1:])
-    starts = np.flatnonzero(valid & brk)
-    if starts.size == 0:
-        return []
-    stops = np.append(starts[1:], n)
-    out = []
-    for a, z in zip(starts, stops, strict=True):
-        last = a + int(np.argmin(valid[a:z])) if not valid[a:z].all() else z
-        out.append((int(a), int(last)))
-    return out
+    rv = r[idx]
+    gap = np.diff(idx)  # beams from one return to the next
+    thr = np.maximum(cfg.seg_jump_m, cfg.seg_jump_range_factor * rv[1:] * dphi * gap)
+    brk = (gap > cfg.max_gap_beams + 1) | (np.abs(np.diff(rv)) >= thr)
+    if dropped is not None:
+        removed = np.concatenate([[0], np.cumsum(dropped)])  # removed[i]: dropped beams before i
+        brk |= removed[idx[1:]] - removed[idx[:-1] + 1] > 0
+    cut = np.flatnonzero(brk) + 1  # positions in idx where a new segment starts
+    starts = np.concatenate([[0], cut])
+    stops = np.concatenate([cut, [idx.size]])
+    return [(int(idx[s0]), int(idx[s1 - 1]) + 1) for s0, s1 in zip(starts, stops, strict=True)]
 
 
 def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool, list[int]]:
@@ -121,7 +138,7 @@ def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool,
     (foreground, the beams of the nearer neighbours: its occluders). The edge of the scanner's field
     of view hides like a nearer neighbour (its beam index is -1 or the scan's size): a body leaving the
     field of view shows a shrinking part whose centre moves with the edge, not with the body."""
-    near = float(np.min(r[a:z]))
+    near = float(np.nanmin(r[a:z]))
     occluders: list[int] = []  # the beam of each nearer neighbour
     nb = cfg.neighbour_beams
     sides = (np.arange(a - 1, max(a - nb, 0) - 1, -1), np.arange(z, min(z + nb, r.size)))
@@ -176,37 +193,38 @@ def _violating(world: np.ndarray, finite: np.ndarray, grid: FreeSpaceGrid, memor
 
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                         camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None,
-                        memory: ScanMemory | None) -> list[_Segment]:
+                        memory: ScanMemory | None, dropped: np.ndarray | None) -> list[_Segment]:
     finite = np.isfinite(r)
     in_camera = [_beams_in(iv, np.where(finite, r, np.nan), b, 0.0) for iv in camera]
     world = scan_points(laser, r, b)  # nan: no return
     violating = _violating(world, finite, grid, memory)
     out = []
-    for a, z in segments(r, b, cfg):
-        if z - a < cfg.min_beams:
+    for a, z in segments(r, b, cfg, dropped):
+        beams = a + np.flatnonzero(finite[a:z])  # a bridged gap's beams hold no return
+        if beams.size < cfg.min_beams:
             continue
         fg, occluders = _foreground(r, a, z, cfg)
         if not fg:
             continue
-        pts = world[a:z]
+        pts = world[beams]
         width = float(np.hypot(*(pts[-1] - pts[0])))
         if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
-        share = float(np.mean(violating[a:z]))
-        cue = _camera_cue(in_camera, a, z, [k for k in occluders if 0 <= k < r.size])
+        share = float(np.mean(violating[beams]))
+        cue = _camera_cue(in_camera, beams, [k for k in occluders if 0 <= k < r.size])
         if ahead is not None and width > cfg.max_leg_width_m:
-            cue = cue or bool(np.mean(ahead[a:z]) >= 0.6)
+            cue = cue or bool(np.mean(ahead[beams]) >= 0.6)
         out.append(_Segment(a, z, pts, width, share, cue, tuple(occluders)))
     return out
 
 
-def _camera_cue(in_camera: list[np.ndarray], a: int, z: int, occluders: list[int]) -> bool:
-    """Half the segment's beams lie in camera intervals, not counting an interval that also holds one
+def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[int]) -> bool:
+    """Half the segment's beams (with a return) lie in camera intervals, not counting an interval that also holds one
     of its occluders: the camera sees motion of the front surface, and a nearer body moving beside a
     partly hidden one covers and uncovers it at its edge (a box behind the passing cylinder,
     ``cylinder_clutter`` seed 107), which the flow sees as motion there."""
     own = [m for m in in_camera if not any(m[k] for k in occluders)]
-    return bool(own) and float(np.mean(np.logical_or.reduce(own)[a:z])) >= 0.5
+    return bool(own) and float(np.mean(np.logical_or.reduce(own)[beams])) >= 0.5
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[int, int | None]]:
@@ -228,13 +246,15 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
 
 def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                    camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig,
-                   ahead: np.ndarray | None = None, memory: ScanMemory | None = None) -> list[Body]:
+                   ahead: np.ndarray | None = None, memory: ScanMemory | None = None,
+                   dropped: np.ndarray | None = None) -> list[Body]:
     """The foreground bodies of one scan (world frame, placed with the matched laser pose), each with
     its motion evidence. ``ahead`` (per beam, optional): the return stands clearly in front of what the
     keyframe saw in that direction (counts like the camera's motion cue). ``memory`` (optional): recent
-    scans; a free-space violation must then also have been seen through at beam resolution."""
+    scans; a free-space violation must then also have been seen through at beam resolution.
+    ``dropped`` (per beam, optional): the pre-filter removed a return there (see :func:`segments`)."""
     sensor = (laser.x_m, laser.y_m)
-    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, ahead, memory)
+    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, ahead, memory, dropped)
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:

@@ -134,41 +134,44 @@ class Estimator:
     def step(self, scan: Scan, odometry: Odometry, frame: Frame | None = None) -> Estimate:
         flags = EstimateFlag.PLAIN_PSM if self.plain_psm else EstimateFlag.NONE
         scan, scan_ok = _checked(scan)
-        scan, lone_m = self._prefilter(scan)
+        scan, lone_m, dropped = self._prefilter(scan)
         predicted = self._predict(odometry.pose)
         camera, flags = self._visual_bearings(scan, odometry, frame, flags)
         masks = camera + self._track_masks(scan.stamp_s, predicted)
         rest = restore(scan.ranges_m, scan.bearings_rad, masks, self.config.restore, self.config.psm.min_range_m)
         match = self._match(scan, rest, predicted, scan_ok)
         laser = compose(match.pose, self.config.laser_mount)
-        bodies, tracked = self._obstacles(scan, lone_m, laser, camera, match)
+        bodies, tracked = self._obstacles(scan, lone_m, dropped, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
         return self._estimate(scan, odometry, match, rest, flags | match.flags | _rest_flags(rest, self.plain_psm),
                               tracked, laser)
 
     # ------------------------------------------------------------------ stages
-    def _obstacles(self, scan: Scan, lone_m: np.ndarray, laser: Pose2D, camera: list[BearingInterval],
-                   match: MatchOutcome) -> tuple[list[Body], list[tuple[Track, Detection | None]]]:
+    def _obstacles(self, scan: Scan, lone_m: np.ndarray, dropped: np.ndarray, laser: Pose2D,
+                   camera: list[BearingInterval], match: MatchOutcome
+                   ) -> tuple[list[Body], list[tuple[Track, Detection | None]]]:
         """Bodies, tracking and the static map at most every ``obstacle_period_s`` (the cycle their
         thresholds are counted in); a scan in between (the 40 Hz loop) publishes the tracks predicted
         to its stamp. ``lone_m``: the lone returns the pre-filter dropped (NaN elsewhere), which the
-        static map takes back."""
+        static map takes back; ``dropped``: every beam whose return the pre-filter removed."""
         last = self._last_obstacle_s
         if last is not None and scan.stamp_s - last < 0.8 * self.config.obstacle_period_s:
             return [], [(t, None) for t in self._tracker.tracks]
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
-                                self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory)
+                                self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
-    def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray]:
-        """The scan without mixed pixels and lone returns, and the lone returns (NaN elsewhere)."""
+    def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
+        """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
+        beams it removed."""
         mixed, lone = veiling_masks(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
         ranges = np.where(mixed | lone, np.nan, scan.ranges_m)
         lone_m = np.where(lone, scan.ranges_m, np.nan)
-        return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities), lone_m
+        scan = Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities)
+        return scan, lone_m, mixed | lone
 
     def _predict(self, odo: Pose2D) -> Pose2D:
         if self._last_pose is None or self._last_odo is None:

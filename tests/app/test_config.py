@@ -46,6 +46,7 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("log.queue_size=10000000000", "log.queue_size", "<= 65536"),
         ("estimator.tracker.accel_sigmas_mps2=[]", "estimator.tracker", "at least one positive"),
         ("estimator.tracker.mode_switch_prob=1.5", "estimator.tracker", "mode_switch_prob must be in [0, 1)"),
+        ("estimator.bodies.max_gap_beams=-1", "estimator.bodies", "max_gap_beams >= 0"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )
