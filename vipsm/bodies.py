@@ -19,7 +19,8 @@ foreground segments within ``leg_pair_max_m`` of each other are one person, plac
 the two leg centres (the pelvis); a lone leg (the other hidden) is a person at that leg. Wider
 segments (up to ``max_body_width_m``) are round bodies when a circle fits them (centre behind the
 points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
-candidate when either leg shows evidence: the stance leg stands still while the swing leg moves.
+candidate when either leg shows evidence: the stance leg stands still while the swing leg moves. A
+leg-sized thing that has stood alone for a while (a post: ``_fixtures``) is never a leg of a pair.
 
 Segments bridge a gap of up to ``max_gap_beams`` beams with no echo (a dropout inside a leg), never
 one where the pre-filter removed a return (a thin thing in front).
@@ -28,7 +29,7 @@ one where the pre-filter removed a return (a thin thing in front).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -63,10 +64,22 @@ class BodiesConfig:
     surface_tol_m: float = 0.05
     min_free_share: float = 0.5
     person_radius_m: float = 0.25
+    #: a leg-sized segment whose returns lie in cells the laser has seen occupied in at least this many
+    #: (decayed) scans has stood there (15 is ~1.7 s at 10 scans a second under the grid's 6 s memory; a
+    #: walker's stance leg stays ~0.6 s, and the cells of a tracked mover get no occupancy); one that
+    #: stood alone is a fixture (a post): no motion evidence, never one leg of a person's pair (a post
+    #: beside a passer-by made a "person" between them whose track followed the post, recorded path
+    #: eth_hotel 20). See ``_fixtures``
+    fixture_occupied: float = 15.0
+    #: ... its own cells: within this of its points' mean (a long-occupied cell further away, within
+    #: ``leg_pair_max_m``, that the laser now sees through was another leg that stood there)
+    fixture_own_m: float = 0.2
 
     def __post_init__(self) -> None:
         if self.max_gap_beams < 0 or self.min_beams < 1:
             raise ValueError(f"need max_gap_beams >= 0 and min_beams >= 1, got {self.max_gap_beams}, {self.min_beams}")
+        if not 0.0 <= self.fixture_own_m < self.leg_pair_max_m:
+            raise ValueError(f"need 0 <= fixture_own_m < leg_pair_max_m, got {self.fixture_own_m}")
 
 
 @dataclass(frozen=True)
@@ -100,6 +113,12 @@ class _Segment:
     camera: bool
     #: beams of nearer returns right beside it: something in front hides part of it
     occluders: tuple[int, ...] = ()
+    #: leg-sized and in cells long occupied (``BodiesConfig.fixture_occupied``); ``vacated_near``: a
+    #: long-occupied cell within a leg pair's reach that this scan sees through
+    stood: bool = False
+    vacated_near: bool = False
+    #: stood, alone: a fixture (see :func:`_fixtures`)
+    fixture: bool = False
 
 
 def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig, dropped: np.ndarray | None = None
@@ -214,7 +233,41 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         cue = _camera_cue(in_camera, beams, [k for k in occluders if 0 <= k < r.size])
         if ahead is not None and width > cfg.max_leg_width_m:
             cue = cue or bool(np.mean(ahead[beams]) >= 0.6)
-        out.append(_Segment(a, z, pts, width, share, cue, tuple(occluders)))
+        stood = width <= cfg.max_leg_width_m and float(np.median(grid.occupied(pts))) >= cfg.fixture_occupied
+        vacated = stood and _vacated_near(pts, r, b, laser, grid, cfg)
+        out.append(_Segment(a, z, pts, width, share, cue, tuple(occluders), stood, vacated))
+    return out
+
+
+def _vacated_near(pts: np.ndarray, r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
+                  cfg: BodiesConfig) -> bool:
+    """A long-occupied cell within a leg pair's reach of the segment that this scan sees through: a
+    beam in its direction returns from more than a cell beyond it (something that stood there left)."""
+    cx, cy = (float(v) for v in pts.mean(axis=0))
+    cells = grid.occupied_cells_around(cx, cy, cfg.fixture_own_m, cfg.leg_pair_max_m, cfg.fixture_occupied)
+    if not cells.size:
+        return False
+    dist = np.hypot(cells[:, 0] - laser.x_m, cells[:, 1] - laser.y_m)
+    bearing = np.arctan2(cells[:, 1] - laser.y_m, cells[:, 0] - laser.x_m) - laser.theta_rad
+    bearing = np.arctan2(np.sin(bearing), np.cos(bearing))
+    k = np.clip(np.searchsorted(b, bearing), 0, b.size - 1)
+    ranges = r[k]
+    cell_m = grid.config.cell_m
+    return bool(np.any(np.isfinite(ranges) & (ranges > dist + cell_m) & (np.abs(b[k] - bearing) < cell_m / dist)))
+
+
+def _fixtures(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[_Segment, float, float]]:
+    """The legs with each fixture marked and stripped of motion evidence: a leg-sized thing that has
+    stood here for a while alone, with no other such thing within a leg pair's reach (a standing
+    person's other leg) and no long-occupied cell there that the laser now sees through (the other
+    leg of a person who stood and took the first step). A post stands alone."""
+    out = []
+    for i, (sg, x, y) in enumerate(legs):
+        partner = any(o.stood and math.hypot(ox - x, oy - y) <= cfg.leg_pair_max_m
+                      for j, (o, ox, oy) in enumerate(legs) if j != i)
+        if sg.stood and not sg.vacated_near and not partner:
+            sg = replace(sg, free_share=0.0, camera=False, fixture=True)
+        out.append((sg, x, y))
     return out
 
 
@@ -228,7 +281,7 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[int, int | None]]:
-    """Greedy nearest pairs of leg centres within ``leg_pair_max_m``; the rest alone."""
+    """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture; the rest alone."""
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
         for i in range(len(legs)) for j in range(i + 1, len(legs))
@@ -236,7 +289,7 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
     used: set[int] = set()
     out: list[tuple[int, int | None]] = []
     for d, i, j in pairs:
-        if d > cfg.leg_pair_max_m or i in used or j in used:
+        if d > cfg.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
             continue
         used |= {i, j}
         out.append((i, j))
@@ -264,6 +317,7 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
             if fitted:  # a round body; a wall piece or a room corner fits no circle behind its points
                 bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
+    legs = _fixtures(legs, cfg)
     for i, j in _pair_legs(legs, cfg):
         group = [legs[i]] + ([legs[j]] if j is not None else [])
         x = float(np.mean([g[1] for g in group]))

@@ -97,6 +97,30 @@ class FreeSpaceGrid:
         out[inside] = (free >= c.min_free) & (occ <= c.max_occupied)
         return out
 
+    def occupied(self, points_xy: np.ndarray) -> np.ndarray:
+        """Per point: the (decayed) count of scans that ended a beam in its cell (before the current
+        scan is integrated); 0 outside the grid."""
+        i, j, inside = self._cells(np.asarray(points_xy, float).reshape(-1, 2))
+        out = np.zeros(inside.size, np.float32)
+        out[inside] = self.occ[i[inside], j[inside]]
+        return out
+
+    def occupied_cells_around(self, x_m: float, y_m: float, inner_m: float, outer_m: float,
+                              min_occupied: float) -> np.ndarray:
+        """(k, 2) centres of the cells with at least ``min_occupied`` (decayed) occupancy whose centre
+        lies between ``inner_m`` and ``outer_m`` from (x, y)."""
+        c = self.config
+        k = int(math.ceil(outer_m / c.cell_m)) + 1
+        i0 = int(math.floor((x_m - self.origin[0]) / c.cell_m))
+        j0 = int(math.floor((y_m - self.origin[1]) / c.cell_m))
+        ii, jj = np.meshgrid(np.arange(i0 - k, i0 + k + 1), np.arange(j0 - k, j0 + k + 1), indexing="ij")
+        cx = self.origin[0] + (ii + 0.5) * c.cell_m
+        cy = self.origin[1] + (jj + 0.5) * c.cell_m
+        d = np.hypot(cx - x_m, cy - y_m)
+        ring = (d > inner_m) & (d <= outer_m) & (ii >= 0) & (ii < self.n) & (jj >= 0) & (jj < self.n)
+        ring[ring] = self.occ[ii[ring], jj[ring]] >= min_occupied
+        return np.stack([cx[ring], cy[ring]], axis=1)
+
     def seen_free_now(self, x_m: float, y_m: float) -> bool:
         """Whether a beam of the last integrated scan crossed the cell of (x, y)."""
         i, j, inside = self._cells(np.array([[x_m, y_m]]))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from vipsm.static_map import FreeSpaceGrid, StaticMapConfig
 from vipsm.types import Pose2D
@@ -67,3 +68,25 @@ def test_evidence_decays_and_the_grid_follows_the_robot_with_bounded_memory() ->
     _fill(grid, world, Pose2D(15.0, 0.0, 0.0), 3, t0=11.0)
     assert grid.free.shape == shape and grid.violates(np.array([[17.0, 0.5]]))[0]
     assert math.isclose(float(grid.origin[0] + grid.n * cfg.cell_m / 2), 15.0, abs_tol=cfg.cell_m)
+
+
+def test_occupied_counts_the_scans_that_ended_in_a_cell_decayed() -> None:
+    world = box_room(8.0, 6.0)
+    world.circles = [Circle(2.5, 1.0, 0.05)]
+    grid = FreeSpaceGrid()
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 20)
+    on, floor, outside = grid.occupied(np.array([[2.45, 1.0], [1.5, 0.0], [50.0, 0.0]])).tolist()
+    k = math.exp(-0.1 / grid.config.memory_s)
+    assert on == pytest.approx(sum(k**i for i in range(20)), rel=1e-4)  # the post's front cell, 20 scans
+    assert floor == 0.0 and outside == 0.0
+
+
+def test_occupied_cells_around_lists_long_occupied_cells_in_the_ring_only() -> None:
+    world = box_room(8.0, 6.0)
+    world.circles = [Circle(2.5, 1.0, 0.05), Circle(2.5, 1.4, 0.05)]  # two posts 0.4 m apart
+    grid = FreeSpaceGrid()
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 20)
+    cells = grid.occupied_cells_around(2.45, 1.0, 0.2, 0.65, 15.0)
+    assert cells.shape[0] >= 1 and np.all(np.hypot(cells[:, 0] - 2.45, cells[:, 1] - 1.4) < 0.15)  # the other post
+    assert grid.occupied_cells_around(2.45, 1.0, 0.2, 0.65, 30.0).shape == (0, 2)  # not that long
+    assert grid.occupied_cells_around(2.45, 1.0, 0.2, 0.3, 15.0).shape == (0, 2)  # out of reach
