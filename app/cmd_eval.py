@@ -15,7 +15,7 @@ from .cli import print_json
 from .evaluation.metrics import ROBUSTNESS_FACTOR
 from .evaluation.report import print_table
 from .evaluation.runner import run_scenario, scenario_result, tune_allocator
-from .evaluation.scenarios import add_scenario_arguments, build_scenarios
+from .evaluation.scenarios import add_scenario_arguments, driven_scenarios
 
 #: the paper's two scenarios: their Fig. 8 is drawn at the paper's instants (6, 8, 10, 12 s)
 PAPER_NAMES = {"paper1", "paper2", "scenario1_45deg", "scenario2_90deg"}
@@ -23,7 +23,7 @@ PAPER_NAMES = {"paper1", "paper2", "scenario1_45deg", "scenario2_90deg"}
 
 def cmd_eval(args: argparse.Namespace) -> int:
     tune_allocator()
-    scenarios = build_scenarios(args, args.scenario)
+    scenarios = driven_scenarios(args, args.scenario)
     results = []
     t0 = time.perf_counter()
     for sc in scenarios:

@@ -14,7 +14,7 @@ from hil_fakes.world import (
     load_scenario_file,
     paper_params,
 )
-from hil_fakes.world.scenarios import REALISTIC_SUITE, suite_params
+from hil_fakes.world.scenarios import REALISTIC_SUITE, check_robot_path, suite_params
 
 from ..errors import AppError
 
@@ -153,3 +153,15 @@ def build_scenarios(args: argparse.Namespace, which: str | None) -> list[Scenari
         return [build_scenario(p) for p in scenario_param_sets(args, which)]
     except ScenarioError as exc:
         raise AppError(str(exc)) from exc
+
+
+def driven_scenarios(args: argparse.Namespace, which: str | None) -> list[Scenario]:
+    """:func:`build_scenarios` for ``eval``, whose robot follows the scenario's own commands: a path
+    that reaches a wall or the furniture is refused (``sim``'s robot follows the daemon's mission)."""
+    scenarios = build_scenarios(args, which)
+    try:
+        for sc in scenarios:
+            check_robot_path(sc)
+    except ScenarioError as exc:
+        raise AppError(str(exc)) from exc
+    return scenarios

@@ -455,7 +455,6 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
             for i in range(len(o.waypoints) - 1)
         )
         clutter = furnish(rng, prm["clutter"], (0.3, ROOM_LENGTH_M), (-half, half), ROBOT_RADIUS_M + 0.45, keepout)
-    _check_robot_path(prm, clutter)
     return Scenario(
         name=str(prm["name"]),
         params=prm,
@@ -491,9 +490,11 @@ def robot_path(prm: dict[str, Any], step_s: float = 0.05) -> np.ndarray:
     return np.stack([t, px, py], axis=1)
 
 
-def _check_robot_path(prm: dict[str, Any], clutter: Clutter) -> None:
-    """The robot's commanded path stays inside the room's walls and off the furniture: a run in which
-    it drives through a wall or a table measures nothing."""
+def check_robot_path(scenario: Scenario) -> None:
+    """The robot's commanded path (``Scenario.command_at``, what ``eval`` drives) stays inside the
+    room's walls and off the furniture: a run in which it drives through a wall or a table measures
+    nothing. (``sim`` is driven by the daemon's mission, not by these commands.)"""
+    prm, clutter = scenario.params, scenario.clutter
     key = "robot_yaw_rate_radps" if prm["robot_yaw_rate_radps"] else "robot_speed_mps"
     half = ROOM_WIDTH_M / 2 - ROBOT_RADIUS_M
     for t, x, y in robot_path(prm):

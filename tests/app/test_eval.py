@@ -78,6 +78,8 @@ def test_bad_values_are_one_line_errors_naming_the_key(capsys: pytest.CaptureFix
     bad.write_text("crossing = 30\n")
     code, out, err = run_cli(capsys, ["eval", "--scenario-file", str(bad)])
     assert code == 2 and "'crossing'" in err and len(err.strip().splitlines()) == 1
+    code, out, err = run_cli(capsys, ["eval", "--scenario", "static_clutter", "--robot-speed", "0.45"])
+    assert code == 2 and "'robot_speed_mps'" in err and "reaches a wall" in err and out == ""
 
 
 def test_json_output_shape_and_plots(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
