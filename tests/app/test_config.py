@@ -47,6 +47,7 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.tracker.accel_sigmas_mps2=[]", "estimator.tracker", "at least one positive"),
         ("estimator.tracker.mode_switch_prob=1.5", "estimator.tracker", "mode_switch_prob must be in [0, 1)"),
         ("estimator.bodies.max_gap_beams=-1", "estimator.bodies", "max_gap_beams >= 0"),
+        ("estimator.bodies.fixture_own_m=0.9", "estimator.bodies", "fixture_own_m < leg_pair_max_m"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )
