@@ -272,10 +272,10 @@ def _fixtures(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> l
 
 
 def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[int]) -> bool:
-    """Half the segment's beams (with a return) lie in camera intervals, not counting an interval that also holds one
-    of its occluders: the camera sees motion of the front surface, and a nearer body moving beside a
-    partly hidden one covers and uncovers it at its edge (a box behind the passing cylinder,
-    ``cylinder_clutter`` seed 107), which the flow sees as motion there."""
+    """Half the segment's beams (those with a return) lie in camera intervals, not counting an
+    interval that also holds one of its occluders: the camera sees motion of the front surface, and a
+    nearer body moving beside a partly hidden one covers and uncovers it at its edge (a box behind the
+    passing cylinder, ``cylinder_clutter`` seed 107), which the flow sees as motion there."""
     own = [m for m in in_camera if not any(m[k] for k in occluders)]
     return bool(own) and float(np.mean(np.logical_or.reduce(own)[beams])) >= 0.5
 
