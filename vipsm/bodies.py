@@ -72,7 +72,7 @@ class BodiesConfig:
     #: eth_hotel 20). See ``_fixtures``
     fixture_occupied: float = 15.0
     #: ... its own cells: within this of its points' mean (a long-occupied cell further away, within
-    #: ``leg_pair_max_m``, that the laser now sees through was another leg that stood there)
+    #: ``leg_pair_max_m``, where this scan's beam no longer ends was another leg that stood there)
     fixture_own_m: float = 0.2
 
     def __post_init__(self) -> None:
@@ -114,7 +114,7 @@ class _Segment:
     #: beams of nearer returns right beside it: something in front hides part of it
     occluders: tuple[int, ...] = ()
     #: leg-sized and in cells long occupied (``BodiesConfig.fixture_occupied``); ``vacated_near``: a
-    #: long-occupied cell within a leg pair's reach that this scan sees through
+    #: long-occupied cell within a leg pair's reach where this scan's beam no longer ends
     stood: bool = False
     vacated_near: bool = False
     #: stood, alone: a fixture (see :func:`_fixtures`)
@@ -241,8 +241,9 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
 
 def _vacated_near(pts: np.ndarray, r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                   cfg: BodiesConfig) -> bool:
-    """A long-occupied cell within a leg pair's reach of the segment that this scan sees through: a
-    beam in its direction returns from more than a cell beyond it (something that stood there left)."""
+    """A long-occupied cell within a leg pair's reach of the segment where this scan's beam does not
+    end: it returns from more than a cell beyond it (what stood there left) or nearer than it (the
+    other leg of a person who stood, now stepping towards the laser, hides its own old cell)."""
     cx, cy = (float(v) for v in pts.mean(axis=0))
     cells = grid.occupied_cells_around(cx, cy, cfg.fixture_own_m, cfg.leg_pair_max_m, cfg.fixture_occupied)
     if not cells.size:
@@ -253,14 +254,15 @@ def _vacated_near(pts: np.ndarray, r: np.ndarray, b: np.ndarray, laser: Pose2D, 
     k = np.clip(np.searchsorted(b, bearing), 0, b.size - 1)
     ranges = r[k]
     cell_m = grid.config.cell_m
-    return bool(np.any(np.isfinite(ranges) & (ranges > dist + cell_m) & (np.abs(b[k] - bearing) < cell_m / dist)))
+    left = np.isfinite(ranges) & (np.abs(ranges - dist) > cell_m)
+    return bool(np.any(left & (np.abs(b[k] - bearing) < cell_m / dist)))
 
 
 def _fixtures(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[_Segment, float, float]]:
     """The legs with each fixture marked and stripped of motion evidence: a leg-sized thing that has
     stood here for a while alone, with no other such thing within a leg pair's reach (a standing
-    person's other leg) and no long-occupied cell there that the laser now sees through (the other
-    leg of a person who stood and took the first step). A post stands alone."""
+    person's other leg) and no long-occupied cell there where this scan's beam no longer ends (the
+    other leg of a person who stood and took the first step). A post stands alone."""
     out = []
     for i, (sg, x, y) in enumerate(legs):
         partner = any(o.stood and math.hypot(ox - x, oy - y) <= cfg.leg_pair_max_m

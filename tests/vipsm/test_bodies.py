@@ -11,7 +11,7 @@ from vipsm.static_map import FreeSpaceGrid
 from vipsm.tracker import TrackerConfig
 from vipsm.types import Pose2D
 
-from .sim import Circle, box_room
+from .sim import UTM_BEARINGS, Circle, box_room
 
 CFG = BodiesConfig()
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
@@ -246,3 +246,26 @@ def test_a_person_who_stood_and_takes_the_first_step_is_still_a_pair() -> None:
     scan = world.scan(ORIGIN)
     bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig())
     assert [b.kind for b in bodies] == ["person"] and bodies[0].evidence
+
+
+
+def test_a_long_occupied_cell_left_or_hidden_counts_as_vacated_one_still_ending_a_beam_does_not() -> None:
+    """head_on_step_aside seed 191: the walker's first step came straight at the laser, so the swing
+    leg hid its own long-occupied cell from the beam; a cell whose beam ends nearer (hidden) or
+    farther (seen through) than it no longer holds what stood there; one whose beam still ends in
+    it does (a box beside a post)."""
+    from vipsm.bodies import _vacated_near
+
+    grid = FreeSpaceGrid()
+    grid.integrate(0.0, (0.0, 0.0), 0.0, np.array([np.nan]), np.array([0.0]))  # anchor the grid at the origin
+    i, j, _ = grid._cells(np.array([[2.55, 0.45]]))
+    grid.occ[i[0], j[0]] = 30.0  # the other leg stood here
+    bearings = UTM_BEARINGS
+    stance = np.array([[2.54, 0.68], [2.54, 0.70], [2.54, 0.72]])
+    cell_bearing = math.atan2(0.45, 2.55)
+    near_cell = np.abs(bearings - cell_bearing) < math.radians(1.0)
+    dist = math.hypot(2.55, 0.45)
+    for beam_m, vacated in ((dist, False), (2.2, True), (4.0, True)):
+        ranges = np.full(bearings.size, 4.0)
+        ranges[near_cell] = beam_m
+        assert _vacated_near(stance, ranges, bearings, ORIGIN, grid, CFG) is vacated, beam_m
