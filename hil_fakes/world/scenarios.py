@@ -497,11 +497,12 @@ def check_robot_path(scenario: Scenario) -> None:
     prm, clutter = scenario.params, scenario.clutter
     key = "robot_yaw_rate_radps" if prm["robot_yaw_rate_radps"] else "robot_speed_mps"
     half = ROOM_WIDTH_M / 2 - ROBOT_RADIUS_M
+    furniture = clutter.footprints()
     for t, x, y in robot_path(prm):
         if x > ROOM_LENGTH_M - ROBOT_RADIUS_M or abs(y) > half:
             raise ScenarioError(key, f"the robot's path reaches a wall at {t:.1f} s ({x:.2f}, {y:.2f}) m: "
                                      "shorten duration_s or change the speed or turn")
-        for cx, cy, r, kind in clutter.footprints():
+        for cx, cy, r, kind in furniture:
             if math.hypot(x - cx, y - cy) < r + ROBOT_RADIUS_M:
                 raise ScenarioError(key, f"the robot's path runs into a {kind} at {t:.1f} s ({x:.2f}, {y:.2f}) m")
 
