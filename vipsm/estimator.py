@@ -218,7 +218,8 @@ class Estimator:
                 continue
             b = math.atan2(rel.y_m, rel.x_m)
             half = math.asin(min(half_w / d, 1.0))
-            out.append(BearingInterval(b - half, b + half, 0.0, 0.0, "track", t.track_id))
+            # the body occupies these ranges too: what the laser sees beside or behind it is not cut
+            out.append(BearingInterval(b - half, b + half, 0.0, 0.0, "track", t.track_id, d - half_w, d + half_w))
         return out
 
     def _match(self, scan: Scan, rest: Restoration, predicted: Pose2D, scan_ok: bool) -> MatchOutcome:

@@ -26,10 +26,16 @@ class BearingInterval:
     origin_y_m: float = 0.0
     source: str = "camera"  # "camera" or "track" (predicted from a tracked obstacle)
     track_id: int = -1
+    #: the ranges (from the laser) the moving thing can occupy: a track knows where its body is, so
+    #: the wall seen beside or behind it in the same directions is not cut; a camera interval has no range
+    range_min_m: float = 0.0
+    range_max_m: float = math.inf
 
     def __post_init__(self) -> None:
         if not self.bearing_min_rad <= self.bearing_max_rad:
             raise ValueError("bearing_min_rad must be <= bearing_max_rad")
+        if not 0.0 <= self.range_min_m <= self.range_max_m:
+            raise ValueError("need 0 <= range_min_m <= range_max_m")
 
 
 @dataclass(frozen=True)
@@ -103,10 +109,15 @@ def _seen_bearings(interval: BearingInterval, r: np.ndarray, b: np.ndarray) -> n
 def _beams_in(
     interval: BearingInterval, r: np.ndarray, b: np.ndarray, margin: float, seen: np.ndarray | None = None
 ) -> np.ndarray:
-    """Beams whose point, seen from the interval's origin, lies inside the interval +- margin."""
+    """Beams whose point, seen from the interval's origin, lies inside the interval +- margin (and, for
+    an interval with a range window, whose return lies in it)."""
     if seen is None:
         seen = _seen_bearings(interval, r, b)
-    return (seen >= interval.bearing_min_rad - margin) & (seen <= interval.bearing_max_rad + margin)
+    inside = (seen >= interval.bearing_min_rad - margin) & (seen <= interval.bearing_max_rad + margin)
+    if interval.range_min_m > 0.0 or math.isfinite(interval.range_max_m):
+        with np.errstate(invalid="ignore"):
+            inside &= (r >= interval.range_min_m) & (r <= interval.range_max_m)
+    return inside
 
 
 def _compact_foreground(r: np.ndarray, b: np.ndarray, seg: np.ndarray, s: int, cfg: RestoreConfig) -> bool:

@@ -389,3 +389,26 @@ def test_a_static_body_the_keyframe_had_cut_out_is_not_ahead_of_it() -> None:
         est._matcher.keyframe = Keyframe(prep, pose, np.zeros((3, 3)), 100, seen)
         ahead = est._ahead_of_keyframe(scan, match)
         assert ahead is not None and bool(np.all(ahead[body])) == expect_ahead
+
+
+def test_track_masks_hold_the_tracked_body_range_window() -> None:
+    """Without a camera only the tracks' predicted intervals are cut, and each knows the ranges its
+    body occupies (so the wall beside or behind it in the same directions stays for the matcher)."""
+    world = _crossing_world()
+    body = world.circles[0]
+    est = Estimator(CFG)
+    windows = 0
+    for scan, odo, frame, truth in _sequence(world, 50, frames=False):
+        est.step(scan, odo, frame)
+        laser = compose(truth, LASER)
+        bx, by = body.at(scan.stamp_s)
+        for iv in est.last_debug.intervals:
+            assert iv.source == "track"
+            assert math.isfinite(iv.range_max_m) and iv.range_min_m > 0.0
+            width = iv.range_max_m - iv.range_min_m
+            assert width == pytest.approx(2.0 * (0.4 + CFG.track_mask_margin_m), abs=0.15)
+            centre = math.hypot(bx - laser.x_m, by - laser.y_m)
+            assert iv.range_min_m < centre - 0.3 and centre + 0.3 < iv.range_max_m
+            windows += 1
+    assert windows >= 20
+

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from vipsm.restore import BearingInterval, RestoreConfig, restore
 from vipsm.types import Pose2D
@@ -109,3 +110,33 @@ def test_two_bodies_two_obstacles_and_overlapping_intervals_merge() -> None:
     res = restore(scan.ranges_m, scan.bearings_rad, ivs)
     assert len(res.obstacles) == 2
     assert res.obstacles[0].stop <= res.obstacles[1].start
+
+
+def test_a_track_interval_with_a_range_window_cuts_the_body_not_the_furniture_beside_it() -> None:
+    # a tracked body at 2 m; a box face 1 m behind it, just beside it in bearing, inside the track's
+    # (wide: radius + margin + prediction error) interval
+    walls = np.array([(4.0, -5.0, 4.0, 5.0), (3.0, 0.35, 3.0, 0.9)], dtype=float)
+    world = World(walls, [Circle(2.0, 0.0, 0.3)])
+    scan = world.scan(Pose2D(0, 0, 0))
+    b = scan.bearings_rad
+    face = np.flatnonzero((np.abs(scan.ranges_m * np.cos(b) - 3.0) < 0.01) & (scan.ranges_m * np.sin(b) > 0.3))
+    body = np.flatnonzero(scan.ranges_m < 2.5)
+    assert face.size > 10 and body.size > 10
+    iv = _interval_around(2.0, 0.0, 0.3, pad_deg=12.0)
+    assert iv.bearing_max_rad > b[face[-1]]  # the face lies wholly inside the bearing interval
+    without = restore(scan.ranges_m, b, [iv])
+    assert np.all(without.weights[face] == 0.0)  # bearings alone: the face is cut with the body
+    windowed = BearingInterval(iv.bearing_min_rad, iv.bearing_max_rad, source="track", track_id=1,
+                               range_min_m=2.0 - 0.45, range_max_m=2.0 + 0.45)
+    res = restore(scan.ranges_m, b, [windowed])
+    beside = face[face > body[-1] + RestoreConfig().edge_beams]  # past the body's mixed edge returns
+    assert beside.size > 10 and np.all(res.weights[beside] == 1.0)  # the box face stays for the matcher
+    assert np.all(res.weights[body] == 0.0)  # the body is cut
+    assert len(res.obstacles) == 1 and res.obstacles[0].start == body[0] and res.obstacles[0].stop == body[-1] + 1
+
+
+def test_interval_range_window_must_be_ordered() -> None:
+    with pytest.raises(ValueError):
+        BearingInterval(0.0, 0.1, range_min_m=2.0, range_max_m=1.0)
+    with pytest.raises(ValueError):
+        BearingInterval(0.0, 0.1, range_min_m=-1.0)
