@@ -412,3 +412,19 @@ def test_track_masks_hold_the_tracked_body_range_window() -> None:
             windows += 1
     assert windows >= 20
 
+
+def test_keyframe_is_replaced_after_keyframe_dist_m_of_travel() -> None:
+    """Each replacement freezes one match's error into the chain of keyframes: in a static room the
+    keyframe changes only once the robot is ``keyframe_dist_m`` from it (or turned, or lost overlap)."""
+    world = box_room(9.0, 6.0, x0=-1.0, y0=-3.0)
+    est = Estimator(CFG)
+    poses = []
+    for scan, odo, frame, _ in _sequence(world, 80, frames=False):  # 1.6 m at 0.2 m/s
+        est.step(scan, odo, frame)
+        kf = est._matcher.keyframe.pose
+        if not poses or kf != poses[-1]:
+            poses.append(kf)
+    gaps = [math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) for a, b in zip(poses, poses[1:])]
+    step = 0.2 * 0.1 * 1.03  # one cycle's travel (odometry 2 % long)
+    assert len(gaps) == int(1.6 / CFG.keyframe_dist_m) - 1 or len(gaps) == int(1.6 / CFG.keyframe_dist_m)
+    assert all(CFG.keyframe_dist_m < g <= CFG.keyframe_dist_m + step for g in gaps)
