@@ -10,6 +10,7 @@ import pytest
 
 from vipsm.estimator import Estimator, EstimatorConfig
 from vipsm.geometry import compose
+from vipsm.psm import prepare_scan
 from vipsm.restore import RestoreConfig
 from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Pose2D, Scan
 
@@ -433,8 +434,6 @@ def test_keyframe_is_replaced_after_keyframe_dist_m_of_travel() -> None:
 def _leg_push_back_m(range_m: float, median_window: int) -> float:
     """Mean of (prepared - true) range over a 44 mm table leg's beams at ``range_m`` ahead, over 40
     draws of the UTM's 10 mm range noise, after the estimator's PSM preprocessing with ``median_window``."""
-    from vipsm.psm import prepare_scan
-
     world = box_room(8.0, 8.0)
     world.circles = [Circle(range_m, 0.3, 0.022)]
     _, ident = world.cast(0.0, 0.0, UTM_BEARINGS)
