@@ -306,8 +306,8 @@ class Tracker:
         self.tracks: list[Track] = []
         self._next_id = 1
         #: the last ``retro_cycles`` cycles' detections that no confirmed track took and that started no
-        #: track: (stamp_s, detections)
-        self._past: deque[tuple[float, list[Detection]]] = deque(maxlen=self.config.retro_cycles)
+        #: track: (stamp_s, [(detection, id of the unconfirmed track that took it or None)])
+        self._past: deque[tuple[float, list[tuple[Detection, int | None]]]] = deque(maxlen=self.config.retro_cycles)
 
     def predict_position(self, track: Track, stamp_s: float) -> tuple[float, float]:
         dt = max(stamp_s - track.stamp_s, 0.0)
@@ -538,15 +538,21 @@ class Tracker:
         no other track). Up to ``tentative_max_missed`` cycles without one are passed over (a table leg
         unseen for two scans), as a coasting track would, but the reach stays one cycle's step: what
         jumped further in the gap is not known to be the same body. A partly occluded detection (its
-        position unreliable) ends the chain: it would hold confirmation back for a whole window."""
+        position unreliable) ends the chain: it would hold confirmation back for a whole window. A
+        detection a live track took is that track's body, not this one's past (a post's, tracked, when a
+        table leg 0.25 m from it came out from behind the passing cylinder: the leg "walked" from the
+        post, `cylinder_clutter` seed 165)."""
         c = self.config
         chain: list[tuple[float, Detection]] = []
         head_s, head = stamp_s, det
         missed = 0
+        live = {t.track_id for t in self.tracks}
         for past_s, dets in reversed(self._past):
             reach = c.max_speed_mps * (head_s - past_s) / (missed + 1) + c.step_noise_m
             near, blocked = [], False
-            for i, d in enumerate(dets):
+            for i, (d, holder) in enumerate(dets):
+                if holder in live:
+                    continue
                 slack = c.kind_change_m if d.kind != head.kind else 0.0
                 dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m) - slack
                 if dist > reach:
@@ -561,7 +567,7 @@ class Tracker:
                     break
                 continue
             missed = 0
-            head_s, head = past_s, dets.pop(min(near)[1])
+            head_s, head = past_s, dets.pop(min(near)[1])[0]
             chain.append((head_s, head))
         return chain[::-1]
 
@@ -628,6 +634,7 @@ class Tracker:
         # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
         # where it was should see the same static past, not start afresh with a short window)
         held = {id(d) for ti, d in got.items() if self.tracks[ti].confirmed}
+        holder = {id(d): self.tracks[ti].track_id for ti, d in got.items()}
         spare = [di for di, d in enumerate(detections) if id(d) not in held]
         born = set()
         for di, d in enumerate(detections):
@@ -636,7 +643,8 @@ class Tracker:
             born.add(di)
             self.tracks.append(self._start(stamp_s, d))
             got[len(self.tracks) - 1] = d
-        self._past.append((stamp_s, [detections[di] for di in spare if di not in born]))
+        kept = [detections[di] for di in spare if di not in born]
+        self._past.append((stamp_s, [(d, holder.get(id(d))) for d in kept]))
         out: list[tuple[Track, Detection | None]] = []
         keep: list[Track] = []
         c = self.config

@@ -680,3 +680,17 @@ def test_a_coasting_person_is_kept_while_a_return_lies_where_a_leg_could_stand()
         tr = coasting()
         tr.drop_seen_free(lambda px, py: True, np.array([leg, (np.nan, np.nan)]))
         assert bool(tr.tracks) == kept
+
+
+def test_a_leg_uncovered_beside_a_tracked_post_does_not_take_the_posts_past() -> None:
+    """`cylinder_clutter` seed 165: a post (tracked, unconfirmed, camera evidence from the cylinder
+    passing in front) and a table leg 0.26 m from it that the cylinder uncovers. The leg's new track
+    must not start from the post's earlier detections, which the post's live track took: with them the
+    leg "walked" 0.26 m from the post and was confirmed (and reported) as a moving body."""
+    tr = Tracker(TrackerConfig())
+    for k in range(14):
+        dets = [_det(6.23, -0.84 - 0.001 * k, evidence=k in (2, 3, 4, 5, 6, 9, 10), kind="leg")]
+        if k >= 5:
+            dets.append(_det(6.25, -1.10 - 0.001 * k, evidence=True, kind="leg"))
+        for t, _ in tr.step(0.1 * k, dets):
+            assert not t.confirmed, (k, t.track_id, t.history)
