@@ -540,7 +540,7 @@ class Tracker:
         jumped further in the gap is not known to be the same body. A partly occluded detection (its
         position unreliable) ends the chain: it would hold confirmation back for a whole window. A
         detection a live track took is that track's body, not this one's past (a post's, tracked, when a
-        table leg 0.25 m from it came out from behind the passing cylinder: the leg "walked" from the
+        table leg 0.26 m from it came out from behind the passing cylinder: the leg "walked" from the
         post, `cylinder_clutter` seed 165)."""
         c = self.config
         chain: list[tuple[float, Detection]] = []
