@@ -165,7 +165,7 @@ class Estimator:
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
-        tracked = self._tracker.step(scan.stamp_s, [_detection(b) for b in bodies])
+        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -349,10 +349,10 @@ def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
     return flags
 
 
-def _detection(b: Body) -> Detection:
+def _detection(b: Body, laser: Pose2D) -> Detection:
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
                      b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind], kind=b.kind,
-                     occluded=b.occluded)
+                     occluded=b.occluded, view_rad=math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m))
 
 
 def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, float]) -> Obstacle:

@@ -317,6 +317,31 @@ def test_a_partly_hidden_fit_that_shrinks_steadily_is_no_displacement_evidence()
     assert _confirmed_by_fits(xy, [0.300, 0.295, 0.302, 0.297, 0.299])
 
 
+def test_a_box_whose_fit_grows_as_a_face_turns_into_view_does_not_confirm() -> None:
+    """cylinder_clutter seed 179 (the detections as they were, the laser at (3.05, 0)): a box 4.3 m
+    away, flagged by the camera's flow near the image border, fitted with a radius growing 0.19 ->
+    0.26 m as more of a face showed; each centre lies its radius behind the visible surface, so the
+    centre receded 5.5 cm while the front moved 1.3 cm. The same centres with a steady radius are a
+    round body moving."""
+    xy = [(7.138, 1.251), (7.170, 1.263), (7.171, 1.269), (7.192, 1.268)]
+    view = [math.atan2(y, x - 3.05) for x, y in xy]
+
+    def confirmed(centres: list[tuple[float, float]], radii: list[float]) -> bool:
+        tr = Tracker(TrackerConfig())
+        out = False
+        for k, ((x, y), r, v) in enumerate(zip(centres, radii, view, strict=True)):
+            det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", view_rad=v)
+            out |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
+        return out
+
+    assert not confirmed(xy, [0.19, 0.23, 0.23, 0.26])
+    assert confirmed(xy, [0.23, 0.23, 0.23, 0.23])
+    # a round body's fit errs along the view line, radius and centre together: no harm done
+    err = [0.02, -0.015, 0.01, 0.0]
+    noisy = [(x + e * math.cos(v), y + e * math.sin(v)) for (x, y), e, v in zip(xy, err, view, strict=True)]
+    assert confirmed(noisy, [0.23 + e for e in err])
+
+
 def _slow_body(x: float, evidence: bool) -> Detection:
     return Detection(x, 5.5, 0.15, True, 0, 12, 0.0, 0.05, evidence=evidence, sigma_m=0.01, kind="body")
 
