@@ -73,6 +73,11 @@ class TrackerConfig:
     #: covers 10 cm in 0.1-0.3 s
     confirm_displacement_leg_m: float = 0.10
     confirm_window: int = 6
+    #: ... from a place the body left: no other detection came within this much of the window's first
+    #: position after it (a leg's width plus its centre's jitter). A track that hopped between two
+    #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were
+    #: (cylinder_clutter seed 178); a walker's old place is empty, a stance foot there is part of it
+    confirm_vacated_m: float = 0.15
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
     #: ... made step by step: at least this share of the steps advance along the net displacement (a
@@ -119,8 +124,8 @@ class TrackerConfig:
             raise ValueError(f"mode_switch_prob must be in [0, 1), got {self.mode_switch_prob}")
         if min(self.report_window, self.report_recent) < 2 or self.confirm_window < 3:
             raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
-        if self.max_tracks < 1 or self.retro_cycles < 0:
-            raise ValueError("need max_tracks >= 1 and retro_cycles >= 0")
+        if self.max_tracks < 1 or self.retro_cycles < 0 or self.confirm_vacated_m < 0.0:
+            raise ValueError("need max_tracks >= 1, retro_cycles >= 0 and confirm_vacated_m >= 0")
 
 
 @dataclass(frozen=True)
@@ -443,9 +448,10 @@ class Tracker:
         t.evidence += int(det.evidence)
         self._remember(t, det, agrees)
 
-    def _confirm(self, t: Track) -> None:
+    def _confirm(self, t: Track, others: list[Detection]) -> None:
         """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
-        (net distance over the recent window, along a nearly straight path)."""
+        (net distance over the recent window, along a nearly straight path, from a place it left;
+        ``others``: this cycle's detections the track did not take)."""
         c = self.config
         recent = sum(h[3] for h in t.history)
         if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
@@ -478,8 +484,17 @@ class Tracker:
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
-                and self._steady(hist)):
+                and self._steady(hist) and self._left(t, hist[0, :3], others)):
             t.confirmed = True
+
+    def _left(self, t: Track, origin: np.ndarray, others: list[Detection]) -> bool:
+        """No detection but the track's own stood within ``confirm_vacated_m`` of ``origin`` (stamp_s,
+        x_m, y_m) since: in this cycle (``others``) or a kept earlier one."""
+        c = self.config
+        since = [d for past_s, dets in self._past if past_s > origin[0] for d, holder in dets
+                 if holder != t.track_id]
+        return not any(math.hypot(d.x_m - origin[1], d.y_m - origin[2]) <= c.confirm_vacated_m
+                       for d in since + others)
 
     def _stale(self, t: Track) -> bool:
         """An unconfirmed track whose recent detections all lacked motion evidence: a static thing."""
@@ -649,7 +664,7 @@ class Tracker:
             if ti in got:
                 self._fold(t, got[ti])
                 t.missed = 0
-                self._confirm(t)
+                self._confirm(t, [d for d in detections if d is not got[ti]])
             else:
                 t.missed += 1
         # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
