@@ -63,6 +63,12 @@ class BodiesConfig:
     #: a return beside a straight segment this close to its line continues the same surface
     surface_tol_m: float = 0.05
     min_free_share: float = 0.5
+    #: a camera interval is motion evidence for a segment only when, at the segment's range, it is no
+    #: wider than this: a moving body and the background it uncovers in the flow's 0.3 s baseline (a
+    #: person 0.6 m wide crossing at 1.4 m/s: 1.0 m). A wider one is not about this segment: the flow
+    #: merged the passing cylinder with the far side of the image (47 deg, 3.6 m wide at a box 4.3 m
+    #: away, which became a track: cylinder_clutter seed 240)
+    camera_interval_max_m: float = 2.0
     person_radius_m: float = 0.25
     #: a leg-sized segment whose returns lie in cells the laser has seen occupied in at least this many
     #: (decayed) scans has stood there (15 is ~1.7 s at 10 scans a second under the grid's 6 s memory; a
@@ -78,6 +84,8 @@ class BodiesConfig:
     def __post_init__(self) -> None:
         if self.max_gap_beams < 0 or self.min_beams < 1:
             raise ValueError(f"need max_gap_beams >= 0 and min_beams >= 1, got {self.max_gap_beams}, {self.min_beams}")
+        if self.camera_interval_max_m <= 0.0:
+            raise ValueError(f"need camera_interval_max_m > 0, got {self.camera_interval_max_m}")
         if not 0.0 <= self.fixture_own_m < self.leg_pair_max_m:
             raise ValueError(f"need 0 <= fixture_own_m < leg_pair_max_m, got {self.fixture_own_m}")
 
@@ -230,7 +238,10 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
         share = float(np.mean(violating[beams]))
-        cue = _camera_cue(in_camera, beams, [k for k in occluders if 0 <= k < r.size])
+        near_m = float(np.median(r[beams]))
+        narrow = [m for m, iv in zip(in_camera, camera, strict=True)
+                  if (iv.bearing_max_rad - iv.bearing_min_rad) * near_m <= cfg.camera_interval_max_m]
+        cue = _camera_cue(narrow, beams, [k for k in occluders if 0 <= k < r.size])
         if ahead is not None and width > cfg.max_leg_width_m:
             cue = cue or bool(np.mean(ahead[beams]) >= 0.6)
         stood = width <= cfg.max_leg_width_m and float(np.median(grid.occupied(pts))) >= cfg.fixture_occupied

@@ -48,6 +48,8 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.tracker.mode_switch_prob=1.5", "estimator.tracker", "mode_switch_prob must be in [0, 1)"),
         ("estimator.bodies.max_gap_beams=-1", "estimator.bodies", "max_gap_beams >= 0"),
         ("estimator.bodies.fixture_own_m=0.9", "estimator.bodies", "fixture_own_m < leg_pair_max_m"),
+        ("estimator.bodies.camera_interval_max_m=0", "estimator.bodies", "camera_interval_max_m > 0"),
+        ("estimator.tracker.confirm_vacated_m=-1", "estimator.tracker", "confirm_vacated_m >= 0"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )

@@ -129,6 +129,27 @@ def test_a_camera_interval_that_holds_a_bodys_occluder_gives_the_hidden_body_no_
     assert far_cue(6.2, 9.0)  # only the far body's own beams
 
 
+def test_a_camera_interval_wider_than_any_body_at_the_segments_range_gives_it_no_cue() -> None:
+    """cylinder_clutter seed 240: the flow merged the passing cylinder with the far side of the image,
+    one interval 47 deg wide, and a box 4.3 m away inside it got camera evidence and became a track.
+    At 4.3 m that interval is 3.6 m wide, wider than a body and the background it uncovers; at 1.7 m
+    (the cylinder) 1.4 m, still a body's."""
+    from vipsm.restore import BearingInterval
+
+    world = box_room(12.0, 8.0, pillars=False)
+    world.circles = [Circle(1.7, -0.5, 0.3), Circle(4.3, 1.5, 0.25)]
+    scan = world.scan(ORIGIN)
+    cam = [BearingInterval(np.radians(-27.0), np.radians(21.5)), BearingInterval(np.radians(16.0), np.radians(24.0))]
+
+    def cues(intervals: list) -> dict[str, bool]:
+        bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, FreeSpaceGrid(), intervals, CFG,
+                                TrackerConfig())
+        return {("near" if b.x_m < 3.0 else "far"): b.camera for b in bodies}
+
+    assert cues(cam[:1]) == {"near": True, "far": False}
+    assert cues(cam) == {"near": True, "far": True}  # a narrow interval of its own still counts
+
+
 def _beams_on(scan, x_m: float, y_m: float, radius_m: float) -> np.ndarray:
     """Beams whose return lies on the circle (within 2 cm of its rim)."""
     px = scan.ranges_m * np.cos(scan.bearings_rad)
