@@ -161,7 +161,8 @@ def _remove_global_error(
     r = np.stack([ru.ravel()[idx], rv.ravel()[idx]])
     p = np.stack([pu.ravel()[idx], pv.ravel()[idx]])
     e0 = np.hypot(*r)
-    starts = [np.ones(idx.size, bool), e0 <= max(2.0 * float(np.percentile(e0, 25)), cfg.alpha_base_px)]
+    q25 = _lower_quartile(e0)
+    starts = [np.ones(idx.size, bool), e0 <= max(2.0 * q25, cfg.alpha_base_px)]
     best, best_n = (0.0, 0.0, 0.0), int(np.count_nonzero(e0 < cfg.alpha_base_px))
     for keep in starts:
         model = _fit_global(r, p, keep, cfg)
@@ -172,6 +173,16 @@ def _remove_global_error(
             best, best_n = model, n
     a, b, sc = best
     return ru - a - sc * pu, rv - b - sc * pv
+
+
+def _lower_quartile(x: np.ndarray) -> float:
+    """``np.percentile(x, 25)`` (linear interpolation) from a partial sort: a tenth of the cost."""
+    pos = 0.25 * (x.size - 1)
+    lo = int(math.floor(pos))
+    hi = min(lo + 1, x.size - 1)
+    part = np.partition(x, [lo, hi])
+    a, b, t = float(part[lo]), float(part[hi]), pos - lo
+    return b - (b - a) * (1.0 - t) if t >= 0.5 else a + (b - a) * t
 
 
 def _global_residual(r: np.ndarray, p: np.ndarray, model: tuple[float, float, float]) -> np.ndarray:
@@ -190,18 +201,19 @@ def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray, cfg: FlowConfig)
             break
         # normal equations of [1 0 pu; 0 1 pv] [a b s]' = [ru; rv]
         n = float(k.size)
-        spu, spv = float(p[0, k].sum()), float(p[1, k].sum())
-        spp = float(np.dot(p[0, k], p[0, k]) + np.dot(p[1, k], p[1, k]))
-        sru, srv = float(r[0, k].sum()), float(r[1, k].sum())
-        srp = float(np.dot(p[0, k], r[0, k]) + np.dot(p[1, k], r[1, k]))
-        m = np.array([[n, 0.0, spu], [0.0, n, spv], [spu, spv, spp]])
+        (pku, pkv), (rku, rkv) = p[:, k], r[:, k]
+        spu, spv = float(pku.sum()), float(pkv.sum())
+        spp = float(np.dot(pku, pku) + np.dot(pkv, pkv))
+        sru, srv = float(rku.sum()), float(rkv.sum())
+        srp = float(np.dot(pku, rku) + np.dot(pkv, rkv))
+        m = np.array([[n + 1e-6, 0.0, spu], [0.0, n + 1e-6, spv], [spu, spv, spp + 1e-6]])
         try:
-            a, b, sc = np.linalg.solve(m + 1e-6 * np.eye(3), np.array([sru, srv, srp]))
+            a, b, sc = np.linalg.solve(m, np.array([sru, srv, srp]))
         except np.linalg.LinAlgError:
             return model
-        model = (float(np.clip(a, -cfg.global_shift_max_px, cfg.global_shift_max_px)),
-                 float(np.clip(b, -cfg.global_shift_max_px, cfg.global_shift_max_px)),
-                 float(np.clip(sc, -cfg.global_scale_max, cfg.global_scale_max)))
+        shift, scale = cfg.global_shift_max_px, cfg.global_scale_max
+        model = (min(max(float(a), -shift), shift), min(max(float(b), -shift), shift),
+                 min(max(float(sc), -scale), scale))
         e = _global_residual(r, p, model)
         keep = e < max(3.0 * float(np.median(e[k])), 0.3)
     return model

@@ -241,3 +241,13 @@ def test_a_body_filling_half_the_image_does_not_pass_its_motion_to_the_backgroun
     moved = np.hypot(out_u, out_v) > 1.2
     assert np.mean(moved[~body]) < 0.02
     assert np.mean(moved[body]) > 0.98
+
+
+@pytest.mark.parametrize("n", [1, 2, 50, 51, 1499, 1500, 4800])
+def test_the_lower_quartile_is_numpys_25th_percentile(n: int) -> None:
+    from vipsm.flow import _lower_quartile
+
+    rng = np.random.default_rng(n)
+    for _ in range(20):
+        x = np.abs(rng.normal(0.0, 3.0, n))
+        assert _lower_quartile(x) == float(np.percentile(x, 25))
