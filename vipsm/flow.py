@@ -176,7 +176,7 @@ def _remove_global_error(
 
 
 def _lower_quartile(x: np.ndarray) -> float:
-    """``np.percentile(x, 25)`` (linear interpolation) from a partial sort: a tenth of the cost."""
+    """``np.percentile(x, 25)`` (linear interpolation), from a partial sort instead of a full one."""
     pos = 0.25 * (x.size - 1)
     lo = int(math.floor(pos))
     hi = min(lo + 1, x.size - 1)
