@@ -238,7 +238,7 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
         share = float(np.mean(violating[beams]))
-        near_m = float(np.median(r[beams]))
+        near_m = float(np.median(r[beams])) if camera else 0.0
         narrow = [m for m, iv in zip(in_camera, camera, strict=True)
                   if (iv.bearing_max_rad - iv.bearing_min_rad) * near_m <= cfg.camera_interval_max_m]
         cue = _camera_cue(narrow, beams, [k for k in occluders if 0 <= k < r.size])

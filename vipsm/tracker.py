@@ -448,10 +448,10 @@ class Tracker:
         t.evidence += int(det.evidence)
         self._remember(t, det, agrees)
 
-    def _confirm(self, t: Track, others: list[Detection]) -> None:
+    def _confirm(self, t: Track, detections: list[Detection], own: Detection) -> None:
         """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
         (net distance over the recent window, along a nearly straight path, from a place it left;
-        ``others``: this cycle's detections the track did not take)."""
+        ``detections``: this cycle's, ``own`` the one the track took)."""
         c = self.config
         recent = sum(h[3] for h in t.history)
         if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
@@ -484,17 +484,17 @@ class Tracker:
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
-                and self._steady(hist) and self._left(t, hist[0, :3], others)):
+                and self._steady(hist) and self._left(t, hist[0, :3], detections, own)):
             t.confirmed = True
 
-    def _left(self, t: Track, origin: np.ndarray, others: list[Detection]) -> bool:
+    def _left(self, t: Track, origin: np.ndarray, detections: list[Detection], own: Detection) -> bool:
         """No detection but the track's own stood within ``confirm_vacated_m`` of ``origin`` (stamp_s,
-        x_m, y_m) since: in this cycle (``others``) or a kept earlier one."""
+        x_m, y_m) since: in this cycle (``detections`` but ``own``) or a kept earlier one."""
         c = self.config
         since = [d for past_s, dets in self._past if past_s > origin[0] for d, holder in dets
                  if holder != t.track_id]
         return not any(math.hypot(d.x_m - origin[1], d.y_m - origin[2]) <= c.confirm_vacated_m
-                       for d in since + others)
+                       for d in since + detections if d is not own)
 
     def _stale(self, t: Track) -> bool:
         """An unconfirmed track whose recent detections all lacked motion evidence: a static thing."""
@@ -664,7 +664,7 @@ class Tracker:
             if ti in got:
                 self._fold(t, got[ti])
                 t.missed = 0
-                self._confirm(t, [d for d in detections if d is not got[ti]])
+                self._confirm(t, detections, got[ti])
             else:
                 t.missed += 1
         # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
