@@ -232,7 +232,7 @@ class FlowDetector:
         self._dis = cv2.DISOpticalFlow_create(self.config.dis_preset)
         self._history: list[tuple[np.ndarray, float, Frame, Pose2D]] = []
         self._last_result: FlowResult | None = None
-        self._geo: tuple | None = None
+        self._geo: _Geometry | None = None
         #: (residual flow px, threshold px, usable mask, grid step) of the last detection, for diagnostics
         self.last_residual: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None
 
@@ -282,167 +282,225 @@ class FlowDetector:
         if old is None:
             return None
         ogrey, oscale, oframe, opose = old
-        dt = frame.stamp_s - oframe.stamp_s
-        k = frame.intrinsics
-        fx, fy, cx, cy = k.fx_px * scale, k.fy_px * scale, k.cx_px * scale, k.cy_px * scale
-        ko = oframe.intrinsics
-        ofx, ofy, ocx, ocy = ko.fx_px * oscale, ko.fy_px * oscale, ko.cx_px * oscale, ko.cy_px * oscale
+        geo = self._geometry(frame, grey.shape, scale)
+        depth = _cell_depths(geo, depth_points_robot, self.mount, cfg)
+        rel = between(opose, odom_pose_at_frame)  # newest robot pose in the older robot frame
+        pred_u, pred_v, valid = _ego_flow(geo, depth, rel, oframe, oscale, self.mount, cfg)
         flow = self._dis.calc(grey, ogrey, None)  # newest -> older
-        h, w = grey.shape
+        fl = flow[0 : geo.h : geo.st, 0 : geo.w : geo.st].astype(np.float64)
+        ru, rv = fl[..., 0] - pred_u, fl[..., 1] - pred_v
+        usable = valid & _textured(grey, geo.st, cfg)
+        if cfg.fb_check:
+            usable &= self._comes_back(grey, ogrey, fl, geo)
+        if cfg.fit_global:
+            ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
+        alpha = _alpha_px(cfg, speed_mps, turn_radps, frame.stamp_s - oframe.stamp_s)
+        res = np.hypot(ru, rv)
+        thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
+        moving = usable & (res > thr)
+        self.last_residual = (res, thr, usable, geo.st)
+        mask = _clean_mask(moving, geo.st, cfg)
+        spans = _merge_spans(_blob_spans(mask, moving, usable, ru, geo.st, cfg))
+        if cfg.snap_to_depth and depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
+            col_depth = depth[depth.shape[0] // 2]  # laser depth per grid column (horizon row)
+            for sp in spans:
+                sp[0], sp[1] = _snap_to_depth(sp[0], sp[1], col_depth, geo.st, cfg)
+        intervals = tuple(_bearing_interval(sp, geo, frame, self.mount) for sp in spans)
+        self._last_result = FlowResult(
+            intervals,
+            float(alpha),
+            int(np.count_nonzero(mask)),
+            tuple((int(a), int(b_), int(c_), int(d)) for a, b_, c_, d in spans),
+        )
+        return self._last_result
+
+    def _geometry(self, frame: Frame, shape: tuple[int, ...], scale: float) -> _Geometry:
+        """The viewing ray of every grid cell of the newest frame (cached per camera state)."""
+        cfg, m, k = self.config, self.mount, frame.intrinsics
+        h, w = shape[:2]
         st = max(1, cfg.grid_step_px)
-        fl = flow[0:h:st, 0:w:st].astype(np.float64)
-        # ---- predicted static-scene flow (the viewing geometry is cached per camera state)
-        m = self.mount
-        geo_key = (h, w, st, fx, fy, cx, cy, k.distortion, frame.pan_rad, frame.tilt_rad, m.z_m)
-        if self._geo is None or self._geo[0] != geo_key:
+        fx, fy, cx, cy = k.fx_px * scale, k.fy_px * scale, k.cx_px * scale, k.cy_px * scale
+        key = (h, w, st, fx, fy, cx, cy, k.distortion, frame.pan_rad, frame.tilt_rad, m.z_m)
+        if self._geo is None or self._geo.key != key:
             vs, us = np.mgrid[0:h:st, 0:w:st]
             us = us.astype(np.float64) + 0.5 * (st - 1)
             vs = vs.astype(np.float64) + 0.5 * (st - 1)
             rx, ry, rz = _rays(us, vs, fx, fy, cx, cy, frame.pan_rad, frame.tilt_rad, k.distortion)
             hn = np.hypot(rx, ry)
-            az = np.arctan2(ry, rx)
             slope = rz / np.maximum(hn, 1e-9)
             floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
             bd = cfg.border_px
             inside = (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
-            self._geo = (geo_key, us, vs, rx, ry, rz, hn, az, floor_d, inside)
-        _, us, vs, rx, ry, rz, hn, az, floor_d, inside = self._geo
-        depth = np.full(az.shape, cfg.max_depth_m)
-        if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
-            dx = depth_points_robot[:, 0] - m.x_m
-            dy = depth_points_robot[:, 1] - m.y_m
-            pb = np.arctan2(dy, dx)
-            pd = np.hypot(dx, dy)
-            order = np.argsort(pb)
-            pb, pd = pb[order], pd[order]
-            # the nearest laser point's depth, not an interpolation: across a depth edge (a body in
-            # front of a wall) interpolated depths belong to neither surface and fake residual flow
-            jj = np.clip(np.searchsorted(pb, az), 1, pb.size - 1)
-            jj -= (np.abs(pb[jj - 1] - az) < np.abs(pb[jj] - az)).astype(np.intp)
-            depth = np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), cfg.max_depth_m, pd[jj])
-        dist_h = np.minimum(depth, floor_d)
-        valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
-        t = dist_h / np.maximum(hn, 1e-9)
-        # points in the newest robot frame, then in the older robot frame, relative to its camera
-        px = m.x_m + rx * t
-        py = m.y_m + ry * t
-        pz = rz * t
-        rel = between(opose, odom_pose_at_frame)  # newest robot pose in the older robot frame
-        c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
-        qx = rel.x_m + c * px - s * py - m.x_m
-        qy = rel.y_m + s * px + c * py - m.y_m
-        u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad, ko.distortion)
-        valid &= f2 > 1e-3
-        bd = cfg.border_px
-        with np.errstate(invalid="ignore"):
-            valid &= (u2 >= bd) & (u2 < w - bd) & (v2 >= bd) & (v2 < h - bd)
-        valid &= inside
-        pred_u = np.where(valid, u2 - us, 0.0)
-        pred_v = np.where(valid, v2 - vs, 0.0)
-        ru = fl[..., 0] - pred_u
-        rv = fl[..., 1] - pred_v
-        # ---- threshold (eq. 1: grows with the robot's speed)
-        alpha = (
-            cfg.alpha_base_px
-            + cfg.alpha_v_px_per_m * abs(speed_mps) * dt
-            + cfg.alpha_w_px_per_rad * abs(turn_radps) * dt
-        )
-        alpha = min(alpha, cfg.alpha_max_px)
-        gx = cv2.Sobel(grey, cv2.CV_16S, 1, 0, ksize=3)
-        gy = cv2.Sobel(grey, cv2.CV_16S, 0, 1, ksize=3)
-        mag = cv2.add(cv2.convertScaleAbs(gx, alpha=0.25), cv2.convertScaleAbs(gy, alpha=0.25))  # ~ |grad| (L1)
-        tex = cv2.dilate(mag, np.ones((3, 3), np.uint8))[0:h:st, 0:w:st]
-        thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
-        usable = valid & (tex > cfg.min_texture)
-        if cfg.fb_check:
-            # forward-backward consistency: pixels whose backward flow does not come back (regions
-            # uncovered by a moving body, textureless patches) carry no flow information
-            fwd = self._dis.calc(ogrey, grey, None)
-            mx = (us + fl[..., 0]).astype(np.float32)
-            my = (vs + fl[..., 1]).astype(np.float32)
-            back = cv2.remap(fwd, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            fb_err = np.hypot(fl[..., 0] + back[..., 0], fl[..., 1] + back[..., 1])
-            usable &= fb_err < cfg.fb_tol_px + cfg.fb_tol_rel * np.hypot(fl[..., 0], fl[..., 1])
-        if cfg.fit_global:
-            ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
-        res = np.hypot(ru, rv)
-        moving = usable & (res > thr)
-        self.last_residual = (res, thr, usable, st)
-        mask = moving.astype(np.uint8)
-        k_open = max(1, int(round(cfg.open_px / st)) | 1)
-        k_close = max(1, int(round(cfg.close_px / st)) | 1)
-        if k_open > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
-        if k_close > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((k_close, k_close), np.uint8))
-        col_depth = None
-        if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
-            col_depth = depth[depth.shape[0] // 2]  # laser depth per grid column (horizon row)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        spans: list[list[float]] = []
-        for i in range(1, n):
-            x0, y0, ww, hh, area = (int(v) for v in stats[i])
-            if area * st * st < cfg.min_blob_px:
-                continue
-            # columns where the moving pixels are a real share of the usable ones (sparse fringes of
-            # a blob, e.g. from the morphological closing, do not count)
-            rows = slice(y0, y0 + hh)
-            mcol = np.count_nonzero(moving[rows, x0 : x0 + ww], axis=0)
-            ucol = np.count_nonzero(usable[rows, x0 : x0 + ww], axis=0)
-            dense = np.flatnonzero(mcol >= cfg.column_share * np.maximum(ucol, 1))
-            if dense.size == 0:
-                continue
-            c0, c1 = x0 + int(dense[0]), x0 + int(dense[-1]) + 1
-            u0, u1 = float(c0 * st), float(c1 * st)
-            if cfg.trim_trailing:
-                # The blob holds the body and the background it uncovered since the older frame, on
-                # the side its residual flow (newest -> older) points to: trim that side by the
-                # body's displacement.
-                sel = (labels == i) & moving
-                if np.count_nonzero(sel) >= 3:
-                    du = float(np.median(ru[sel]))
-                    if u1 - u0 - abs(du) >= 2 * st:
-                        if du > 0:
-                            u1 -= du
-                        else:
-                            u0 -= du
-            spans.append([u0, u1, y0 * st, (y0 + hh) * st])
-        spans.sort()
-        merged: list[list[float]] = []
-        for sp in spans:
-            if merged and sp[0] <= merged[-1][1]:
-                merged[-1][1] = max(merged[-1][1], sp[1])
-                merged[-1][2] = min(merged[-1][2], sp[2])
-                merged[-1][3] = max(merged[-1][3], sp[3])
-            else:
-                merged.append(list(sp))
-        if cfg.snap_to_depth and col_depth is not None:
-            for sp in merged:
-                sp[0], sp[1] = _snap_to_depth(sp[0], sp[1], col_depth, st, cfg)
-        intervals = []
-        for u0, u1, v0, v1 in merged:
-            vc = 0.5 * (v0 + v1)
-            rxa, rya, _ = _rays(
-                np.array([u0 - 0.5, u1 - 0.5]),
-                np.array([vc, vc]),
-                fx,
-                fy,
-                cx,
-                cy,
-                frame.pan_rad,
-                frame.tilt_rad,
-                frame.intrinsics.distortion,
-            )
-            b = np.arctan2(rya, rxa)
-            intervals.append(BearingInterval(float(b.min()), float(b.max()), m.x_m, m.y_m, "camera"))
-        self._last_result = FlowResult(
-            tuple(intervals),
-            float(alpha),
-            int(np.count_nonzero(mask)),
-            tuple((int(a), int(b_), int(c_), int(d)) for a, b_, c_, d in merged),
-        )
-        return self._last_result
+            self._geo = _Geometry(key, h, w, st, (fx, fy, cx, cy), us, vs, rx, ry, rz, hn, np.arctan2(ry, rx),
+                                  floor_d, inside)
+        return self._geo
 
+    def _comes_back(self, grey: np.ndarray, ogrey: np.ndarray, fl: np.ndarray, geo: _Geometry) -> np.ndarray:
+        """Forward-backward consistency: cells whose backward flow does not come back (regions
+        uncovered by a moving body, textureless patches) carry no flow information."""
+        cfg = self.config
+        fwd = self._dis.calc(ogrey, grey, None)
+        mx = (geo.us + fl[..., 0]).astype(np.float32)
+        my = (geo.vs + fl[..., 1]).astype(np.float32)
+        back = cv2.remap(fwd, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        fb_err = np.hypot(fl[..., 0] + back[..., 0], fl[..., 1] + back[..., 1])
+        return fb_err < cfg.fb_tol_px + cfg.fb_tol_rel * np.hypot(fl[..., 0], fl[..., 1])
+
+
+@dataclass(frozen=True, eq=False)
+class _Geometry:
+    """Per grid cell of the newest frame: pixel centre (us, vs), viewing ray (rx, ry, rz; hn its
+    horizontal length, az its azimuth), distance to the floor along it, inside the border."""
+
+    key: tuple
+    h: int
+    w: int
+    st: int
+    intrinsics_px: tuple[float, float, float, float]  # fx, fy, cx, cy at the working scale
+    us: np.ndarray
+    vs: np.ndarray
+    rx: np.ndarray
+    ry: np.ndarray
+    rz: np.ndarray
+    hn: np.ndarray
+    az: np.ndarray
+    floor_d: np.ndarray
+    inside: np.ndarray
+
+
+def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: CameraMount, cfg: FlowConfig) -> np.ndarray:
+    """Horizontal distance to the laser's surface in each cell's viewing direction (``max_depth_m``
+    outside the laser's points)."""
+    depth = np.full(geo.az.shape, cfg.max_depth_m)
+    if depth_points_robot is None or depth_points_robot.shape[0] < 2:
+        return depth
+    dx = depth_points_robot[:, 0] - m.x_m
+    dy = depth_points_robot[:, 1] - m.y_m
+    pb = np.arctan2(dy, dx)
+    pd = np.hypot(dx, dy)
+    order = np.argsort(pb)
+    pb, pd = pb[order], pd[order]
+    az = geo.az
+    # the nearest laser point's depth, not an interpolation: across a depth edge (a body in front
+    # of a wall) interpolated depths belong to neither surface and fake residual flow
+    jj = np.clip(np.searchsorted(pb, az), 1, pb.size - 1)
+    jj -= (np.abs(pb[jj - 1] - az) < np.abs(pb[jj] - az)).astype(np.intp)
+    return np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), cfg.max_depth_m, pd[jj])
+
+
+def _ego_flow(geo: _Geometry, depth: np.ndarray, rel: Pose2D, oframe: Frame, oscale: float, m: CameraMount,
+              cfg: FlowConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The flow (newest -> older, px) a static scene would show in each cell, and where it is valid:
+    each cell's 3-D point (laser depth or floor) moved by the robot's motion ``rel`` (newest pose in
+    the older robot frame) and projected into the older frame."""
+    dist_h = np.minimum(depth, geo.floor_d)
+    valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
+    t = dist_h / np.maximum(geo.hn, 1e-9)
+    px = m.x_m + geo.rx * t
+    py = m.y_m + geo.ry * t
+    pz = geo.rz * t
+    c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
+    qx = rel.x_m + c * px - s * py - m.x_m
+    qy = rel.y_m + s * px + c * py - m.y_m
+    ko = oframe.intrinsics
+    ofx, ofy, ocx, ocy = ko.fx_px * oscale, ko.fy_px * oscale, ko.cx_px * oscale, ko.cy_px * oscale
+    u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad, ko.distortion)
+    valid &= f2 > 1e-3
+    bd = cfg.border_px
+    with np.errstate(invalid="ignore"):
+        valid &= (u2 >= bd) & (u2 < geo.w - bd) & (v2 >= bd) & (v2 < geo.h - bd)
+    valid &= geo.inside
+    return np.where(valid, u2 - geo.us, 0.0), np.where(valid, v2 - geo.vs, 0.0), valid
+
+
+def _alpha_px(cfg: FlowConfig, speed_mps: float, turn_radps: float, dt_s: float) -> float:
+    """The paper's threshold (eq. 1): grows with the distance driven and the angle turned."""
+    alpha = (
+        cfg.alpha_base_px
+        + cfg.alpha_v_px_per_m * abs(speed_mps) * dt_s
+        + cfg.alpha_w_px_per_rad * abs(turn_radps) * dt_s
+    )
+    return min(alpha, cfg.alpha_max_px)
+
+
+def _textured(grey: np.ndarray, st: int, cfg: FlowConfig) -> np.ndarray:
+    """Cells with enough image gradient nearby for their flow to mean something."""
+    gx = cv2.Sobel(grey, cv2.CV_16S, 1, 0, ksize=3)
+    gy = cv2.Sobel(grey, cv2.CV_16S, 0, 1, ksize=3)
+    mag = cv2.add(cv2.convertScaleAbs(gx, alpha=0.25), cv2.convertScaleAbs(gy, alpha=0.25))  # ~ |grad| (L1)
+    h, w = grey.shape
+    return cv2.dilate(mag, np.ones((3, 3), np.uint8))[0:h:st, 0:w:st] > cfg.min_texture
+
+
+def _clean_mask(moving: np.ndarray, st: int, cfg: FlowConfig) -> np.ndarray:
+    """The moving cells opened (specks gone) and closed (one body's fragments joined)."""
+    mask = moving.astype(np.uint8)
+    k_open = max(1, int(round(cfg.open_px / st)) | 1)
+    k_close = max(1, int(round(cfg.close_px / st)) | 1)
+    if k_open > 1:
+        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
+    if k_close > 1:
+        mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((k_close, k_close), np.uint8))
+    return mask
+
+
+def _blob_spans(mask: np.ndarray, moving: np.ndarray, usable: np.ndarray, ru: np.ndarray, st: int,
+                cfg: FlowConfig) -> list[list[float]]:
+    """(u0, u1, v0, v1) pixels of each blob large enough: its columns where the moving cells are a
+    real share of the usable ones (sparse fringes, e.g. from the closing, do not count), trimmed of
+    the background uncovered on its trailing side."""
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    spans: list[list[float]] = []
+    for i in range(1, n):
+        x0, y0, ww, hh, area = (int(v) for v in stats[i])
+        if area * st * st < cfg.min_blob_px:
+            continue
+        rows = slice(y0, y0 + hh)
+        mcol = np.count_nonzero(moving[rows, x0 : x0 + ww], axis=0)
+        ucol = np.count_nonzero(usable[rows, x0 : x0 + ww], axis=0)
+        dense = np.flatnonzero(mcol >= cfg.column_share * np.maximum(ucol, 1))
+        if dense.size == 0:
+            continue
+        u0, u1 = float((x0 + int(dense[0])) * st), float((x0 + int(dense[-1]) + 1) * st)
+        if cfg.trim_trailing:
+            u0, u1 = _trim_trailing(u0, u1, ru[(labels == i) & moving], st)
+        spans.append([u0, u1, y0 * st, (y0 + hh) * st])
+    return spans
+
+
+def _trim_trailing(u0: float, u1: float, ru_blob: np.ndarray, st: int) -> tuple[float, float]:
+    """The blob holds the body and the background it uncovered since the older frame, on the side
+    its residual flow (newest -> older) points to: trim that side by the body's displacement."""
+    if ru_blob.size < 3:
+        return u0, u1
+    du = float(np.median(ru_blob))
+    if u1 - u0 - abs(du) < 2 * st:
+        return u0, u1
+    return (u0, u1 - du) if du > 0 else (u0 - du, u1)
+
+
+def _merge_spans(spans: list[list[float]]) -> list[list[float]]:
+    """Overlapping column spans joined (their row extents too), left to right."""
+    merged: list[list[float]] = []
+    for sp in sorted(spans):
+        if merged and sp[0] <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], sp[1])
+            merged[-1][2] = min(merged[-1][2], sp[2])
+            merged[-1][3] = max(merged[-1][3], sp[3])
+        else:
+            merged.append(list(sp))
+    return merged
+
+
+def _bearing_interval(span: list[float], geo: _Geometry, frame: Frame, m: CameraMount) -> BearingInterval:
+    """A span's edge columns as bearings in the robot frame (origin: the camera)."""
+    u0, u1, v0, v1 = span
+    vc = 0.5 * (v0 + v1)
+    fx, fy, cx, cy = geo.intrinsics_px
+    rxa, rya, _ = _rays(np.array([u0 - 0.5, u1 - 0.5]), np.array([vc, vc]), fx, fy, cx, cy, frame.pan_rad,
+                        frame.tilt_rad, frame.intrinsics.distortion)
+    b = np.arctan2(rya, rxa)
+    return BearingInterval(float(b.min()), float(b.max()), m.x_m, m.y_m, "camera")
 
 def interval_to_laser(iv: BearingInterval, robot_rel_frame_to_scan: Pose2D, laser_mount: Pose2D) -> BearingInterval:
     """Re-express a robot-frame interval seen at the frame's stamp (origin = camera) in the laser
