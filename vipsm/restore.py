@@ -177,104 +177,119 @@ def restore(
     n = r.size
     weights = np.ones(n)
     valid = np.isfinite(r) & (r >= min_range_m)
-    n_valid = int(np.count_nonzero(valid))
     if n == 0 or not intervals:
         return Restoration(r.copy(), weights, (), (), False, False, 0.0)
     dphi = float(abs(b[-1] - b[0]) / max(n - 1, 1))
     seg = _segments_raw(r, valid, dphi, cfg.seg_jump_m, cfg.seg_jump_range_factor)
-    nseg = int(seg.max()) + 1
-    seg_len = np.bincount(seg, minlength=nseg)
     cut_mask = np.zeros(n, dtype=bool)
     obstacles: list[ObstacleSegment] = []
     for iv in intervals:
-        seen = _seen_bearings(iv, r, b)
-        core = _beams_in(iv, r, b, 0.0, seen)
-        # margin: max(min margin, half-width of margin_width_m at the nearest range in the core)
-        near = np.nanmin(np.where(core & valid, r, np.inf)) if np.any(core & valid) else np.inf
-        margin = cfg.margin_min_rad
-        if math.isfinite(near) and near > 0:
-            margin = max(margin, math.atan2(0.5 * cfg.margin_width_m, near))
-        wide = _beams_in(iv, r, b, margin, seen)
-        inside = np.bincount(seg[wide & valid], minlength=nseg)
-        touched = np.flatnonzero(np.bincount(seg[core & valid], minlength=nseg))
-        touched = touched[touched > 0]
-        chosen = [
-            s
-            for s in touched
-            if inside[s] >= cfg.min_inside_frac * seg_len[s] or _compact_foreground(r, b, seg, s, cfg)
-        ]
-        if not chosen and touched.size and iv.source == "camera":
-            # The body merges with a background segment in range: take the nearest segment seen in
-            # the core interval, only its beams inside the core, and only if they stand out in front
-            # of that segment's beams outside the interval (a bump, not a wall).
-            rng_of = [float(np.min(r[(seg == s) & core])) for s in touched]
-            s_near = int(touched[int(np.argmin(rng_of))])
-            beams = np.flatnonzero((seg == s_near) & core)
-            outside = (seg == s_near) & ~wide
-            bump = outside.any() and float(np.median(r[beams])) < float(np.min(r[outside])) - cfg.bump_m
-            if beams.size >= cfg.min_obstacle_beams and bump:
-                obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
-            cut_mask |= wide
-            continue
-        found = False
-        for s in chosen:
-            beams = np.flatnonzero(seg == s)
-            if beams.size >= cfg.min_obstacle_beams:
-                obstacles.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
-                found = True
-            lo_b = max(int(beams[0]) - cfg.edge_beams, 0)
-            hi_b = min(int(beams[-1]) + 1 + cfg.edge_beams, n)
-            cut_mask[lo_b:hi_b] = True
-        if not (found and cfg.tight_cut):
-            # no body segment identified: the whole interval (+margin) gets no weight, since the
-            # camera bearing is only an estimate
-            cut_mask |= wide
-    cut_fraction = float(np.count_nonzero(cut_mask & valid)) / max(n_valid, 1)
-    # one body seen through several intervals (camera and track) is one obstacle: merge overlaps,
-    # preferring a camera interval as the source
-    obstacles.sort(key=lambda o: (o.start, o.stop))
+        obstacles += _cut_interval(iv, r, b, valid, seg, cut_mask, cfg)
+    cut_fraction = float(np.count_nonzero(cut_mask & valid)) / max(int(np.count_nonzero(valid)), 1)
+    merged = tuple(_merge_obstacles(obstacles))
+    if cut_fraction > cfg.max_cut_fraction:
+        return Restoration(r.copy(), weights, (), merged, True, False, cut_fraction)
+    weights[cut_mask] = 0.0
+    out, cuts, bridge_invalid = _bridge(r, b, valid, cut_mask, cfg)
+    return Restoration(out, weights, cuts, merged, False, bridge_invalid, cut_fraction)
+
+
+def _cut_interval(iv: BearingInterval, r: np.ndarray, b: np.ndarray, valid: np.ndarray, seg: np.ndarray,
+                  cut_mask: np.ndarray, cfg: RestoreConfig) -> list[ObstacleSegment]:
+    """The body segments one interval picks (the segments it touches that lie mostly inside it or
+    stand compact in front), marked in ``cut_mask`` with their edge beams; with none identified the
+    whole interval plus its margin is cut (the camera bearing is only an estimate)."""
+    nseg = int(seg.max()) + 1
+    seg_len = np.bincount(seg, minlength=nseg)
+    seen = _seen_bearings(iv, r, b)
+    core = _beams_in(iv, r, b, 0.0, seen)
+    # margin: max(min margin, half-width of margin_width_m at the nearest range in the core)
+    near = np.nanmin(np.where(core & valid, r, np.inf)) if np.any(core & valid) else np.inf
+    margin = cfg.margin_min_rad
+    if math.isfinite(near) and near > 0:
+        margin = max(margin, math.atan2(0.5 * cfg.margin_width_m, near))
+    wide = _beams_in(iv, r, b, margin, seen)
+    inside = np.bincount(seg[wide & valid], minlength=nseg)
+    touched = np.flatnonzero(np.bincount(seg[core & valid], minlength=nseg))
+    touched = touched[touched > 0]
+    chosen = [
+        s for s in touched if inside[s] >= cfg.min_inside_frac * seg_len[s] or _compact_foreground(r, b, seg, s, cfg)
+    ]
+    if not chosen and touched.size and iv.source == "camera":
+        cut_mask |= wide
+        return _bump_in_core(iv, r, seg, touched, core, wide, cfg)
+    out = []
+    for s in chosen:
+        beams = np.flatnonzero(seg == s)
+        if beams.size >= cfg.min_obstacle_beams:
+            out.append(ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv))
+        lo_b = max(int(beams[0]) - cfg.edge_beams, 0)
+        hi_b = min(int(beams[-1]) + 1 + cfg.edge_beams, r.size)
+        cut_mask[lo_b:hi_b] = True
+    if not (out and cfg.tight_cut):
+        cut_mask |= wide
+    return out
+
+
+def _bump_in_core(iv: BearingInterval, r: np.ndarray, seg: np.ndarray, touched: np.ndarray, core: np.ndarray,
+                  wide: np.ndarray, cfg: RestoreConfig) -> list[ObstacleSegment]:
+    """A body merged with a background segment in range: the nearest segment seen in the core
+    interval, only its beams inside the core, and only if they stand out in front of that segment's
+    beams outside the interval (a bump, not a wall)."""
+    rng_of = [float(np.min(r[(seg == s) & core])) for s in touched]
+    s_near = int(touched[int(np.argmin(rng_of))])
+    beams = np.flatnonzero((seg == s_near) & core)
+    outside = (seg == s_near) & ~wide
+    bump = outside.any() and float(np.median(r[beams])) < float(np.min(r[outside])) - cfg.bump_m
+    if beams.size >= cfg.min_obstacle_beams and bump:
+        return [ObstacleSegment(int(beams[0]), int(beams[-1]) + 1, iv)]
+    return []
+
+
+def _merge_obstacles(obstacles: list[ObstacleSegment]) -> list[ObstacleSegment]:
+    """One body seen through several intervals (camera and track) is one obstacle: overlaps merged,
+    a camera interval preferred as the source."""
     merged: list[ObstacleSegment] = []
-    for ob in obstacles:
+    for ob in sorted(obstacles, key=lambda o: (o.start, o.stop)):
         if merged and ob.start < merged[-1].stop:
             last = merged[-1]
             src = last.interval if last.interval.source == "camera" else ob.interval
             merged[-1] = ObstacleSegment(min(last.start, ob.start), max(last.stop, ob.stop), src)
         else:
             merged.append(ob)
-    obstacles = merged
-    if cut_fraction > cfg.max_cut_fraction:
-        return Restoration(r.copy(), weights, (), tuple(obstacles), True, False, cut_fraction)
+    return merged
+
+
+def _bridge(r: np.ndarray, b: np.ndarray, valid: np.ndarray, cut_mask: np.ndarray,
+            cfg: RestoreConfig) -> tuple[np.ndarray, tuple[tuple[int, int], ...], bool]:
+    """Each contiguous cut bridged between its two neighbours when they lie on one surface; no return
+    (NaN) at the scan's edge, next to no return, or across two surfaces (then ``bridge_invalid``)."""
     out = r.copy()
-    weights[cut_mask] = 0.0
-    # contiguous runs of the cut mask
+    n = r.size
     d = np.diff(np.concatenate(([0], cut_mask.astype(np.int8), [0])))
-    starts = np.flatnonzero(d == 1)
-    stops = np.flatnonzero(d == -1)
+    cuts = tuple((int(lo), int(hi)) for lo, hi in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
     bridge_invalid = False
-    cuts: list[tuple[int, int]] = []
-    for lo, hi in zip(starts, stops):
-        lo_i, hi_i = int(lo), int(hi)
-        cuts.append((lo_i, hi_i))
-        left = lo_i - 1
-        right = hi_i
-        if left < 0 or right >= n or not valid[left] or not valid[right]:
-            out[lo_i:hi_i] = np.nan  # at the scan edge or next to no return: nothing to bridge from
-            continue
-        if not _same_surface(r, b, valid, lo_i, hi_i, cfg):
-            out[lo_i:hi_i] = np.nan
+    for lo, hi in cuts:
+        if lo - 1 < 0 or hi >= n or not valid[lo - 1] or not valid[hi]:
+            out[lo:hi] = np.nan  # at the scan edge or next to no return: nothing to bridge from
+        elif not _same_surface(r, b, valid, lo, hi, cfg):
+            out[lo:hi] = np.nan
             bridge_invalid = True
-            continue
-        # linear interpolation between the two neighbours along the straight chord joining them
-        # (the range where each cut beam's ray meets the chord; exact for the flat wall behind)
-        xl, yl = r[left] * math.cos(b[left]), r[left] * math.sin(b[left])
-        xr, yr = r[right] * math.cos(b[right]), r[right] * math.sin(b[right])
-        ex, ey = xr - xl, yr - yl
-        bb = b[lo_i:hi_i]
-        den = np.cos(bb) * ey - np.sin(bb) * ex
-        num = xl * ey - yl * ex
-        t = (bb - b[left]) / (b[right] - b[left])
-        lin = r[left] + t * (r[right] - r[left])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            chord = np.where(np.abs(den) > 1e-12, num / den, lin)
-        out[lo_i:hi_i] = np.where(np.isfinite(chord) & (chord > 0), chord, lin)
-    return Restoration(out, weights, tuple(cuts), tuple(obstacles), False, bridge_invalid, cut_fraction)
+        else:
+            out[lo:hi] = _chord_ranges(r, b, lo - 1, hi, b[lo:hi])
+    return out, cuts, bridge_invalid
+
+
+def _chord_ranges(r: np.ndarray, b: np.ndarray, left: int, right: int, bb: np.ndarray) -> np.ndarray:
+    """Linear interpolation between two returns along the straight chord joining them: the range
+    where each bearing's ray meets the chord (exact for the flat wall behind)."""
+    xl, yl = r[left] * math.cos(b[left]), r[left] * math.sin(b[left])
+    xr, yr = r[right] * math.cos(b[right]), r[right] * math.sin(b[right])
+    ex, ey = xr - xl, yr - yl
+    den = np.cos(bb) * ey - np.sin(bb) * ex
+    num = xl * ey - yl * ex
+    t = (bb - b[left]) / (b[right] - b[left])
+    lin = r[left] + t * (r[right] - r[left])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        chord = np.where(np.abs(den) > 1e-12, num / den, lin)
+    return np.where(np.isfinite(chord) & (chord > 0), chord, lin)
