@@ -635,6 +635,33 @@ class Tracker:
         the detection each received (None when coasting)."""
         for t in self.tracks:
             self._predict(t, stamp_s)
+        got = self._associate(detections)
+        for ti, t in enumerate(self.tracks):
+            t.age_cycles += 1
+            if ti in got:
+                self._fold(t, got[ti])
+                t.missed = 0
+                self._confirm(t, detections, got[ti])
+            else:
+                t.missed += 1
+        # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
+        # where it was should see the same static past, not start afresh with a short window)
+        held = {id(d) for ti, d in got.items() if self.tracks[ti].confirmed}
+        holder = {id(d): self.tracks[ti].track_id for ti, d in got.items()}
+        used = {id(d) for d in got.values()}
+        born = set()
+        for d in detections:
+            if id(d) in used or not d.evidence:
+                continue  # only motion evidence starts a track
+            born.add(id(d))
+            self.tracks.append(self._start(stamp_s, d))
+            got[len(self.tracks) - 1] = d
+        kept = [d for d in detections if id(d) not in held and id(d) not in born]
+        self._past.append((stamp_s, [(d, holder.get(id(d))) for d in kept]))
+        return self._prune(got)
+
+    def _associate(self, detections: list[Detection]) -> dict[int, Detection]:
+        """Track index -> its detection: nearest pairs first, each within the track's gate."""
         pairs: list[tuple[float, int, int]] = []
         for ti, t in enumerate(self.tracks):
             for di, d in enumerate(detections):
@@ -659,28 +686,11 @@ class Tracker:
             used_t.add(ti)
             used_d.add(di)
             got[ti] = detections[di]
-        for ti, t in enumerate(self.tracks):
-            t.age_cycles += 1
-            if ti in got:
-                self._fold(t, got[ti])
-                t.missed = 0
-                self._confirm(t, detections, got[ti])
-            else:
-                t.missed += 1
-        # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
-        # where it was should see the same static past, not start afresh with a short window)
-        held = {id(d) for ti, d in got.items() if self.tracks[ti].confirmed}
-        holder = {id(d): self.tracks[ti].track_id for ti, d in got.items()}
-        spare = [di for di, d in enumerate(detections) if id(d) not in held]
-        born = set()
-        for di, d in enumerate(detections):
-            if di in used_d or not d.evidence:
-                continue  # only motion evidence starts a track
-            born.add(di)
-            self.tracks.append(self._start(stamp_s, d))
-            got[len(self.tracks) - 1] = d
-        kept = [detections[di] for di in spare if di not in born]
-        self._past.append((stamp_s, [(d, holder.get(id(d))) for d in kept]))
+        return got
+
+    def _prune(self, got: dict[int, Detection]) -> list[tuple[Track, Detection | None]]:
+        """Drop the dead (missed too long, tentative too old, space seen free) and the duplicates of
+        older tracks, then bound the number: the confirmed first, then the best supported."""
         out: list[tuple[Track, Detection | None]] = []
         keep: list[Track] = []
         c = self.config
@@ -688,15 +698,13 @@ class Tracker:
             too_old = not t.confirmed and t.age_cycles > c.tentative_max_age
             if t.missed > (c.max_missed if t.confirmed else c.tentative_max_missed) or too_old or self._stale(t):
                 continue
-            if any(
-                math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < self.config.merge_m for k in keep
-            ):
+            if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < c.merge_m for k in keep):
                 continue  # a duplicate of an older track (tracks are kept oldest first)
             keep.append(t)
             out.append((t, got.get(ti)))
-        if len(keep) > self.config.max_tracks:  # bounded: keep the confirmed, then the best supported
+        if len(keep) > c.max_tracks:
             ranked = sorted(keep, key=lambda t: (not t.confirmed, -t.evidence, t.missed, -t.hits))
-            alive = {id(t) for t in ranked[: self.config.max_tracks]}
+            alive = {id(t) for t in ranked[: c.max_tracks]}
             keep = [t for t in keep if id(t) in alive]
             out = [(t, d) for t, d in out if id(t) in alive]
         self.tracks = keep
