@@ -459,13 +459,20 @@ class Tracker:
         # a lone leg's centre and a leg pair's midpoint are different points of a body (and a pair's
         # midpoint jumps when the pairing changes): displacement counts between detections of one kind
         hist = np.array(t.history)
-        if hist[:, 5].any():  # an unreliable position in the window: no judging its path until it is gone
-            return
         # a round body's partial views keep their radius: a fit that shrinks or grows over the window
         # follows the occluder's edge over something else (a box face beside a passing body)
         partial = hist[np.isfinite(hist[:, 6]), 6]
         if partial.size > 1 and np.ptp(partial) > c.confirm_occluded_radius_tol * t.radius_m:
             return
+        # an unreliable position (placed a radius behind a partly hidden segment, or a fit unlike the
+        # track's) is no point of the path: judge the path since the last one (a walker stepping out
+        # from behind a table is seen whole three cycles later; waiting for the whole window to pass
+        # reported it 0.3 s later still)
+        unreliable = np.flatnonzero(hist[:, 5])
+        if unreliable.size:
+            hist = hist[unreliable[-1] + 1 :]
+            if hist.shape[0] < 3:
+                return
         hist = hist[hist[:, 4] == hist[-1, 4]]
         if hist.shape[0] < 3:
             return
