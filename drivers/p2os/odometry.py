@@ -269,54 +269,14 @@ class OdometryTracker:
         signed = (_signed(raw[0], XY_MODULUS), _signed(raw[1], XY_MODULUS), _signed(raw[2], TH_MODULUS))
         self._seq += 1
         self.stats.sips += 1
-        rebaselined = False
-        gap = ambiguous = False
-        missed = 0
-        if self._prev_stamp_s is not None:
-            dt = stamp_s - self._prev_stamp_s
-            if dt > self.gap_factor * self.sip_cycle_s:
-                gap = True
-                missed = max(1, round(dt / self.sip_cycle_s) - 1)
-                self.stats.gaps += 1
-                self.stats.missed_cycles += missed
-                half_xy_m = XY_MODULUS / 2 * p.dist_conv_mm_per_count / 1000.0
-                half_th_rad = TH_MODULUS / 2 * p.angle_conv_rad_per_unit
-                if self.max_v_mps * dt >= half_xy_m or self.max_w_radps * dt >= half_th_rad:
-                    ambiguous = True
-                    self.stats.ambiguous += 1
+        gap, missed, ambiguous = self._gap(stamp_s)
         self._prev_stamp_s = stamp_s
-
-        if self._acc is None:
-            # first SIP of a session: continue from the last pose (zero at the very start)
-            self._acc = signed
-            self._origin = signed
-            if self._seq > 0:
-                self._offset = (self._last_pose[0], self._last_pose[1], self._last_pose[2])
-            rebaselined = True
-        elif self._seto_left > 0 and self._near_zero(*signed, sip):
-            self._acc = signed
-            self._origin = (0, 0, 0)
-            self._offset = (0.0, 0.0, 0.0)
-            self._seto_left = 0
-            rebaselined = True
-        else:
-            ax, ay, ath = self._acc
-            px, py, pth = self._prev_raw
-            self._acc = (
-                ax + _signed_diff(raw[0], px, XY_MODULUS),
-                ay + _signed_diff(raw[1], py, XY_MODULUS),
-                ath + _signed_diff(raw[2], pth, TH_MODULUS),
-            )
-            if self._seto_left > 0:
-                self._seto_left -= 1
-                if self._seto_left == 0:
-                    self.stats.seto_timeouts += 1
+        rebaselined = self._accumulate(raw, signed, sip)
         self._prev_raw = raw
         if rebaselined:
             self.stats.rebaselines += 1
         x_m, y_m, th, th_unwrapped = self._pose()
         self._last_pose = (x_m, y_m, th_unwrapped)
-
         left_mps = sip.left_vel_raw * p.vel_conv / 1000.0
         right_mps = sip.right_vel_raw * p.vel_conv / 1000.0
         if sip.rotvel_decidegps is not None:
@@ -324,14 +284,6 @@ class OdometryTracker:
         else:
             w = (sip.right_vel_raw - sip.left_vel_raw) * p.vel_conv / 2.0 * p.diff_conv
         battery_dv = sip.battery_x10_dv if sip.battery_x10_dv is not None else sip.battery_dv
-        sonars = tuple(
-            SonarSample(
-                index=r.index,
-                range_m=r.range_raw * p.range_conv_mm / 1000.0,
-                pose=p.sonar_poses[r.index] if r.index < len(p.sonar_poses) else None,
-            )
-            for r in sip.sonars
-        )
         return OdometrySample(
             stamp_s=stamp_s,
             seq=self._seq,
@@ -352,11 +304,69 @@ class OdometryTracker:
             front_bumpers=sip.front_bumpers,
             rear_bumpers=sip.rear_bumpers,
             flags=sip.flags,
-            sonars=sonars,
+            sonars=self._sonars(sip),
             gap=gap,
             missed_cycles=missed,
             ambiguous=ambiguous,
             rebaselined=rebaselined,
             device_time_ms=sip.uc_time_ms,
             fault_flags=sip.fault_flags,
+        )
+
+    def _gap(self, stamp_s: float) -> tuple[bool, int, bool]:
+        """(a gap since the last SIP, the SIP cycles missed in it, whether the motion in it may have
+        wrapped the position counters: the unwrapped pose is then ambiguous)."""
+        if self._prev_stamp_s is None:
+            return False, 0, False
+        p = self.params
+        dt = stamp_s - self._prev_stamp_s
+        if dt <= self.gap_factor * self.sip_cycle_s:
+            return False, 0, False
+        missed = max(1, round(dt / self.sip_cycle_s) - 1)
+        self.stats.gaps += 1
+        self.stats.missed_cycles += missed
+        half_xy_m = XY_MODULUS / 2 * p.dist_conv_mm_per_count / 1000.0
+        half_th_rad = TH_MODULUS / 2 * p.angle_conv_rad_per_unit
+        ambiguous = self.max_v_mps * dt >= half_xy_m or self.max_w_radps * dt >= half_th_rad
+        self.stats.ambiguous += int(ambiguous)
+        return True, missed, ambiguous
+
+    def _accumulate(self, raw: tuple[int, int, int], signed: tuple[int, int, int], sip: Sip) -> bool:
+        """Fold the SIP's counters into the unwrapped accumulator; True when it starts a new baseline
+        (the first SIP of a session, or the zero after a SETO)."""
+        if self._acc is None:
+            # first SIP of a session: continue from the last pose (zero at the very start)
+            self._acc = signed
+            self._origin = signed
+            if self._seq > 0:
+                self._offset = (self._last_pose[0], self._last_pose[1], self._last_pose[2])
+            return True
+        if self._seto_left > 0 and self._near_zero(*signed, sip):
+            self._acc = signed
+            self._origin = (0, 0, 0)
+            self._offset = (0.0, 0.0, 0.0)
+            self._seto_left = 0
+            return True
+        ax, ay, ath = self._acc
+        px, py, pth = self._prev_raw
+        self._acc = (
+            ax + _signed_diff(raw[0], px, XY_MODULUS),
+            ay + _signed_diff(raw[1], py, XY_MODULUS),
+            ath + _signed_diff(raw[2], pth, TH_MODULUS),
+        )
+        if self._seto_left > 0:
+            self._seto_left -= 1
+            if self._seto_left == 0:
+                self.stats.seto_timeouts += 1
+        return False
+
+    def _sonars(self, sip: Sip) -> tuple[SonarSample, ...]:
+        p = self.params
+        return tuple(
+            SonarSample(
+                index=r.index,
+                range_m=r.range_raw * p.range_conv_mm / 1000.0,
+                pose=p.sonar_poses[r.index] if r.index < len(p.sonar_poses) else None,
+            )
+            for r in sip.sonars
         )
