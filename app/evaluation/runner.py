@@ -15,6 +15,7 @@ import numpy as np
 from hil_fakes.world import (
     RobotMount,
     Scenario,
+    Truth,
     World,
     intrinsics,
 )
@@ -192,21 +193,7 @@ def run_scenario(
         moving_prev = [float(np.hypot(*o.velocities(t_prev))) > 0.0 for o in scenario.obstacles]
         t_world += time.perf_counter() - w0
 
-        # which true obstacles are in view this cycle
-        c, s = math.cos(truth_frame.theta_rad), math.sin(truth_frame.theta_rad)
-        cam_x = truth_frame.x_m + c * mount.camera_x_m - s * mount.camera_y_m
-        cam_y = truth_frame.y_m + s * mount.camera_x_m + c * mount.camera_y_m
-        beams = np.bincount(sweep.hit_obstacle[sweep.hit_obstacle >= 0], minlength=len(truth.obstacles))
-        views = []
-        for i, ob in enumerate(truth.obstacles):
-            fo = truth_frame.obstacles[i]
-            views.append(
-                ob.moving
-                and moving_prev[i]
-                and frame is not None
-                and obstacle_in_camera(cam_x, cam_y, truth_frame.theta_rad, hfov, fo.x_m, fo.y_m, fo.radius_m)
-                and int(beams[i]) >= MIN_BEAMS_IN_VIEW
-            )
+        views = _in_view(truth, truth_frame, moving_prev, sweep.hit_obstacle, frame is not None, mount, hfov)
         log.times_s.append(t)
         log.true_poses.append((truth.x_m, truth.y_m, truth.theta_rad))
         log.true_obstacles.append([(o.x_m, o.y_m) for o in truth.obstacles])
@@ -218,27 +205,9 @@ def run_scenario(
             s0 = time.perf_counter()
             e = est.step(scan, odo, frame)
             mlog.step_s.append(time.perf_counter() - s0)
-            mlog.poses.append((e.pose.x_m, e.pose.y_m, e.pose.theta_rad))
-            mlog.restored.append(tuple(e.restored_indices))
-            est_xy = [(o.x_m, o.y_m) for o in e.obstacles]
-            mlog.obstacles.append(est_xy)
-            mlog.tracks.append(tuple(track_point(o) for o in e.obstacles))
             t_est = world.truth(e.stamp_s) if abs(e.stamp_s - t) > 1e-9 else truth
-            vis = [(i, o.x_m, o.y_m) for i, o in enumerate(t_est.obstacles) if views[i]]
-            assigned = _assign(est_xy, vis)
+            _record(mlog, e, t_est, views)
             _score_reports(mlog, judges[mlog.name], e, t, scenario, t_est, truth, odo.v_mps)
-            for i, _, _ in vis:
-                mlog.in_view += 1
-                if i not in assigned:
-                    continue
-                eo = e.obstacles[assigned[i]]
-                to = t_est.obstacles[i]
-                err = math.hypot(eo.x_m - to.x_m, eo.y_m - to.y_m)
-                mlog.errors_m.append(err)
-                if err <= LOCATED_GATE_M:
-                    mlog.located += 1
-                if eo.age_cycles >= MIN_TRACK_AGE:
-                    mlog.vel_errors_mps.append(math.hypot(eo.vx_mps - to.vx_mps, eo.vy_mps - to.vy_mps))
     for _est, mlog in methods.values():
         mlog.minutes = n_cycles * CYCLE_S / 60.0
         ex, ey, eth = mlog.poses[-1]
@@ -247,6 +216,52 @@ def run_scenario(
         mlog.final_heading_err_deg = abs(math.degrees(math.atan2(math.sin(eth - tth), math.cos(eth - tth))))
     log.world_s = t_world
     return log
+
+
+def _in_view(truth: Truth, truth_frame: Truth, moving_prev: list[bool], hit_obstacle: np.ndarray, have_frame: bool,
+             mount: RobotMount, hfov_rad: float) -> list[bool]:
+    """Per true obstacle: scored this cycle (moving now and a cycle ago, half in the camera's view at
+    the frame's instant, and hit by at least ``MIN_BEAMS_IN_VIEW`` beams)."""
+    c, s = math.cos(truth_frame.theta_rad), math.sin(truth_frame.theta_rad)
+    cam_x = truth_frame.x_m + c * mount.camera_x_m - s * mount.camera_y_m
+    cam_y = truth_frame.y_m + s * mount.camera_x_m + c * mount.camera_y_m
+    beams = np.bincount(hit_obstacle[hit_obstacle >= 0], minlength=len(truth.obstacles))
+    views = []
+    for i, ob in enumerate(truth.obstacles):
+        fo = truth_frame.obstacles[i]
+        views.append(
+            ob.moving
+            and moving_prev[i]
+            and have_frame
+            and obstacle_in_camera(cam_x, cam_y, truth_frame.theta_rad, hfov_rad, fo.x_m, fo.y_m, fo.radius_m)
+            and int(beams[i]) >= MIN_BEAMS_IN_VIEW
+        )
+    return views
+
+
+def _record(mlog: MethodLog, e: Any, t_est: Truth, views: list[bool]) -> None:
+    """One method's estimate of a cycle: its pose, restoration and obstacles, and for each true body
+    in view the nearest estimate's position error (located within ``LOCATED_GATE_M``) and, for tracks
+    old enough, its velocity error."""
+    mlog.poses.append((e.pose.x_m, e.pose.y_m, e.pose.theta_rad))
+    mlog.restored.append(tuple(e.restored_indices))
+    est_xy = [(o.x_m, o.y_m) for o in e.obstacles]
+    mlog.obstacles.append(est_xy)
+    mlog.tracks.append(tuple(track_point(o) for o in e.obstacles))
+    vis = [(i, o.x_m, o.y_m) for i, o in enumerate(t_est.obstacles) if views[i]]
+    assigned = _assign(est_xy, vis)
+    for i, _, _ in vis:
+        mlog.in_view += 1
+        if i not in assigned:
+            continue
+        eo = e.obstacles[assigned[i]]
+        to = t_est.obstacles[i]
+        err = math.hypot(eo.x_m - to.x_m, eo.y_m - to.y_m)
+        mlog.errors_m.append(err)
+        if err <= LOCATED_GATE_M:
+            mlog.located += 1
+        if eo.age_cycles >= MIN_TRACK_AGE:
+            mlog.vel_errors_mps.append(math.hypot(eo.vx_mps - to.vx_mps, eo.vy_mps - to.vy_mps))
 
 
 def scenario_result(log: RunLog) -> dict[str, Any]:
