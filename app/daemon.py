@@ -306,11 +306,28 @@ class ControlLoop:
     # -- one cycle ------------------------------------------------------------------------------
 
     def step(self, now_s: float) -> None:
-        cfg = self.config
+        """One loop cycle: drain the devices, judge their health, estimate on a new scan, command the
+        base, publish, and tell the service manager."""
         self.cycle += 1
         wall = self.wall(now_s)
+        self._drain()
+        scanner_state, base_state, camera_state, frame = self._device_states(now_s)
+        est = self._estimate(now_s, frame, wall)
+        healthy = scanner_state == "ok" and base_state == "ok" and est is not None
+        coil = self.status is not None and self.status.stop_requested
+        safety_stop = self._command(now_s, scanner_state == "ok" and base_state == "ok", coil)
+        self._publish(now_s, scanner_state, base_state, camera_state, healthy, est, coil, safety_stop)
+        if est is not None and self.last_scan is not None:  # obstacles are out (status registers, log queue)
+            sc = self.last_scan.scan
+            now = self.clock()
+            received = self.last_scan.host_stamp_s
+            self.health.record_latency(now - (sc.stamp_s + max(len(sc.ranges_m) - 1, 0) * sc.beam_dt_s),
+                                       None if received is None else now - received)
+        if healthy:
+            self._notify(now_s)
 
-        # drain devices: log everything, keep the newest
+    def _drain(self) -> None:
+        """Every sample the devices delivered since the last cycle: logged, the newest kept."""
         if self.scanner is not None:
             for s in self.scanner.poll():
                 self.stats.scans_in += 1
@@ -334,55 +351,67 @@ class ControlLoop:
                 fs, fw = frame_sample, self.wall(frame_sample.frame.stamp_s)
                 self.log.log("/camera/image", fw, lambda fs=fs, fw=fw: lm.compressed_image(fs.jpeg, fw))
 
+    def _device_states(self, now_s: float) -> tuple[str, str, str, Frame | None]:
+        """Each device's state ("ok" turns "stalled" when its newest sample is too old) and the frame
+        fresh enough to use."""
+        cfg = self.config.loop
         scanner_state = self.scanner.state() if self.scanner is not None else "absent"
         base_state = self.base.state() if self.base is not None else "absent"
         camera_state = self.camera.state() if self.camera is not None else "absent"
-        scan_fresh = self.last_scan is not None and now_s - self.last_scan.scan.stamp_s <= cfg.loop.max_scan_age_s
         newest_odom = self.odom.newest
-        odom_fresh = newest_odom is not None and now_s - newest_odom.stamp_s <= cfg.loop.max_odometry_age_s
-        if scanner_state == "ok" and not scan_fresh:
+        odom_fresh = newest_odom is not None and now_s - newest_odom.stamp_s <= cfg.max_odometry_age_s
+        if scanner_state == "ok" and not self._scan_fresh(now_s):
             scanner_state = "stalled"
         if base_state == "ok" and not odom_fresh:
             base_state = "stalled"
         frame = None
-        if self.last_frame is not None and now_s - self.last_frame.frame.stamp_s <= cfg.loop.max_frame_age_s:
+        if self.last_frame is not None and now_s - self.last_frame.frame.stamp_s <= cfg.max_frame_age_s:
             frame = self.last_frame.frame
         elif camera_state == "ok":
             camera_state = "stalled"
         for dev, st in (("scanner", scanner_state), ("base", base_state), ("camera", camera_state)):
             self._track_state(dev, st, now_s)
+        return scanner_state, base_state, camera_state, frame
 
-        # estimate on the newest scan, once per scan
-        est: Estimate | None = None
+    def _scan_fresh(self, now_s: float) -> bool:
+        return self.last_scan is not None and now_s - self.last_scan.scan.stamp_s <= self.config.loop.max_scan_age_s
+
+    def _estimate(self, now_s: float, frame: Frame | None, wall: float) -> Estimate | None:
+        """The estimator run on the newest scan, once per scan (None: no new fresh scan, or no
+        odometry at its stamp)."""
         scan_sample = self.last_scan
-        if scan_fresh and scan_sample is not None and scan_sample.scan.seq != self._last_scan_seq_used:
-            odom_at_scan = self.odom.at(scan_sample.scan.stamp_s)
-            if odom_at_scan is not None:
-                self._last_scan_seq_used = scan_sample.scan.seq
-                est = self.estimator.step(scan_sample.scan, odom_at_scan, frame)
-                self.last_estimate = est
-                self.stats.estimates += 1
-                if frame is not None:
-                    self.stats.frames_used += 1
-                if est.flags & (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM):
-                    self.stats.plain_psm_cycles += 1
-                if est.flags & EstimateFlag.ODOMETRY_FALLBACK:
-                    self.stats.fallback_cycles += 1
-                if self.on_estimate is not None:
-                    self.on_estimate(est, scan_sample.scan.stamp_s)
-                if self.log is not None:
-                    self._log_estimate(est, scan_sample.scan, odom_at_scan, frame, wall)
+        if not self._scan_fresh(now_s) or scan_sample is None or scan_sample.scan.seq == self._last_scan_seq_used:
+            return None
+        odom_at_scan = self.odom.at(scan_sample.scan.stamp_s)
+        if odom_at_scan is None:
+            return None
+        self._last_scan_seq_used = scan_sample.scan.seq
+        est = self.estimator.step(scan_sample.scan, odom_at_scan, frame)
+        self.last_estimate = est
+        self.stats.estimates += 1
+        if frame is not None:
+            self.stats.frames_used += 1
+        if est.flags & (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM):
+            self.stats.plain_psm_cycles += 1
+        if est.flags & EstimateFlag.ODOMETRY_FALLBACK:
+            self.stats.fallback_cycles += 1
+        if self.on_estimate is not None:
+            self.on_estimate(est, scan_sample.scan.stamp_s)
+        if self.log is not None:
+            self._log_estimate(est, scan_sample.scan, odom_at_scan, frame, wall)
+        return est
 
-        # command the base
-        healthy = scanner_state == "ok" and base_state == "ok" and est is not None
-        coil = self.status is not None and self.status.stop_requested
+    def _command(self, now_s: float, device_ok: bool, coil: bool) -> bool:
+        """The mission state (device stop, stop coil, safety stop on the newest estimate's confirmed
+        obstacles, cruise or hold) and the base's command; returns whether the safety stop holds."""
+        cfg = self.config
         obstacles = self.last_estimate.obstacles if self.last_estimate is not None else ()
         pose = self.last_estimate.pose if self.last_estimate is not None else None
+        newest_odom = self.odom.newest
         v_now = newest_odom.v_mps if newest_odom is not None else 0.0
         safety_stop = pose is not None and self.safety.update(
             now_s, pose.x_m, pose.y_m, pose.theta_rad, max(v_now, 0.0), obstacles
         )
-        device_ok = scanner_state == "ok" and base_state == "ok"
         if not device_ok:
             state = "device_stop"
         elif coil:
@@ -407,22 +436,17 @@ class ControlLoop:
                 self.base.command(cfg.mission.cruise_speed_mps, 0.0)
             else:
                 self.base.command(0.0, 0.0)
+        return safety_stop
 
-        self._publish(now_s, scanner_state, base_state, camera_state, healthy, est, coil, safety_stop)
-        if est is not None and scan_sample is not None:  # obstacles are out (status registers, log queue)
-            sc = scan_sample.scan
-            now = self.clock()
-            received = scan_sample.host_stamp_s
-            self.health.record_latency(now - (sc.stamp_s + max(len(sc.ranges_m) - 1, 0) * sc.beam_dt_s),
-                                       None if received is None else now - received)
-        if healthy:
-            if not self._ready_sent:
-                self.notifier.ready()
-                self._ready_sent = True
-            interval = self.notifier.watchdog_interval_s
-            if interval is not None and now_s - self._last_watchdog_s >= interval:
-                self.notifier.watchdog()
-                self._last_watchdog_s = now_s
+    def _notify(self, now_s: float) -> None:
+        """READY once the loop is first healthy, then the watchdog at its interval."""
+        if not self._ready_sent:
+            self.notifier.ready()
+            self._ready_sent = True
+        interval = self.notifier.watchdog_interval_s
+        if interval is not None and now_s - self._last_watchdog_s >= interval:
+            self.notifier.watchdog()
+            self._last_watchdog_s = now_s
 
     def _log_estimate(self, est: Estimate, scan: Scan, odom: Odometry, frame: Frame | None, wall: float) -> None:
         assert self.log is not None
