@@ -115,6 +115,10 @@ class StepDebug:
 #: measurement noise per kind of detection: a leg-pair midpoint jitters with the gait (~5 cm), a lone
 #: leg is a hip's half-width off the body centre, a circle fit on a large body is good to 2-3 cm
 _SIGMA_M = {"person": 0.06, "leg": 0.12, "body": 0.03}
+#: ... across a walker's path: the midpoint of the two legs moves stop-and-go along the path with the
+#: alternating steps, sideways only with the pelvis's sway (its mediolateral excursion is ~4-5 cm peak
+#: to peak in level walking)
+_SIGMA_ACROSS_M = {"person": 0.025}
 
 
 class Estimator:
@@ -351,7 +355,8 @@ def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
 
 def _detection(b: Body, laser: Pose2D) -> Detection:
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
-                     b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind], kind=b.kind,
+                     b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind],
+                     sigma_across_m=_SIGMA_ACROSS_M.get(b.kind), kind=b.kind,
                      occluded=b.occluded, view_rad=math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m))
 
 

@@ -44,6 +44,10 @@ class TrackerConfig:
     #: probability per cycle of switching from one model to another (mean stay 2 s at 0.1 s cycles)
     mode_switch_prob: float = 0.05
     meas_sigma_m: float = 0.03  # position measurement noise
+    #: a detection's smaller noise across the direction of motion (``Detection.sigma_across_m``)
+    #: applies from this speed on (below it the direction is not known well, and a standing person's
+    #: midpoint shuffles every way)
+    anisotropic_min_speed_mps: float = 0.3
     init_speed_sigma_mps: float = 1.0
     #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
     gate_m: float = 0.35
@@ -126,6 +130,8 @@ class TrackerConfig:
             raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
         if self.max_tracks < 1 or self.retro_cycles < 0 or self.confirm_vacated_m < 0.0:
             raise ValueError("need max_tracks >= 1, retro_cycles >= 0 and confirm_vacated_m >= 0")
+        if not self.anisotropic_min_speed_mps > 0.0:  # a standing track has no direction of motion
+            raise ValueError(f"need anisotropic_min_speed_mps > 0, got {self.anisotropic_min_speed_mps}")
 
 
 @dataclass(frozen=True)
@@ -142,6 +148,10 @@ class Detection:
     evidence: bool = True
     #: position noise of this detection (None: the tracker's meas_sigma_m)
     sigma_m: float | None = None
+    #: ... across the track's direction of motion, when smaller than along it (None: the same): a
+    #: walker's leg-pair midpoint moves stop-and-go along the path with the alternating steps, but
+    #: sideways only with the body's small sway
+    sigma_across_m: float | None = None
     kind: str = "body"
     #: partly hidden by something nearer: a centre placed an assumed radius behind the visible points
     #: follows the occluder's edge and does not count as displacement for confirmation; a circle fitted
@@ -379,16 +389,8 @@ class Tracker:
     def _update(self, track: Track, det: Detection) -> None:
         """The IMM's update: each model's Kalman update, the mode probabilities by how well each model
         predicted the detection, combine."""
-        sigma = self.config.meas_sigma_m if det.sigma_m is None else det.sigma_m
         z = np.array([det.x_m, det.y_m])
-        if det.kind == "leg" and track.seen_as_person:
-            # a person's lone leg: the centre lies anywhere within kind_change_m of it
-            sigma = math.hypot(sigma, self.config.kind_change_m)
-        elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
-            sigma = math.hypot(sigma, 0.5 * self.config.kind_change_m)
-        if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
-            sigma = math.hypot(sigma, 0.5 * track.radius_m)
-        r = np.eye(2) * sigma**2
+        r = self._measurement_cov(track, det)
         likelihood = np.empty(track.model_probs.shape[0])
         for j in range(likelihood.shape[0]):
             x, p = track.model_states[j], track.model_covs[j]
@@ -412,6 +414,30 @@ class Tracker:
             else:
                 track.radius_m = det.radius_m
                 track.radius_known = True
+
+    def _measurement_cov(self, track: Track, det: Detection) -> np.ndarray:
+        """The detection's position covariance: its own noise (smaller across the track's motion
+        where the detection says so and the track moves at least ``anisotropic_min_speed_mps``), plus,
+        in every direction, the offset of another point of the body (a lone leg, the pair's midpoint)
+        or of a partly hidden one."""
+        c = self.config
+        sigma = c.meas_sigma_m if det.sigma_m is None else det.sigma_m
+        extra = 0.0
+        if det.kind == "leg" and track.seen_as_person:
+            # a person's lone leg: the centre lies anywhere within kind_change_m of it
+            extra = c.kind_change_m
+        elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
+            extra = 0.5 * c.kind_change_m
+        if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
+            extra = math.hypot(extra, 0.5 * track.radius_m)
+        along = math.hypot(sigma, extra) ** 2
+        v = track.state[2:4]
+        speed = math.hypot(float(v[0]), float(v[1]))
+        if det.sigma_across_m is None or speed < c.anisotropic_min_speed_mps:
+            return np.eye(2) * along
+        u = np.array([float(v[0]), float(v[1])]) / speed
+        uu = np.outer(u, u)
+        return along * uu + math.hypot(det.sigma_across_m, extra) ** 2 * (np.eye(2) - uu)
 
     def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None) -> bool:
         """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker (``kinds``: per row, the
