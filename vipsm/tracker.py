@@ -431,12 +431,11 @@ class Tracker:
         if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
             extra = math.hypot(extra, 0.5 * track.radius_m)
         along = math.hypot(sigma, extra) ** 2
-        v = track.state[2:4]
-        speed = math.hypot(float(v[0]), float(v[1]))
+        vx, vy = float(track.state[2]), float(track.state[3])
+        speed = math.hypot(vx, vy)
         if det.sigma_across_m is None or speed < c.anisotropic_min_speed_mps:
             return np.eye(2) * along
-        u = np.array([float(v[0]), float(v[1])]) / speed
-        uu = np.outer(u, u)
+        uu = np.outer((vx / speed, vy / speed), (vx / speed, vy / speed))
         return along * uu + math.hypot(det.sigma_across_m, extra) ** 2 * (np.eye(2) - uu)
 
     def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None) -> bool:
@@ -497,8 +496,8 @@ class Tracker:
         unreliable = np.flatnonzero(hist[:, 5])
         if unreliable.size:
             hist = hist[unreliable[-1] + 1 :]
-            if hist.shape[0] < 3:
-                return
+        if hist.shape[0] < 3:
+            return
         hist = hist[hist[:, 4] == hist[-1, 4]]
         if hist.shape[0] < 3:
             return
