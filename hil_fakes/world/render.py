@@ -145,15 +145,10 @@ class ViewRenderer:
             )
         xs = ((np.arange(width_px, dtype=np.float64) - cx) / fx)[None, :]
         ys = ((np.arange(height_px, dtype=np.float64) - cy) / fy)[:, None]
-        if tilt_rad == 0.0:
-            az = heading_rad - np.arctan(xs)  # (1, W)
-            hnorm = np.sqrt(1.0 + xs * xs)
-            tan_el = -ys / hnorm  # (H, W)
-        else:
-            fwd = math.cos(tilt_rad) + ys * math.sin(tilt_rad)
-            up = math.sin(tilt_rad) - ys * math.cos(tilt_rad)
-            az = heading_rad - np.arctan2(xs, fwd)  # (H, W)
-            tan_el = up / np.hypot(xs, fwd)
+        fwd = math.cos(tilt_rad) + ys * math.sin(tilt_rad)
+        up = math.sin(tilt_rad) - ys * math.cos(tilt_rad)
+        az = heading_rad - np.arctan2(xs, fwd)  # (H, W)
+        tan_el = up / np.hypot(xs, fwd)
         shape = (height_px, width_px)
         dx, dy = np.cos(az), np.sin(az)
         ox = np.full(dx.shape, cam_x_m)
