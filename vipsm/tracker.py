@@ -82,6 +82,12 @@ class TrackerConfig:
     #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were
     #: (cylinder_clutter seed 178); a walker's old place is empty, a stance foot there is part of it
     confirm_vacated_m: float = 0.15
+    #: ... or, for a body that stood and started to move, from its last standing place: at least this
+    #: many newest detections with motion evidence, each step advancing at least ``confirm_onset_step_m``
+    #: (a walker at 0.5 m/s covers 5 cm a cycle; a fit that sits still and jumps once does not advance
+    #: twice in a row)
+    confirm_onset_rows: int = 2
+    confirm_onset_step_m: float = 0.03
     #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
     confirm_straightness: float = 0.6
     #: ... made step by step: at least this share of the steps advance along the net displacement (a
@@ -130,6 +136,8 @@ class TrackerConfig:
             raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
         if self.max_tracks < 1 or self.retro_cycles < 0 or self.confirm_vacated_m < 0.0:
             raise ValueError("need max_tracks >= 1, retro_cycles >= 0 and confirm_vacated_m >= 0")
+        if self.confirm_onset_rows < 2 or not self.confirm_onset_step_m > 0.0:
+            raise ValueError("need confirm_onset_rows >= 2 and confirm_onset_step_m > 0")
         if not self.anisotropic_min_speed_mps > 0.0:  # a standing track has no direction of motion
             raise ValueError(f"need anisotropic_min_speed_mps > 0, got {self.anisotropic_min_speed_mps}")
 
@@ -284,6 +292,12 @@ def kind_aligned(rows: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     offsets = {k: xy[kinds == k].mean(axis=0) - v * t[kinds == k].mean() for k in np.unique(kinds)}
     aligned = xy - np.array([offsets[k] for k in kinds]) + offsets[kinds[-1]]
     return aligned, (float(v[0]), float(v[1]))
+
+
+def _onset(hist: np.ndarray) -> int:
+    """Index of the first of the history rows' trailing run with motion evidence (len: none)."""
+    still = np.flatnonzero(hist[:, 3] == 0.0)
+    return int(still[-1]) + 1 if still.size else 0
 
 
 def _fit_invariant_xy(hist: np.ndarray) -> np.ndarray:
@@ -518,6 +532,28 @@ class Tracker:
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
                 and self._steady(hist) and self._left(t, hist[0, :3], detections, own)):
             t.confirmed = True
+        elif self._started(hist, xy, needed) and self._left(t, hist[_onset(hist) - 1, :3], detections, own):
+            t.confirmed = True
+
+    def _started(self, hist: np.ndarray, xy: np.ndarray, needed: float) -> bool:
+        """A body that stood and started to move: the window's newest detections (at least
+        ``confirm_onset_rows``) all show motion evidence, the one before them none, and from that last
+        standing place every step advances at least ``confirm_onset_step_m`` along the net
+        displacement, which reaches ``needed``. The detections it stood at would otherwise count as
+        steps that do not advance until they leave the window (a walker coming head-on from standing
+        was confirmed 0.2 s after the evidence; a box corner's fit that sits still and jumps once does
+        not advance twice in a row)."""
+        c = self.config
+        e = _onset(hist)
+        if e < 1 or hist.shape[0] - e < c.confirm_onset_rows:
+            return False
+        path = xy[e - 1 :]
+        net = path[-1] - path[0]
+        dist = float(np.hypot(*net))
+        if dist < needed:
+            return False
+        advance = np.diff(path, axis=0) @ (net / dist)
+        return bool(np.all(advance >= c.confirm_onset_step_m)) and self._steady(hist[e - 1 :])
 
     def _left(self, t: Track, origin: np.ndarray, detections: list[Detection], own: Detection) -> bool:
         """No detection but the track's own stood within ``confirm_vacated_m`` of ``origin`` (stamp_s,

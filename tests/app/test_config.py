@@ -51,6 +51,7 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.bodies.camera_interval_max_m=0", "estimator.bodies", "camera_interval_max_m > 0"),
         ("estimator.tracker.confirm_vacated_m=-1", "estimator.tracker", "confirm_vacated_m >= 0"),
         ("estimator.tracker.anisotropic_min_speed_mps=0", "estimator.tracker", "anisotropic_min_speed_mps > 0"),
+        ("estimator.tracker.confirm_onset_rows=1", "estimator.tracker", "confirm_onset_rows >= 2"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )

@@ -653,6 +653,43 @@ def test_a_thing_seen_partly_hidden_then_whole_but_standing_still_is_not_confirm
             assert not t.confirmed, k
 
 
+def _confirmed_at(rows: list[tuple[float, float, bool]], kind: str = "person") -> int | None:
+    """Feed one detection per cycle ((x, y, evidence) rows); the cycle its track was confirmed."""
+    tr = Tracker(TrackerConfig())
+    for k, (x, y, ev) in enumerate(rows):
+        det = Detection(x, y, 0.25, False, 0, 3, 0.0, 0.1, evidence=ev, sigma_m=0.06, kind=kind)
+        if any(t.confirmed for t, _ in tr.step(0.1 * k, [det])):
+            return k
+    return None
+
+
+def test_a_walker_who_stood_is_confirmed_on_its_first_two_steps() -> None:
+    """Suite scenario head_on_step_aside, fresh seed 311: the walker stood 7.7 m away, head-on, and
+    started at 7.3 s; the free-space test flagged its first two steps (10 and 13 cm). Its track starts
+    at the standing detections (retro), whose still steps counted against the 70 % of advancing steps
+    until they left the window: confirmed at the fourth moving detection, located 93.3 %."""
+    rows = [(7.696, -0.647, False), (7.697, -0.646, False), (7.699, -0.656, False), (7.700, -0.657, False),
+            (7.597, -0.649, True), (7.466, -0.648, True), (7.390, -0.648, True), (7.361, -0.641, True)]
+    assert _confirmed_at(rows) == 5
+
+
+def test_a_fit_that_sits_still_then_jumps_once_is_not_confirmed_from_where_it_sat() -> None:
+    """The other side: a box corner's circle fit (camera evidence from a passer-by) sits still
+    (jittering 5 mm), jumps 8 cm once and sits still again: its steps after the jump do not advance."""
+    rows = [(3.000, 1.000, False), (2.995, 1.005, False), (3.005, 0.995, False), (3.000, 1.000, False),
+            (3.080, 1.000, True), (3.078, 1.004, True), (3.082, 0.996, True), (3.080, 1.000, True),
+            (3.078, 1.004, True), (3.082, 0.996, True)]
+    assert _confirmed_at(rows, kind="body") is None
+
+
+def test_a_standing_thing_that_jumps_and_creeps_is_not_confirmed_as_starting() -> None:
+    """A standing thing whose detection jumps 8 cm (another point of it seen) and then creeps 1 cm,
+    both with motion evidence: its second step is no walker's (5 cm a scan at 0.5 m/s)."""
+    rows = [(2.000, 0.500, False), (1.995, 0.505, False), (2.005, 0.495, False), (2.000, 0.500, False),
+            (2.080, 0.500, True), (2.090, 0.500, True)]
+    assert _confirmed_at(rows) is None
+
+
 def _walk_and_sidestep(sigma_across_m: float | None) -> dict[float, tuple[float, float]]:
     """A walker at 1 m/s along -x turns 45 deg at 4 s (the suite's head-on sidestep); its leg-pair
     midpoint runs 4 cm ahead of and behind the body with the steps, 1 cm to the side with the sway.
