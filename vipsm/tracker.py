@@ -532,28 +532,30 @@ class Tracker:
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
                 and self._steady(hist) and self._left(t, hist[0, :3], detections, own)):
             t.confirmed = True
-        elif self._started(hist, xy, needed) and self._left(t, hist[_onset(hist) - 1, :3], detections, own):
+            return
+        origin = self._started(hist, xy, needed)
+        if origin is not None and self._left(t, hist[origin, :3], detections, own):
             t.confirmed = True
 
-    def _started(self, hist: np.ndarray, xy: np.ndarray, needed: float) -> bool:
+    def _started(self, hist: np.ndarray, xy: np.ndarray, needed: float) -> int | None:
         """A body that stood and started to move: the window's newest detections (at least
         ``confirm_onset_rows``) all show motion evidence, the one before them none, and from that last
         standing place every step advances at least ``confirm_onset_step_m`` along the net
         displacement, which reaches ``needed``. The detections it stood at would otherwise count as
         steps that do not advance until they leave the window (a walker coming head-on from standing
         was confirmed 0.2 s after the evidence; a box corner's fit that sits still and jumps once does
-        not advance twice in a row)."""
+        not advance twice in a row). Returns the row of the last standing place, or None."""
         c = self.config
         e = _onset(hist)
         if e < 1 or hist.shape[0] - e < c.confirm_onset_rows:
-            return False
+            return None
         path = xy[e - 1 :]
         net = path[-1] - path[0]
         dist = float(np.hypot(*net))
         if dist < needed:
-            return False
+            return None
         advance = np.diff(path, axis=0) @ (net / dist)
-        return bool(np.all(advance >= c.confirm_onset_step_m)) and self._steady(hist[e - 1 :])
+        return e - 1 if bool(np.all(advance >= c.confirm_onset_step_m)) and self._steady(hist[e - 1 :]) else None
 
     def _left(self, t: Track, origin: np.ndarray, detections: list[Detection], own: Detection) -> bool:
         """No detection but the track's own stood within ``confirm_vacated_m`` of ``origin`` (stamp_s,
