@@ -495,8 +495,6 @@ class Tracker:
         recent = sum(h[3] for h in t.history)
         if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
             return
-        # a lone leg's centre and a leg pair's midpoint are different points of a body (and a pair's
-        # midpoint jumps when the pairing changes): displacement counts between detections of one kind
         hist = np.array(t.history)
         # a round body's partial views keep their radius: a fit that shrinks or grows over the window
         # follows the occluder's edge over something else (a box face beside a passing body)
@@ -512,6 +510,8 @@ class Tracker:
             hist = hist[unreliable[-1] + 1 :]
         if hist.shape[0] < 3:
             return
+        # a lone leg's centre and a leg pair's midpoint are different points of a body (and a pair's
+        # midpoint jumps when the pairing changes): displacement counts between detections of one kind
         hist = hist[hist[:, 4] == hist[-1, 4]]
         if hist.shape[0] < 3:
             return
