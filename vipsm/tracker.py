@@ -452,9 +452,11 @@ class Tracker:
         uu = np.outer((vx / speed, vy / speed), (vx / speed, vy / speed))
         return along * uu + math.hypot(det.sigma_across_m, extra) ** 2 * (np.eye(2) - uu)
 
-    def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None) -> bool:
+    def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None, person: bool = False) -> bool:
         """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker (``kinds``: per row, the
-        detection's kind code; a step between kinds may also move between a leg and a pair's midpoint)."""
+        detection's kind code; a step between kinds may also move between a leg and a pair's midpoint;
+        for a ``person``, a step between two lone legs may move from one leg to the other, each up to
+        ``kind_change_m`` from the pelvis)."""
         if pts.shape[0] < 2:
             return True
         c = self.config
@@ -462,6 +464,9 @@ class Tracker:
         allowed = c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m
         if kinds is not None:
             allowed = allowed + c.kind_change_m * (np.diff(kinds) != 0.0)
+            if person:
+                legs = (kinds[1:] == _KIND_CODE["leg"]) & (kinds[:-1] == _KIND_CODE["leg"])
+                allowed = allowed + 2.0 * c.kind_change_m * legs
         return bool(np.all(step <= allowed))
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
@@ -577,7 +582,7 @@ class Tracker:
         if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
             return False
         rec = np.array(t.recent)
-        if not self._steady(rec, rec[:, 3]):
+        if not self._steady(rec, rec[:, 3], t.seen_as_person):
             return False
         if rec[-1, 0] - rec[0, 0] < 0.5:
             return True
