@@ -653,8 +653,9 @@ class Tracker:
         nearest one within a walker's step of the last found, each taken out of the memory (it starts
         no other track). Up to ``tentative_max_missed`` cycles without one are passed over (a table leg
         unseen for two scans), as a coasting track would, but the reach stays one cycle's step: what
-        jumped further in the gap is not known to be the same body. A partly occluded detection (its
-        position unreliable) ends the chain: it would hold confirmation back for a whole window. A
+        jumped further in the gap is not known to be the same body. A partly occluded detection ends the
+        chain: a body's or a lone leg's centre, placed behind the visible part, follows the occluder's
+        edge (a leg pair's is good to 4 cm, ``_remember``, but ends it too: not re-measured). A
         detection a live track took is that track's body, not this one's past (a post's, tracked, when a
         table leg 0.26 m from it came out from behind the passing cylinder: the leg "walked" from the
         post, `cylinder_clutter` seed 165)."""
