@@ -108,6 +108,8 @@ def refusal_reason(est: Estimator) -> str | None:
     if dbg is None or not dbg.match.flags & EstimateFlag.ODOMETRY_FALLBACK:
         return None
     res: PsmResult | None = dbg.match.result
+    if res is None and est._matcher.keyframe is None:  # noqa: SLF001 - the suite looks inside on purpose
+        return "no_keyframe"  # no scan yet had enough valid beams to become the reference
     if res is None:
         return "refused_before_matching"  # restoration covered too much, or unusable bearings
     if res.refused:
@@ -396,14 +398,14 @@ def print_real_table(suite: dict[str, Any]) -> None:
     def f(v: Any, digits: int = 2) -> str:
         return "-" if v is None else f"{v:.{digits}f}" if isinstance(v, float) else str(v)
 
-    head = (f"{'recording':<36} {'scans':>5} {'refused':>7} {'rep/min':>7} {'bg/min':>6} {'still/min':>9} "
+    head = (f"{'recording':<46} {'scans':>5} {'refused':>7} {'rep/min':>7} {'bg/min':>6} {'still/min':>9} "
             f"{'walk@.5':>7} {'all@.5':>6} {'all@.3':>6} {'pos m':>5} {'far/min':>7} {'kiss max m':>10}")
     print(head)
     print("-" * len(head))
     for r in suite["recordings"]:
         r5, r3 = r.get("recall_0.5m", {}), r.get("recall_0.3m", {})
         k = r.get("kiss_icp", {})
-        print(f"{r['recording'] + ' ' + r['topic']:<36} {r['scans']:>5} {f(r['refused_share']):>7} "
+        print(f"{r['recording'] + ' ' + r['topic']:<46} {r['scans']:>5} {f(r['refused_share']):>7} "
               f"{f(r['reports_per_min'], 1):>7} {f(r.get('background_reports_per_min'), 1):>6} "
               f"{f(r.get('still_tracks_per_min')):>9} {f(r5.get('walking')):>7} {f(r5.get('all')):>6} "
               f"{f(r3.get('all')):>6} {f(r.get('position_error_median_m')):>5} {f(r.get('far_reports_per_min'), 1):>7} "
