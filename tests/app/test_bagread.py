@@ -256,3 +256,45 @@ def test_replay_runs_on_a_shared_recording(shared_data: Path, capsys: pytest.Cap
     assert s["bag"]["sensor"] == {"frame_id": "right_laser", "beams": 768, "fov_deg": pytest.approx(269.648, abs=0.01),
                                   "step_deg": pytest.approx(0.35156, abs=1e-4), "range_min_m": 0.03,
                                   "range_max_m": 11.0, "scan_period_s": pytest.approx(0.13333, abs=1e-4)}
+
+
+def test_replay_bag_plots_and_max_scans(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_bag(tmp_path / "p.bag", True, n=20)
+    assert main(["replay", str(bag), "--scan", "/scan", "--odom", "/odom", "--max-scans", "8", "--plots",
+                 str(tmp_path / "figs"), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["cycles"] == 8 and len(s["plots"]) == 3
+    assert all(Path(p).stat().st_size > 1000 and Path(p).parent == tmp_path / "figs" for p in s["plots"])
+
+
+def test_bag_with_images_replays_from_its_field_log(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """JPEG frames go into the field log, so its replay matches the bag's cycle for cycle."""
+    import cv2
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    t = ts.types
+    rng = np.random.default_rng(0)
+    path = tmp_path / "cam"
+    with Writer(path, version=8) as w:
+        cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        cim = w.add_connection("/image", "sensor_msgs/msg/CompressedImage", typestore=ts)
+        for i in range(6):
+            t_ns = (T0 + i // 10) * 10**9 + (i % 10) * 100_000_000
+            img = cv2.GaussianBlur(rng.integers(0, 255, (60, 80), dtype=np.uint8), (5, 5), 0)
+            ok, jpeg = cv2.imencode(".jpg", img)
+            stamp = t["builtin_interfaces/msg/Time"](sec=t_ns // 10**9, nanosec=t_ns % 10**9)
+            im = t["sensor_msgs/msg/CompressedImage"](header=t["std_msgs/msg/Header"](stamp=stamp, frame_id="camera"),
+                                                      format="jpeg", data=jpeg.ravel())
+            w.write(cim, t_ns, ts.serialize_cdr(im, "sensor_msgs/msg/CompressedImage"))
+            w.write(cs, t_ns + 1, ts.serialize_cdr(_scan_msg(ts, i, _room_ranges(i), False),
+                                                   "sensor_msgs/msg/LaserScan"))
+    out = tmp_path / "cam.mcap"
+    assert main(["replay", str(path), "--scan", "/scan", "--image", "/image", "--fx", "60", "--fy", "60", "--cx", "40",
+                 "--cy", "30", "--json", "--log", str(out)]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["bag"]["frames"] == 6 and s["cycles"] == 6
+    assert main(["replay", str(out), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["identical_to_recorded"] == 6
