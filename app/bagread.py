@@ -198,11 +198,17 @@ def intrinsics_from_camera_info(msg: Any) -> Intrinsics:
 def image_from_msg(msg: Any, msgtype: str) -> tuple[np.ndarray, bytes | None]:
     """A grey uint8 image (and the JPEG bytes when the message is one) from an image message."""
     if msgtype == "sensor_msgs/msg/CompressedImage":
-        from .replay import decode_jpeg
+        from drivers.errors import ProtocolError
+
+        from .cmd_camera import decode_jpeg  # the decoder used live and in replay
 
         jpeg = bytes(np.asarray(msg.data, dtype=np.uint8).tobytes())
         fmt = str(msg.format).lower()
-        return decode_jpeg(jpeg), jpeg if "jpeg" in fmt or "jpg" in fmt else None
+        try:
+            grey = decode_jpeg(jpeg, grey=True)
+        except ProtocolError as exc:
+            raise ValueError(str(exc)) from exc
+        return grey, jpeg if "jpeg" in fmt or "jpg" in fmt else None
     import cv2
 
     enc = str(msg.encoding).lower()

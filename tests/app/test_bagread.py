@@ -298,3 +298,21 @@ def test_bag_with_images_replays_from_its_field_log(tmp_path: Path, capsys: pyte
     assert main(["replay", str(out), "--json"]) == 0
     again = json.loads(capsys.readouterr().out)
     assert again["identical_to_recorded"] == 6
+
+
+def test_malformed_scan_is_skipped_and_counted_exit_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    path = tmp_path / "bad.bag"
+    with Writer(path) as w:
+        c = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        for i in range(5):
+            msg = _scan_msg(ts, i, _room_ranges(i), True, inc=0.0 if i == 2 else math.radians(1.0))
+            w.write(c, T0 * 10**9 + i * 100_000_000, ts.serialize_ros1(msg, "sensor_msgs/msg/LaserScan"))
+    assert main(["replay", str(path), "--scan", "/scan", "--json"]) == 3
+    captured = capsys.readouterr()
+    s = json.loads(captured.out)
+    assert s["cycles"] == 4 and s["bad_messages"] == 1 and "angle_increment 0.0" in s["bad_message_reasons"][0]
+    assert "1 malformed message(s) skipped" in captured.err
