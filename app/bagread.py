@@ -19,7 +19,9 @@ Errors (all :class:`BagError`, an :class:`app.errors.AppError`: the CLI prints o
 :class:`BagOpenError` (missing, not a bag, truncated or damaged index), :class:`BagTopicError` (a topic
 that is not in the bag; the message lists the topics there are), :class:`BagTypeError` (a topic of the
 wrong message type, an image encoding that cannot be read). A single message that cannot be
-deserialised is skipped and counted in :attr:`BagReadResult.bad_messages` (exit 3, as a field log's).
+deserialised is skipped and counted in :attr:`BagReadResult.bad_messages`; damage part-way through
+(a chunk that cannot be read) ends the bag there, the scans before it kept, with
+:attr:`BagReadResult.truncated` and its reason (both: exit 3).
 """
 
 from __future__ import annotations
@@ -105,6 +107,9 @@ class BagReadResult:
     frames: int = 0
     bad_messages: int = 0
     bad: list[str] = field(default_factory=list)
+    #: the bag ended in damage part-way (the scans before it were read); why
+    truncated: bool = False
+    reason: str = ""
 
     def note_bad(self, reason: str) -> None:
         self.bad_messages += 1
@@ -333,8 +338,10 @@ def _cycles(reader: Any, topics: BagTopics, intrinsics: Intrinsics | None, read:
                 read.note_bad(f"{conn.topic} at {t_ns} ns: {type(exc).__name__}: {str(exc)[:200]}")
     except BagError:
         raise
-    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds for a damaged chunk; one line for the CLI
-        raise BagOpenError(f"{path}: the bag is damaged after {read.scans} scans: {type(exc).__name__}: {exc}") from exc
+    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds for a damaged chunk
+        # the scans before the damage were replayed; they are kept, and the cut is reported
+        read.truncated = True
+        read.reason = f"damaged after {read.scans} scans: {type(exc).__name__}: {str(exc)[:200]}"
 
 
 def _frame(msg: Any, msgtype: str, intr: Intrinsics, seq: int) -> tuple[Frame, bytes | None]:

@@ -463,7 +463,8 @@ class BagFieldLog:
 def cmd_replay_bag(args: Any, app_config: Any) -> int:
     """``vipsm-robot replay BAG --scan TOPIC ...``: the summary as for a field log, plus what the bag
     held (``bag``: topics, the laser's geometry from its LaserScan fields). Exit 0, or 3 when messages
-    were skipped as malformed (as for a field log); a bag that cannot be read as asked: exit 2."""
+    were skipped as malformed or the bag ended in damage part-way (what came before is replayed and
+    reported); a bag that cannot be read as asked: exit 2."""
     import dataclasses
     import sys
     import time
@@ -495,11 +496,12 @@ def cmd_replay_bag(args: Any, app_config: Any) -> int:
     if args.plots:
         summary["plots"] = _bag_plots(results, read, topics, config.estimator, args)
     emit(summary, args.json)
+    if read.truncated:
+        print(f"vipsm-robot: warning: {args.log}: the bag is {read.reason}", file=sys.stderr)
     if read.bad_messages:
         print(f"vipsm-robot: warning: {args.log}: {read.bad_messages} malformed message(s) skipped, the first: "
               f"{read.bad[0]}", file=sys.stderr)
-        return 3
-    return 0
+    return 3 if read.bad_messages or read.truncated else 0
 
 
 def bag_summary(results: list[tuple[ReplayCycle, Estimate]], read: Any, args: Any, elapsed_s: float
@@ -512,6 +514,8 @@ def bag_summary(results: list[tuple[ReplayCycle, Estimate]], read: Any, args: An
     return {
         "log_path": str(args.log),
         "cycles": n,
+        "truncated": read.truncated,
+        "truncation": read.reason,
         "plain_psm": bool(args.plain_psm),
         "ms_per_cycle": round(1e3 * elapsed_s / n, 3),
         "bad_messages": read.bad_messages,

@@ -90,6 +90,8 @@ class Run:
     bearings: np.ndarray | None = None
     sensor: dict[str, Any] | None = None
     ms_per_cycle: float = 0.0
+    #: the bag ended in damage part-way: why ("" = read whole)
+    truncation: str = ""
 
     @property
     def minutes(self) -> float:
@@ -136,6 +138,7 @@ def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
             run.bearings = bc.scan.bearings_rad
     run.ms_per_cycle = 1e3 * (time.perf_counter() - t0) / max(len(run.cycles), 1)
     run.sensor = read.sensor.as_dict() if read.sensor is not None else None
+    run.truncation = read.reason if read.truncated else ""
     return run
 
 
@@ -349,6 +352,8 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
         res: dict[str, Any] = {"recording": rec.name, "topic": topic, "kind": rec.kind, "scans": len(run.cycles),
                                "duration_s": round(60.0 * run.minutes, 2), "sensor": run.sensor,
                                "ms_per_cycle": round(run.ms_per_cycle, 2), **refusal_metrics(run), **report_counts(run)}
+        if run.truncation:
+            res["truncation"] = run.truncation
         if rec.kind != "drive":
             res.update(background_metrics(run))
         if rec.labels is not None and (data_dir / rec.labels).exists():

@@ -316,3 +316,28 @@ def test_malformed_scan_is_skipped_and_counted_exit_3(tmp_path: Path, capsys: py
     s = json.loads(captured.out)
     assert s["cycles"] == 4 and s["bad_messages"] == 1 and "angle_increment 0.0" in s["bad_message_reasons"][0]
     assert "1 malformed message(s) skipped" in captured.err
+
+
+def test_damage_part_way_keeps_what_came_before(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A chunk that cannot be read (rosbags raises while iterating) ends the bag there: the scans before
+    it are replayed and reported, the cut named, exit 3."""
+    import struct
+
+    from rosbags.highlevel import AnyReader
+
+    path = write_bag(tmp_path / "d.bag", True, n=10, odom=False)
+    real = AnyReader.messages
+
+    def damaged(self, *a, **kw):  # type: ignore[no-untyped-def]
+        for k, item in enumerate(real(self, *a, **kw)):
+            if k == 6:
+                raise struct.error("unpack requires a buffer of 4 bytes")
+            yield item
+
+    monkeypatch.setattr(AnyReader, "messages", damaged)
+    assert main(["replay", str(path), "--scan", "/scan", "--json"]) == 3
+    captured = capsys.readouterr()
+    s = json.loads(captured.out)
+    assert s["cycles"] == 6 and s["truncated"] and "damaged after 6 scans: error: unpack" in s["truncation"]
+    assert "the bag is damaged after 6 scans" in captured.err
