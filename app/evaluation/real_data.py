@@ -354,6 +354,9 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
                                "ms_per_cycle": round(run.ms_per_cycle, 2), **refusal_metrics(run), **report_counts(run)}
         if run.truncation:
             res["truncation"] = run.truncation
+        if not run.cycles:  # nothing on the topic (or damaged at once): nothing to score
+            out.append(res)
+            continue
         if rec.kind != "drive":
             res.update(background_metrics(run))
         if rec.labels is not None and (data_dir / rec.labels).exists():

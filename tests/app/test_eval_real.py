@@ -108,3 +108,21 @@ def test_eval_real_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     assert "unknown recording(s) nope" in capsys.readouterr().err
     assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["skipped"] == [r.name for r in RECORDINGS]
+
+
+def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The drive's first 40 scans of each laser: kiss-icp runs as the reference, and the three lasers'
+    kiss-icp headings agree (the reference is consistent whatever the lasers' mounts)."""
+    pytest.importorskip("kiss_icp", reason="kiss-icp (the optional 'eval' dependency) is not installed")
+    src = shared_data / "real_people_laser"
+    if not (src / "negative_2.bag").exists():
+        pytest.skip(f"negative_2.bag not in {src}")
+    assert main(["eval", "--data", "real", "--data-dir", str(src), "--only", "negative_2", "--max-scans", "40",
+                 "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["recordings"]
+    assert [r["topic"] for r in rows] == ["/left_scan", "/rear_scan", "/right_scan"]
+    for r in rows:
+        k = r["kiss_icp"]
+        assert k["done"] and k["kiss_icp_path_m"] > 0.5  # the robot drove
+        assert k["heading_vs_other_lasers_max_deg"] < 5.0
+        assert r["reports_per_min"] is not None and "background_reports_per_min" not in r  # not a still laser
