@@ -63,14 +63,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )
     p.set_defaults(func=cmd_sim)
 
-    p = sub.add_parser("replay", help="run the estimator on a field log as fast as possible")
-    p.add_argument("log", metavar="LOG.mcap")
+    p = sub.add_parser("replay", help="run the estimator on a field log or a ROS bag as fast as possible")
+    p.add_argument("log", metavar="LOG.mcap|BAG", help="a field log, a ROS 1 .bag file or a ROS 2 bag folder")
     p.add_argument("--plain-psm", action="store_true", help="replay with the plain-PSM baseline")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plots", metavar="DIR",
                    help="write the figures (Fig. 8 map, Fig. 9 paths, errors over time; both methods) as PNG into DIR")
     p.add_argument("--svg", action="store_true", help="with --plots: also write each figure as SVG")
     _add_config_args(p)
+    from .replay import add_bag_arguments
+
+    add_bag_arguments(p)
     p.set_defaults(func=cmd_replay)
 
 
@@ -144,10 +147,13 @@ def _replay_plots(path: Path, results: list[Any], estimator_config: Any, args: a
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    from .bagread import is_bag
     from .daemon import estimate_to_dict
     from .fieldlog import encode_json
-    from .replay import recorded_log_version, run_replay
+    from .replay import cmd_replay_bag, recorded_log_version, run_replay
 
+    if is_bag(args.log):
+        return cmd_replay_bag(args, _config(args))
     # the estimator configuration recorded in the log, unless one is given here
     estimator_config = _config(args).estimator if (args.config or args.set) else None
     path = Path(args.log)

@@ -1,4 +1,5 @@
-"""``vipsm-robot eval``: the paper's experiments and the realistic suite on the simulated world.
+"""``vipsm-robot eval``: the paper's experiments and the realistic suite on the simulated world, and
+(``--data real``) the real-data suite on recorded scans (:mod:`app.evaluation.real_data`).
 
 The command line only: the scenarios come from :mod:`app.evaluation.scenarios`, the run from
 :mod:`app.evaluation.runner`, the metric definitions from :mod:`app.evaluation.metrics`, the table from
@@ -22,6 +23,8 @@ PAPER_NAMES = {"paper1", "paper2", "scenario1_45deg", "scenario2_90deg"}
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
+    if args.data == "real":
+        return cmd_eval_real(args)
     tune_allocator()
     scenarios = driven_scenarios(args, args.scenario)
     results = []
@@ -48,6 +51,41 @@ def cmd_eval(args: argparse.Namespace) -> int:
     else:
         print_table(results, ROBUSTNESS_FACTOR if args.scenario == "robustness" else 1.0)
         print(f"total {elapsed:.2f} s for {len(results)} scenario(s), both methods, {args.world} world")
+    return 0
+
+
+def default_real_data_dir() -> Path:
+    """``$VIPSM_SHARED_DATA/real_people_laser``, else ``../shared/data/real_people_laser`` beside the
+    repository."""
+    import os
+
+    base = os.environ.get("VIPSM_SHARED_DATA")
+    root = Path(base) if base else Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    return root / "real_people_laser"
+
+
+def cmd_eval_real(args: argparse.Namespace) -> int:
+    """``eval --data real``: the real-data suite (:mod:`app.evaluation.real_data`)."""
+    from .errors import AppError
+    from .evaluation.real_data import RECORDINGS, print_real_table, run_suite
+
+    data_dir = Path(args.data_dir) if args.data_dir else default_real_data_dir()
+    if not data_dir.is_dir():
+        raise AppError(f"--data-dir {data_dir}: not a directory (expected the real_people_laser folder)")
+    only = args.only.split(",") if args.only else None
+    known = {r.name for r in RECORDINGS}
+    if only and not set(only) <= known:
+        unknown = ", ".join(sorted(set(only) - known))
+        raise AppError(f"unknown recording(s) {unknown}; known: {', '.join(sorted(known))}")
+    if args.max_scans is not None and args.max_scans < 1:
+        raise AppError("--max-scans must be >= 1")
+    t0 = time.perf_counter()
+    suite = run_suite(data_dir, only, args.max_scans)
+    if args.json:
+        print_json(suite)
+    else:
+        print_real_table(suite)
+        print(f"total {time.perf_counter() - t0:.1f} s for {len(suite['recordings'])} recording(s), laser only")
     return 0
 
 
@@ -85,6 +123,15 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--plots", metavar="DIR", default=None,
                    help="write the figures per scenario (Fig. 8 map, Fig. 9 paths, errors over time) as PNG into DIR")
     p.add_argument("--svg", action="store_true", help="with --plots: also write each figure as SVG")
+    g = p.add_argument_group("real recorded data (--data real)")
+    g.add_argument("--data", choices=("sim", "real"), default="sim",
+                   help="sim: the simulated scenarios (the default); real: the estimator, laser only, on every "
+                   "recording of the real-data folder, scored per recording (the scenario options do not apply)")
+    g.add_argument("--data-dir", metavar="DIR", default=None,
+                   help="the real_people_laser folder (default: $VIPSM_SHARED_DATA/real_people_laser, else "
+                   "../shared/data/real_people_laser beside the repository)")
+    g.add_argument("--only", metavar="NAMES", default=None, help="comma list of recordings (e.g. positive_2)")
+    g.add_argument("--max-scans", type=int, metavar="N", default=None, help="only the first N scans of each")
     p.set_defaults(func=cmd_eval)
 
 

@@ -73,7 +73,11 @@ class LoopConfig:
                          min=0.01, max=1.0)
     trigger: str = _f("timer", "timer: a cycle every period_s; scan: a cycle as each scan arrives (every UTM-30LX "
                       "scan, 40 Hz), or after period_s without one", choices=("timer", "scan"))
-    max_scan_age_s: float = _f(0.25, "a newer scan than this is required; older = scanner stalled", min=0.01)
+    max_scan_age_s: float = _f(0.0, "a newer scan than this is required, older = scanner stalled; 0 = "
+                               "max_scan_age_periods of the scanner's own period (from the scan) + period_s",
+                               min=0.0)
+    max_scan_age_periods: float = _f(6.0, "with max_scan_age_s = 0: scan periods before the scanner counts as "
+                                     "stalled (+ period_s: 0.25 s at 40 Hz, 0.9 s at 7.5 Hz)", min=1.0, max=100.0)
     max_frame_age_s: float = _f(0.3, "frames older than this are not used (plain PSM for the cycle)", min=0.01)
     max_odometry_age_s: float = _f(0.35, "odometry older than this = base lost", min=0.01)
 

@@ -7,7 +7,8 @@ hardware, the byte-level fakes and tests. Degraded modes, each logged on ``/log`
 status registers:
 
 * no camera (absent, failed, stale frames): plain PSM for the cycle, flagged ``plain_psm``;
-* no scanner, or scans older than ``loop.max_scan_age_s``: base stopped (``device_stop``);
+* no scanner, or scans older than ``loop.max_scan_age_s`` (scan periods, :func:`scan_age_limit_s`): base
+  stopped (``device_stop``);
 * no odometry newer than ``loop.max_odometry_age_s``: base stopped;
 * the loop itself stalled: the base driver's own command timeout zeroes the velocity, and the
   base firmware's watchdog stops it after that;
@@ -194,6 +195,19 @@ def normalised_bearings(first_rad: float, step_rad: float, n: int) -> np.ndarray
     return first_rad + step_rad * np.arange(n, dtype=float)
 
 
+def scan_age_limit_s(loop: Any, scan: Scan) -> float:
+    """How old the newest scan may be before the scanner counts as stalled: ``loop.max_scan_age_s`` if
+    set, else ``loop.max_scan_age_periods`` of the scanner's own period (from the scan's beam timing;
+    unknown: the loop's period) plus one loop period (the loop samples the newest scan up to a period
+    late). 0.25 s at 40 Hz with the 0.1 s loop, 0.9 s at 7.5 Hz."""
+    from vipsm.sensor import scan_geometry
+
+    if loop.max_scan_age_s > 0.0:
+        return float(loop.max_scan_age_s)
+    period = scan_geometry(scan).period_s or loop.period_s
+    return float(loop.max_scan_age_periods * period + loop.period_s)
+
+
 def freeze_startup_objects() -> None:
     """Collect once, then move every object alive now (modules, numba's and LLVM's compiled state,
     the estimator: about 136 k tracked objects) out of the garbage collector's reach. A full
@@ -374,7 +388,8 @@ class ControlLoop:
         return scanner_state, base_state, camera_state, frame
 
     def _scan_fresh(self, now_s: float) -> bool:
-        return self.last_scan is not None and now_s - self.last_scan.scan.stamp_s <= self.config.loop.max_scan_age_s
+        last = self.last_scan
+        return last is not None and now_s - last.scan.stamp_s <= scan_age_limit_s(self.config.loop, last.scan)
 
     def _estimate(self, now_s: float, frame: Frame | None, wall: float) -> Estimate | None:
         """The estimator run on the newest scan, once per scan (None: no new fresh scan, or no

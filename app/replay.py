@@ -299,3 +299,245 @@ def _truth_in_odom(truth: dict[str, Any] | None) -> tuple[Any, tuple[tuple[float
     robot = (*to_odom(rx, ry), rth - oth)
     obs = tuple((*to_odom(float(o[0]), float(o[1])), float(o[4])) for o in truth["obstacles"] if o[5])
     return robot, obs
+
+
+# ---------------------------------------------------------------------------------------------
+# ROS bags (:mod:`app.bagread`): ``vipsm-robot replay BAG --scan TOPIC ...``
+
+
+def add_bag_arguments(p: Any) -> None:
+    """The ``replay`` options that apply to a ROS bag (ignored for a field log)."""
+    g = p.add_argument_group("ROS bags (a ROS 1 .bag file or a ROS 2 bag folder)")
+    g.add_argument("--scan", metavar="TOPIC", help="sensor_msgs/LaserScan topic (required for a bag)")
+    g.add_argument("--odom", metavar="TOPIC", help="nav_msgs/Odometry topic; absent: no odometry (the scan "
+                   "matcher alone tracks any motion, each cycle predicted where the last one ended)")
+    g.add_argument("--image", metavar="TOPIC", help="sensor_msgs/CompressedImage or Image topic")
+    g.add_argument("--camera-info", metavar="TOPIC", help="sensor_msgs/CameraInfo topic for the image's intrinsics")
+    for name in ("fx", "fy", "cx", "cy"):
+        g.add_argument(f"--{name}", type=float, metavar="PX", help=f"intrinsics without --camera-info: {name} in px")
+    g.add_argument("--image-width", type=int, metavar="PX", help="with --fx..: the image size they are for "
+                   "(default: the image's own)")
+    g.add_argument("--image-height", type=int, metavar="PX")
+    g.add_argument("--laser-x", type=float, metavar="M", help="laser mount on the robot: x forward (m); "
+                   "default estimator.laser_x_m")
+    g.add_argument("--laser-y", type=float, metavar="M", help="laser mount: y left (m)")
+    g.add_argument("--laser-yaw-deg", type=float, metavar="DEG", help="laser mount: yaw, counter-clockwise (deg)")
+    g.add_argument("--max-scans", type=int, metavar="N", help="replay only the first N scans")
+    g.add_argument("--log", dest="out_log", metavar="OUT.mcap",
+                   help="write a field log of the inputs and estimates (opens in Foxglove; replays as a field log)")
+
+
+def bag_estimator_config(config: EstimatorConfig, args: Any) -> EstimatorConfig:
+    """The estimator configuration with the laser mount flags applied."""
+    import dataclasses
+
+    changes: dict[str, float] = {}
+    if args.laser_x is not None:
+        changes["laser_x_m"] = args.laser_x
+    if args.laser_y is not None:
+        changes["laser_y_m"] = args.laser_y
+    if args.laser_yaw_deg is not None:
+        changes["laser_theta_rad"] = math.radians(args.laser_yaw_deg)
+    bad = [k for k, v in changes.items() if not math.isfinite(v)]
+    if bad:
+        from .errors import AppError
+
+        raise AppError(f"the laser mount {bad[0]} must be a finite number")
+    return dataclasses.replace(config, **changes)
+
+
+def flag_intrinsics(args: Any) -> Intrinsics | None:
+    """Intrinsics from ``--fx --fy --cx --cy`` (all four or none); size from the flags or the image."""
+    from .errors import AppError
+
+    vals = [getattr(args, k) for k in ("fx", "fy", "cx", "cy")]
+    if all(v is None for v in vals):
+        return None
+    if any(v is None for v in vals) or not all(math.isfinite(v) for v in vals) or vals[0] <= 0 or vals[1] <= 0:
+        raise AppError("--fx, --fy, --cx and --cy are given together, fx and fy positive")
+    w = args.image_width or int(round(2 * vals[2]))
+    h = args.image_height or int(round(2 * vals[3]))
+    if w < 1 or h < 1:
+        raise AppError("--image-width and --image-height must be positive")
+    return Intrinsics(vals[0], vals[1], vals[2], vals[3], w, h)
+
+
+def run_bag_replay(path: str | Path, topics: Any, config: EstimatorConfig, plain_psm: bool = False,
+                   intrinsics: Intrinsics | None = None, max_scans: int | None = None, on_cycle: Any = None,
+                   ) -> tuple[list[tuple[ReplayCycle, Estimate]], Any]:
+    """The estimator over a ROS bag's scans; ``on_cycle(bag_cycle, estimate)`` sees each one (the field
+    log writer). Returns the cycles (as replay cycles, for the figures) and the :class:`BagReadResult`."""
+    from .bagread import BagReadResult, read_bag
+
+    read = BagReadResult()
+    deterministic_opencv()
+    est = Estimator(config, plain_psm=plain_psm)
+    out: list[tuple[ReplayCycle, Estimate]] = []
+    for i, bc in enumerate(read_bag(path, topics, intrinsics, read, max_scans)):
+        e = est.step(bc.scan, bc.odometry, bc.frame)
+        out.append((ReplayCycle(i + 1, bc.scan, bc.odometry, bc.frame, {}, None), e))
+        if on_cycle is not None:
+            on_cycle(bc, e)
+    return out, read
+
+
+class BagFieldLog:
+    """A field log of a bag's replay, written with the daemon's writer (:class:`app.fieldlog.FieldLog`)
+    and its message builders, so it opens in Foxglove and replays as a field log: ``/vipsm/config``
+    once, then per scan ``/scan``, ``/odom`` (with an odometry topic), ``/camera/image`` (JPEG images),
+    ``/pose``, ``/obstacles``, ``/tf`` and ``/vipsm/cycle``. Message times are the scans' own stamps.
+    Offline, nothing may be dropped: ``log`` waits for the writer (finite timeout) instead."""
+
+    #: the writer must take a message within this long, else the replay stops with an error
+    STALL_S = 30.0
+
+    def __init__(self, path: str | Path, config: Any) -> None:
+        import dataclasses
+
+        from . import logmessages as lm
+        from .fieldlog import FieldLog
+
+        self._lm = lm
+        self.queue_size = 512
+        self.log = FieldLog(str(path), fsync=False, queue_size=self.queue_size).start()
+        e = config.estimator
+        self._mounts = lm.Mounts(e.laser_x_m, e.laser_y_m, e.laser_theta_rad, e.camera_x_m, e.camera_y_m, e.camera_z_m)
+        self._life_s = 0.3
+        self.cycle = 0
+        self._last_frame_seq = -1
+        self._put("/vipsm/config", 0.0, {"log_version": lm.LOG_VERSION, **dataclasses.asdict(config)})
+
+    def _pending(self) -> int:
+        s = self.log.stats
+        return s.enqueued - s.written - s.bad_messages - s.lost_to_disk
+
+    def _put(self, topic: str, wall_s: float, payload: Any) -> None:
+        import time
+
+        from .errors import AppError
+
+        deadline = time.monotonic() + self.STALL_S
+        while self._pending() >= self.queue_size // 2:
+            if self.log.stats.error is not None or time.monotonic() > deadline:
+                raise AppError(f"the field log writer stopped: {self.log.stats.error or 'no progress'}")
+            time.sleep(0.002)
+        if not self.log.log(topic, wall_s, payload):
+            raise AppError(f"the field log writer refused a message: {self.log.stats.error or 'queue full'}")
+
+    def __call__(self, bc: Any, est: Estimate) -> None:
+        from .daemon import ScanSample, cycle_message, scan_message
+
+        lm, w = self._lm, bc.scan.stamp_s
+        self.cycle += 1
+        sample = ScanSample(bc.scan)
+        self._put("/scan", w, lambda: scan_message(sample, w))
+        od = bc.odometry
+        if bc.odometry_given:
+            self._put("/odom", w, lm.pose_in_frame(od.x_m, od.y_m, od.theta_rad, w))
+        image_wall = None
+        if bc.frame is not None and bc.jpeg is not None:
+            image_wall = bc.frame.stamp_s
+            if bc.frame.seq != self._last_frame_seq:  # each image once, however many cycles use it
+                self._last_frame_seq = bc.frame.seq
+                self._put("/camera/image", image_wall, lm.compressed_image(bc.jpeg, image_wall))
+        frame = bc.frame if bc.jpeg is not None else None  # a raw image is not in the log: replay runs without it
+        p = est.pose
+        self._put("/pose", w, lm.pose_in_frame(p.x_m, p.y_m, p.theta_rad, w))
+        obstacles, life = est.obstacles, self._life_s
+        self._put("/obstacles", w, lambda: lm.scene_update(obstacles, w, life))
+        cycle, scan = self.cycle, bc.scan
+        self._put("/vipsm/cycle", w, lambda: cycle_message(cycle, scan, od, frame, image_wall, est))
+        pose = (p.x_m, p.y_m, p.theta_rad)
+        self._put("/tf", w, lambda: lm.robot_transforms(pose, self._mounts, (0.0, 0.0), w))
+
+    def close(self) -> dict[str, Any]:
+        self.log.close(timeout_s=60.0)
+        s = self.log.stats
+        if s.error is not None or s.state == "disk_error":
+            from .errors import AppError
+
+            raise AppError(f"the field log {s.files[-1] if s.files else ''} failed: {s.error or s.last_disk_error}")
+        return {"path": s.files[-1] if s.files else None, "messages": s.written, "bad_messages": s.bad_messages}
+
+
+def cmd_replay_bag(args: Any, app_config: Any) -> int:
+    """``vipsm-robot replay BAG --scan TOPIC ...``: the summary as for a field log, plus what the bag
+    held (``bag``: topics, the laser's geometry from its LaserScan fields). Exit 0, or 3 when messages
+    were skipped as malformed or the bag ended in damage part-way (what came before is replayed and
+    reported); a bag that cannot be read as asked: exit 2."""
+    import dataclasses
+    import sys
+    import time
+
+    from .bagread import BagTopics
+    from .cli import emit
+    from .errors import AppError
+
+    if not args.scan:
+        raise AppError(f"{args.log}: a ROS bag needs --scan TOPIC (a sensor_msgs/LaserScan topic)")
+    if args.max_scans is not None and args.max_scans < 1:
+        raise AppError("--max-scans must be >= 1")
+    config = dataclasses.replace(app_config, estimator=bag_estimator_config(app_config.estimator, args))
+    topics = BagTopics(args.scan, args.odom, args.image, args.camera_info)
+    writer = BagFieldLog(args.out_log, config) if args.out_log else None
+    t0 = time.perf_counter()
+    try:
+        results, read = run_bag_replay(args.log, topics, config.estimator, args.plain_psm, flag_intrinsics(args),
+                                       args.max_scans, writer)
+    finally:
+        written = writer.close() if writer is not None else None
+    elapsed = time.perf_counter() - t0
+    if not results:
+        why = f"; {read.bad_messages} malformed, the first: {read.bad[0]}" if read.bad else ""
+        raise AppError(f"{args.log}: no scan to replay on {args.scan}{why}")
+    summary = bag_summary(results, read, args, elapsed)
+    if written is not None:
+        summary["field_log"] = written
+    if args.plots:
+        summary["plots"] = _bag_plots(results, read, topics, config.estimator, args)
+    emit(summary, args.json)
+    if read.truncated:
+        print(f"vipsm-robot: warning: {args.log}: the bag is {read.reason}", file=sys.stderr)
+    if read.bad_messages:
+        print(f"vipsm-robot: warning: {args.log}: {read.bad_messages} malformed message(s) skipped, the first: "
+              f"{read.bad[0]}", file=sys.stderr)
+    return 3 if read.bad_messages or read.truncated else 0
+
+
+def bag_summary(results: list[tuple[ReplayCycle, Estimate]], read: Any, args: Any, elapsed_s: float
+                ) -> dict[str, Any]:
+    from vipsm.types import EstimateFlag
+
+    n = len(results)
+    fallback = sum(1 for _, e in results if e.flags & EstimateFlag.ODOMETRY_FALLBACK)
+    tracks = {o.track_id for _, e in results for o in e.obstacles}
+    return {
+        "log_path": str(args.log),
+        "cycles": n,
+        "truncated": read.truncated,
+        "truncation": read.reason,
+        "plain_psm": bool(args.plain_psm),
+        "ms_per_cycle": round(1e3 * elapsed_s / n, 3),
+        "bad_messages": read.bad_messages,
+        "bad_message_reasons": read.bad,
+        "bag": {
+            "topics": {"scan": args.scan, "odom": args.odom, "image": args.image, "camera_info": args.camera_info},
+            "sensor": read.sensor.as_dict() if read.sensor is not None else None,
+            "scans": read.scans, "odometry_messages": read.odometry, "frames": read.frames,
+            "duration_s": round(results[-1][0].scan.stamp_s - results[0][0].scan.stamp_s, 3),
+        },
+        "odometry_fallback_share": round(fallback / n, 4),
+        "obstacle_reports": sum(len(e.obstacles) for _, e in results),
+        "obstacle_tracks": len(tracks),
+    }
+
+
+def _bag_plots(results: list[tuple[ReplayCycle, Estimate]], read: Any, topics: Any, config: EstimatorConfig,
+               args: Any) -> list[str]:
+    """The figures: the method replayed and the other one over the same scans (VIPSM above plain PSM)."""
+    from .plots import write_figures
+
+    other, _ = run_bag_replay(args.log, topics, config, not args.plain_psm, flag_intrinsics(args), args.max_scans)
+    vipsm, plain = (other, results) if args.plain_psm else (results, other)
+    traces = [replay_trace(vipsm, config, "vipsm"), replay_trace(plain, config, "plain_psm")]
+    return [str(p) for p in write_figures(traces, Path(args.plots), Path(args.log).stem, svg=args.svg)]

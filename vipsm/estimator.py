@@ -56,7 +56,10 @@ def _estimator_psm() -> PsmConfig:
     # 44 mm table leg 12 mm at 3.5 m, 2 mm at 1 m with window 5; 4 and 1.5 mm with 3), so furniture
     # seemed to approach faster than the robot drove: the furnished room's forward drift (docs/
     # estimator.md, "The matcher's median"). Spikes are the pre-filter's and the segmentation's job.
-    return PsmConfig(search_window_first_beams=30, search_window_beams=10, stop_count=2, median_window=3)
+    # The windows are angles (30 and 10 beams of the UTM-30LX's 0.25 deg), so a coarser scanner searches
+    # the same angle.
+    return PsmConfig(search_window_first_rad=math.radians(7.5), search_window_rad=math.radians(2.5), stop_count=2,
+                     median_window=3)
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,8 @@ class KeyframeMatcher:
             first = last_pose is None
             flags = EstimateFlag.FIRST_SCAN if first else EstimateFlag.ODOMETRY_FALLBACK
             cov = np.zeros((3, 3)) if first else last_cov.copy()
-            replaced = usable and n_good_w >= cfg.psm.min_valid_beams  # type: ignore[attr-defined]
+            psm = cfg.psm.for_scan(cur.ranges_m.size, cur.dphi_rad)  # type: ignore[attr-defined]
+            replaced = usable and n_good_w >= psm.min_valid_beams
             if replaced:
                 self.keyframe = Keyframe(cur, predicted, cov, n_good_w, seen_m)
             return MatchOutcome(predicted, cov, MatchQuality(0, 0, float("nan"), False), flags, None, replaced)

@@ -59,13 +59,22 @@ class PsmConfig:
     weight_c_divisor: float = 50.0
     search_window_first_beams: int = 80  # half-window of the first orientation search
     search_window_beams: int = 20  # half-window of later orientation searches
+    #: > 0: the half-windows as angles, turned into beams with the scan's own step (:meth:`for_scan`), so
+    #: the search covers the same angle on any scanner; 0: the beam counts above as they are
+    search_window_first_rad: float = 0.0
+    search_window_rad: float = 0.0
     min_overlap_frac: float = 0.30  # share of the usable beams a shift must compare
     orientation_gain: float = 1.0  # b in phi = phi_p + b * d_phi (paper eq. 4); 1 = plain PSM
     max_iterations: int = 30
     stop_translation_m: float = 0.001
     stop_rotation_rad: float = math.radians(0.01)
     stop_count: int = 3  # consecutive small iterations to stop
-    min_valid_beams: int = 300  # refuse below this many beams in a translation step
+    #: refuse below this many beams compared in a translation step; 0: ``min_valid_share`` of the scan's
+    #: beams (:meth:`for_scan`), so a scanner with fewer or coarser beams is not refused on every scan
+    min_valid_beams: int = 0
+    #: 300 of the UTM-30LX's 1081 beams (0.25 deg over 270 deg), where the count was tuned: 213 of a
+    #: 768-beam 0.35 deg scanner's, 143 of a 512-beam 180 deg URG-04LX-class scan
+    min_valid_share: float = 0.2775
     max_pair_gap_rad: float = 0.25  # do not interpolate a projected pair across a wider bearing gap
     line_interpolation: bool = True  # True: ray/chord intersection; False: range linear in bearing (original)
     degenerate_eig: float = 1e-3  # refuse if min eig of H'WH / sum(w) is below this
@@ -92,6 +101,15 @@ class PsmConfig:
             raise ValueError("search windows must be >= 1 beam")
         if self.max_iterations < 1 or self.stop_count < 1 or self.min_segment_beams < 1:
             raise ValueError("max_iterations, stop_count and min_segment_beams must be >= 1")
+        if self.min_valid_beams < 0 or not 0.0 < self.min_valid_share <= 1.0:
+            raise ValueError("need min_valid_beams >= 0 and 0 < min_valid_share <= 1")
+        if self.search_window_first_rad < 0.0 or self.search_window_rad < 0.0:
+            raise ValueError("search window angles must be >= 0 (0: the beam counts)")
+
+    def for_scan(self, n_beams: int, dphi_rad: float) -> PsmConfig:
+        """The configuration with its per-sensor counts resolved for a scan of ``n_beams`` beams
+        ``dphi_rad`` apart: the minimum valid beams from the share, the search windows from the angles."""
+        return _for_scan(self, int(n_beams), round(abs(float(dphi_rad)), 12))
 
     @classmethod
     def diosi_v03_utm(cls) -> PsmConfig:
@@ -123,6 +141,18 @@ class PsmConfig:
             weight_c_m2=0.10**2,  # Intel pairs: C in 0.01..0.0625 m^2 tried, smaller was better throughout
             seg_jump_range_factor=2.0,
         )
+
+
+@functools.lru_cache(maxsize=64)
+def _for_scan(c: PsmConfig, n_beams: int, dphi_rad: float) -> PsmConfig:
+    changes: dict[str, int] = {}
+    if c.min_valid_beams == 0:
+        changes["min_valid_beams"] = max(3, math.ceil(c.min_valid_share * n_beams - 1e-9))
+    if dphi_rad > 0.0 and c.search_window_first_rad > 0.0:
+        changes["search_window_first_beams"] = max(1, round(c.search_window_first_rad / dphi_rad))
+    if dphi_rad > 0.0 and c.search_window_rad > 0.0:
+        changes["search_window_beams"] = max(1, round(c.search_window_rad / dphi_rad))
+    return dataclasses.replace(c, **changes) if changes else c
 
 
 class PsmRefusal(enum.Enum):
@@ -390,6 +420,7 @@ def match_prepared(
     ref: PreparedScan, cur: PreparedScan, initial_guess: Pose2D, config: PsmConfig
 ) -> PsmResult:
     """Match two prepared scans; never raises for bad data (refusals are typed results)."""
+    config = config.for_scan(ref.ranges_m.size, ref.dphi_rad)
     if ref.n_good < max(3, config.min_segment_beams) or cur.n_good < max(3, config.min_segment_beams):
         return _refused(initial_guess, PsmRefusal.EMPTY_SCAN, 0, 0, config)
     from .psm_kernel import DEGENERATE, NO_VALID_SHIFT, TOO_FEW_BEAMS, iterate, match_statistics

@@ -1,0 +1,422 @@
+"""The real-data suite (``vipsm-robot eval --data real``): the estimator, laser only, on the recorded
+leg_tracker scans in ``../shared/data/real_people_laser`` (PROVENANCE.md there), scored per recording.
+
+* **Labelled recordings** (``positive_N.bag`` with ``positive_N_extracted.bag``): the extracted bag holds
+  the walking person's leg clusters (PoseArray, laser frame) for part of the scans, with the stamps
+  rewritten; each training scan is matched to the scan of ``positive_N.bag`` with identical ranges,
+  which gives its time. Per labelled scan: is there a report within 0.3 / 0.5 m of a labelled leg
+  (recall, split by the person's speed), the distance of the nearest report to the nearest leg
+  (position error, median over matched scans), and reports more than 1 m from every labelled leg (per
+  minute of labelled scans; a second person passing counts here too, so this bounds false reports from
+  above). The person's speed: the legs' centroid fitted linearly over the labelled scans within
+  ``SPEED_WINDOW_S`` around the scan (one leg or two labelled moves the centroid by a hip's width, so a
+  difference of neighbours would not do); walking > 0.3 m/s, slow 0.1-0.3, standing < 0.1.
+* **Still recordings** (every recording but the drive): the laser did not move, so the estimator's odometry
+  frame is the laser frame. Reports on the static background: the report's range is at least the beam's
+  ``BACKGROUND_PERCENTILE`` percentile range over the recording less ``BACKGROUND_MARGIN_M`` (a report at
+  or behind the farthest surface that beam usually sees: a wall, not a person in front of it); tracks
+  that never move: reported tracks whose reports all lie within ``STILL_TRACK_M`` of their mean.
+* **The drive** (``negative_2.bag``, nobody present, no odometry): every report is false (per minute);
+  the matcher's path is compared with an independent scan-to-map registration of the same scans by
+  ``kiss-icp`` (run here only, never in the product's loop).
+* Every recording: the share of cycles the matcher refused (odometry fallback) and why.
+
+"Report": an entry of ``Estimate.obstacles`` (the estimate has no other list of bodies).
+A recording that is absent is listed under ``skipped`` with its name.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vipsm.estimator import Estimator, EstimatorConfig
+from vipsm.psm import PsmResult
+from vipsm.types import EstimateFlag
+
+from ..bagread import LASER_SCAN, BagTopics, bag_topics, open_reader, read_bag
+
+SPEED_WINDOW_S = 1.0  # the centroid fit spans +-half of this
+WALKING_MPS = 0.3
+STANDING_MPS = 0.1
+RECALL_RADII_M = (0.3, 0.5)
+FAR_M = 1.0
+BACKGROUND_PERCENTILE = 95.0
+BACKGROUND_MARGIN_M = 0.3
+STILL_TRACK_M = 0.3
+#: kiss-icp against the matcher: the matcher "lost" once their positions differ by this much
+LOST_M = 0.5
+
+
+@dataclass(frozen=True)
+class Recording:
+    name: str
+    bag: str
+    kind: str  # "labelled", "still" or "drive"
+    labels: str | None = None
+
+
+RECORDINGS = (
+    Recording("positive_1", "positive_1.bag", "labelled", "positive_1_extracted.bag"),
+    Recording("positive_2", "positive_2.bag", "labelled", "positive_2_extracted.bag"),
+    Recording("positive_3", "positive_3.bag", "labelled", "positive_3_extracted.bag"),
+    Recording("positive_6", "positive_6.bag", "labelled", "positive_6_extracted.bag"),
+    Recording("demo_stationary_simple_environment", "demo_stationary_simple_environment.bag", "still"),
+    Recording("negative_2", "negative_2.bag", "drive"),
+)
+
+
+@dataclass
+class Cycle:
+    stamp_s: float
+    pose: tuple[float, float, float]
+    reports: list[tuple[int, float, float]]  # (track_id, x_m, y_m)
+    fallback: bool
+    reason: str | None
+
+
+@dataclass
+class Run:
+    topic: str
+    cycles: list[Cycle] = field(default_factory=list)
+    ranges: list[np.ndarray] = field(default_factory=list)
+    bearings: np.ndarray | None = None
+    sensor: dict[str, Any] | None = None
+    ms_per_cycle: float = 0.0
+    #: the bag ended in damage part-way: why ("" = read whole)
+    truncation: str = ""
+
+    @property
+    def minutes(self) -> float:
+        if len(self.cycles) < 2:
+            return 0.0
+        return (self.cycles[-1].stamp_s - self.cycles[0].stamp_s) / 60.0
+
+
+# ---------------------------------------------------------------------------------------------
+# running the estimator
+
+
+def refusal_reason(est: Estimator) -> str | None:
+    """Why the matcher gave the odometry's pose this cycle (None: it matched)."""
+    dbg = est.last_debug
+    if dbg is None or not dbg.match.flags & EstimateFlag.ODOMETRY_FALLBACK:
+        return None
+    res: PsmResult | None = dbg.match.result
+    if res is None and est._matcher.keyframe is None:  # noqa: SLF001 - the suite looks inside on purpose
+        return "no_keyframe"  # no scan yet had enough valid beams to become the reference
+    if res is None:
+        return "refused_before_matching"  # restoration covered too much, or unusable bearings
+    if res.refused:
+        return str(res.reason.value)
+    return "correction_too_large"  # matched, but further from the prediction than max_correction
+
+
+def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
+                  config: EstimatorConfig | None = None) -> Run:
+    """The estimator (laser only, no odometry: each cycle predicted where the last ended) over a bag."""
+    from ..bagread import BagReadResult
+
+    est = Estimator(config or EstimatorConfig())
+    run = Run(topic)
+    read = BagReadResult()
+    t0 = time.perf_counter()
+    for bc in read_bag(bag, BagTopics(topic), read=read, max_scans=max_scans):
+        e = est.step(bc.scan, bc.odometry, None)
+        run.cycles.append(Cycle(bc.scan.stamp_s, (e.pose.x_m, e.pose.y_m, e.pose.theta_rad),
+                                [(o.track_id, o.x_m, o.y_m) for o in e.obstacles],
+                                bool(e.flags & EstimateFlag.ODOMETRY_FALLBACK), refusal_reason(est)))
+        run.ranges.append(bc.scan.ranges_m)
+        if run.bearings is None:
+            run.bearings = bc.scan.bearings_rad
+    run.ms_per_cycle = 1e3 * (time.perf_counter() - t0) / max(len(run.cycles), 1)
+    run.sensor = read.sensor.as_dict() if read.sensor is not None else None
+    run.truncation = read.reason if read.truncated else ""
+    return run
+
+
+def scan_topics(bag: Path) -> list[str]:
+    reader = open_reader(bag)
+    try:
+        return sorted(t for t, ty in bag_topics(reader).items() if ty == LASER_SCAN)
+    finally:
+        reader.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# labels
+
+
+def read_labels(bag: Path, extracted: Path) -> list[tuple[float, np.ndarray]]:
+    """(stamp of the matching scan of ``bag``, leg positions (k, 2) in the laser frame), in time order.
+    A training scan whose ranges match no scan of ``bag`` is left out."""
+    stamps: dict[bytes, float] = {}
+    reader = open_reader(bag)
+    try:
+        scans = [c for c in reader.connections if c.msgtype == LASER_SCAN]
+        for conn, _, raw in reader.messages(connections=scans):
+            m = reader.deserialize(raw, conn.msgtype)
+            stamps[np.asarray(m.ranges, np.float32).tobytes()] = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+    finally:
+        reader.close()
+    out: list[tuple[float, np.ndarray]] = []
+    legs: np.ndarray | None = None
+    reader = open_reader(extracted)
+    try:
+        for conn, _, raw in reader.messages():
+            if conn.topic == "/leg_cluster_positions":
+                m = reader.deserialize(raw, conn.msgtype)
+                legs = np.array([[p.position.x, p.position.y] for p in m.poses], dtype=float).reshape(-1, 2)
+            elif conn.topic == "/training_scan" and legs is not None:
+                m = reader.deserialize(raw, conn.msgtype)
+                t = stamps.get(np.asarray(m.ranges, np.float32).tobytes())
+                if t is not None and legs.size:
+                    out.append((t, legs))
+                legs = None
+    finally:
+        reader.close()
+    return sorted(out, key=lambda x: x[0])
+
+
+def person_speeds(labels: list[tuple[float, np.ndarray]], window_s: float = SPEED_WINDOW_S) -> list[float | None]:
+    """Per labelled scan, the legs' centroid speed from a straight-line fit over the labelled scans within
+    +-window/2 (None: fewer than 3 of them, or spanning less than half the window)."""
+    t = np.array([s for s, _ in labels])
+    c = np.array([legs.mean(axis=0) for _, legs in labels]).reshape(-1, 2)
+    out: list[float | None] = []
+    for i in range(t.size):
+        near = np.abs(t - t[i]) <= window_s / 2
+        tt = t[near]
+        if tt.size < 3 or tt.max() - tt.min() < window_s / 2:
+            out.append(None)
+            continue
+        A = np.stack([tt - t[i], np.ones(tt.size)], axis=1)
+        coef, *_ = np.linalg.lstsq(A, c[near], rcond=None)
+        out.append(float(np.hypot(*coef[0])))
+    return out
+
+
+def speed_class(v: float | None) -> str:
+    if v is None:
+        return "unknown"
+    return "walking" if v > WALKING_MPS else "slow" if v >= STANDING_MPS else "standing"
+
+
+def labelled_metrics(run: Run, labels: list[tuple[float, np.ndarray]], period_s: float) -> dict[str, Any]:
+    """Recall at each radius split by speed, the position error of matched reports, far reports per minute."""
+    by_stamp = {round(c.stamp_s, 6): c for c in run.cycles}
+    speeds = person_speeds(labels)
+    hits: dict[str, Counter[str]] = {f"{r:g}": Counter() for r in RECALL_RADII_M}
+    totals: Counter[str] = Counter()
+    errors, far = [], 0
+    for (t, legs), v in zip(labels, speeds, strict=True):
+        cyc = by_stamp.get(round(t, 6))
+        if cyc is None:
+            continue  # beyond --max-scans
+        cls = speed_class(v)
+        totals[cls] += 1
+        totals["all"] += 1
+        pts = np.array([[x, y] for _, x, y in cyc.reports]).reshape(-1, 2)
+        if not pts.size:
+            continue
+        d = np.hypot(pts[:, None, 0] - legs[None, :, 0], pts[:, None, 1] - legs[None, :, 1]).min(axis=1)
+        far += int(np.count_nonzero(d > FAR_M))
+        for r in RECALL_RADII_M:
+            if d.min() <= r:
+                hits[f"{r:g}"][cls] += 1
+                hits[f"{r:g}"]["all"] += 1
+        if d.min() <= max(RECALL_RADII_M):
+            errors.append(float(d.min()))
+    minutes = totals["all"] * period_s / 60.0
+    classes = ("walking", "slow", "standing", "unknown", "all")
+    return {
+        "labelled_scans": {k: totals[k] for k in classes},
+        **{f"recall_{r}m": {k: (round(hits[r][k] / totals[k], 3) if totals[k] else None) for k in classes}
+           for r in hits},
+        "position_error_median_m": round(float(np.median(errors)), 3) if errors else None,
+        "far_reports_per_min": round(far / minutes, 1) if minutes > 0 else None,
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# still and driving recordings
+
+
+def background_metrics(run: Run) -> dict[str, Any]:
+    """Reports on the static background and tracks that never move, per minute (laser still)."""
+    assert run.bearings is not None
+    stack = np.array(run.ranges)
+    with warnings.catch_warnings():  # a beam with no return in the whole recording: NaN, no background
+        warnings.simplefilter("ignore", RuntimeWarning)
+        bg = np.nanpercentile(stack, BACKGROUND_PERCENTILE, axis=0)
+    b = run.bearings
+    on_bg = 0
+    tracks: dict[int, list[tuple[float, float]]] = {}
+    for c in run.cycles:
+        for tid, x, y in c.reports:
+            tracks.setdefault(tid, []).append((x, y))
+            i = int(np.clip(np.searchsorted(b, math.atan2(y, x)), 0, b.size - 1))
+            if np.isfinite(bg[i]) and math.hypot(x, y) >= bg[i] - BACKGROUND_MARGIN_M:
+                on_bg += 1
+    still = sum(1 for p in tracks.values()
+                if np.hypot(*(np.array(p) - np.mean(p, axis=0)).T).max() <= STILL_TRACK_M)
+    m = run.minutes
+    return {
+        "background_reports_per_min": round(on_bg / m, 1) if m > 0 else None,
+        "still_tracks_per_min": round(still / m, 2) if m > 0 else None,
+        "tracks": len(tracks),
+    }
+
+
+def report_counts(run: Run) -> dict[str, Any]:
+    m = run.minutes
+    n = sum(len(c.reports) for c in run.cycles)
+    tracks = {tid for c in run.cycles for tid, _, _ in c.reports}
+    return {"reports_per_min": round(n / m, 1) if m > 0 else None,
+            "tracks_per_min": round(len(tracks) / m, 2) if m > 0 else None}
+
+
+def refusal_metrics(run: Run) -> dict[str, Any]:
+    n = len(run.cycles)
+    reasons = Counter(c.reason for c in run.cycles if c.fallback)
+    return {"refused_share": round(sum(c.fallback for c in run.cycles) / n, 3) if n else None,
+            "refusal_reasons": {str(k): v for k, v in sorted(reasons.items(), key=lambda kv: -kv[1])}}
+
+
+def kiss_icp_path(run: Run) -> np.ndarray:
+    """(n, 3) laser poses (x, y, yaw) of kiss-icp's scan-to-map registration of the same scans."""
+    from kiss_icp.config import KISSConfig
+    from kiss_icp.kiss_icp import KissICP
+
+    assert run.bearings is not None
+    cfg = KISSConfig()
+    cfg.data.deskew = False
+    cfg.data.max_range = 30.0
+    cfg.data.min_range = 0.1
+    cfg.mapping.voxel_size = 0.05  # indoor rooms, 2-D: a 5 cm map
+    cfg.adaptive_threshold.initial_threshold = 0.5
+    cfg.registration.max_num_threads = 1
+    icp = KissICP(cfg)
+    c, s = np.cos(run.bearings), np.sin(run.bearings)
+    poses = []
+    for r in run.ranges:
+        ok = np.isfinite(r)
+        pts = np.stack([r[ok] * c[ok], r[ok] * s[ok], np.zeros(int(ok.sum()))], axis=1).astype(np.float64)
+        icp.register_frame(pts, np.zeros(pts.shape[0]))
+        T = icp.last_pose
+        poses.append((T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])))
+    return np.array(poses).reshape(-1, 3)
+
+
+def path_comparison(run: Run, ref: np.ndarray) -> dict[str, Any]:
+    """The matcher's path against the reference's (both start at the first scan's pose)."""
+    est = np.array([c.pose for c in run.cycles]).reshape(-1, 3)
+    off = np.hypot(est[:, 0] - ref[:, 0], est[:, 1] - ref[:, 1])
+    t = np.array([c.stamp_s for c in run.cycles]) - run.cycles[0].stamp_s
+    lost = np.flatnonzero(off > LOST_M)
+    step_est = np.hypot(*np.diff(est[:, :2], axis=0).T)
+    step_ref = np.hypot(*np.diff(ref[:, :2], axis=0).T)
+    frozen = (step_est < 0.001) & (step_ref > 0.01)
+    dyaw = (est[-1, 2] - ref[-1, 2] + math.pi) % (2 * math.pi) - math.pi
+    return {
+        "matcher_path_m": round(float(step_est.sum()), 2),
+        "kiss_icp_path_m": round(float(step_ref.sum()), 2),
+        "final_offset_m": round(float(off[-1]), 3),
+        "max_offset_m": round(float(off.max()), 3),
+        "rms_offset_m": round(float(np.sqrt(np.mean(off**2))), 3),
+        "final_heading_diff_deg": round(math.degrees(dyaw), 2),
+        "lost_after_s": round(float(t[lost[0]]), 2) if lost.size else None,
+        "frozen_while_moving_share": round(float(frozen.mean()), 3) if frozen.size else None,
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# the suite
+
+
+def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = None) -> list[dict[str, Any]]:
+    """One entry per scan topic evaluated (the drive has three lasers)."""
+    bag = data_dir / rec.bag
+    topics = scan_topics(bag)
+    out = []
+    headings: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # kiss-icp's heading per laser (the drive)
+    for topic in topics if rec.kind == "drive" else topics[:1]:
+        run = run_estimator(bag, topic, max_scans)
+        res: dict[str, Any] = {"recording": rec.name, "topic": topic, "kind": rec.kind, "scans": len(run.cycles),
+                               "duration_s": round(60.0 * run.minutes, 2), "sensor": run.sensor,
+                               "ms_per_cycle": round(run.ms_per_cycle, 2), **refusal_metrics(run), **report_counts(run)}
+        if run.truncation:
+            res["truncation"] = run.truncation
+        if not run.cycles:  # nothing on the topic (or damaged at once): nothing to score
+            out.append(res)
+            continue
+        if rec.kind != "drive":
+            res.update(background_metrics(run))
+        if rec.labels is not None and (data_dir / rec.labels).exists():
+            period = run.sensor["scan_period_s"] if run.sensor and run.sensor["scan_period_s"] > 0 else 0.1
+            res.update(labelled_metrics(run, read_labels(bag, data_dir / rec.labels), period))
+        if rec.kind == "drive":
+            res["kiss_icp"] = _kiss(run, headings)
+        out.append(res)
+    _heading_agreement(out, headings)
+    return out
+
+
+def _kiss(run: Run, headings: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:
+    try:
+        ref = kiss_icp_path(run)
+    except ImportError as exc:
+        return {"done": False, "reason": f"kiss-icp is not installed: {exc}"}
+    headings[run.topic] = (np.array([c.stamp_s for c in run.cycles]), np.unwrap(ref[:, 2]))
+    return {"done": True, **path_comparison(run, ref)}
+
+
+def _heading_agreement(results: list[dict[str, Any]], headings: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    """The reference checked against itself: lasers on one robot turn alike whatever their mounts, so
+    kiss-icp's headings from each laser's scans alone must agree (the largest difference to any other)."""
+    for r in results:
+        mine = headings.get(r["topic"])
+        if mine is None or len(headings) < 2:
+            continue
+        diffs = [np.abs(np.interp(mine[0], t, y) - mine[1]).max() for k, (t, y) in headings.items() if k != r["topic"]]
+        r["kiss_icp"]["heading_vs_other_lasers_max_deg"] = round(math.degrees(float(max(diffs))), 2)
+
+
+def run_suite(data_dir: Path, only: list[str] | None = None, max_scans: int | None = None) -> dict[str, Any]:
+    results, skipped = [], []
+    for rec in RECORDINGS:
+        if only and rec.name not in only:
+            continue
+        if not (data_dir / rec.bag).exists():
+            skipped.append(rec.name)
+            continue
+        results.extend(evaluate_recording(rec, data_dir, max_scans))
+    return {"data_dir": str(data_dir), "recordings": results, "skipped": skipped}
+
+
+def print_real_table(suite: dict[str, Any]) -> None:
+    """One line per recording and laser (the JSON holds every figure)."""
+    def f(v: Any, digits: int = 2) -> str:
+        return "-" if v is None else f"{v:.{digits}f}" if isinstance(v, float) else str(v)
+
+    head = (f"{'recording':<46} {'scans':>5} {'refused':>7} {'rep/min':>7} {'bg/min':>6} {'still/min':>9} "
+            f"{'walk@.5':>7} {'all@.5':>6} {'all@.3':>6} {'pos m':>5} {'far/min':>7} {'kiss max m':>10}")
+    print(head)
+    print("-" * len(head))
+    for r in suite["recordings"]:
+        r5, r3 = r.get("recall_0.5m", {}), r.get("recall_0.3m", {})
+        k = r.get("kiss_icp", {})
+        print(f"{r['recording'] + ' ' + r['topic']:<46} {r['scans']:>5} {f(r['refused_share']):>7} "
+              f"{f(r['reports_per_min'], 1):>7} {f(r.get('background_reports_per_min'), 1):>6} "
+              f"{f(r.get('still_tracks_per_min')):>9} {f(r5.get('walking')):>7} {f(r5.get('all')):>6} "
+              f"{f(r3.get('all')):>6} {f(r.get('position_error_median_m')):>5} {f(r.get('far_reports_per_min'), 1):>7} "
+              f"{f(k.get('max_offset_m')):>10}")
+    for name in suite["skipped"]:
+        print(f"{name}: skipped (not in {suite['data_dir']})")

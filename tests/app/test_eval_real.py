@@ -1,0 +1,128 @@
+"""The real-data suite (``eval --data real``): its metrics on made-up runs whose answers are known, and the
+suite itself on one small shared recording (skipped without the data)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from app.evaluation.real_data import (
+    RECORDINGS,
+    Cycle,
+    Run,
+    background_metrics,
+    labelled_metrics,
+    path_comparison,
+    person_speeds,
+    refusal_metrics,
+    speed_class,
+)
+
+
+def _labels(speed_mps: float, n: int = 20, period_s: float = 0.1) -> list[tuple[float, np.ndarray]]:
+    """Two legs 0.2 m apart moving along x at ``speed_mps``; every other scan only one leg labelled."""
+    out = []
+    for i in range(n):
+        x = 2.0 + speed_mps * i * period_s
+        legs = np.array([[x, 0.1], [x, -0.1]]) if i % 2 == 0 else np.array([[x, 0.1]])
+        out.append((100.0 + i * period_s, legs))
+    return out
+
+
+def test_speed_from_the_legs_centroid_fit() -> None:
+    walking = person_speeds(_labels(0.8))
+    assert walking[10] == pytest.approx(0.8, abs=0.15)
+    assert [speed_class(v) for v in (walking[10], person_speeds(_labels(0.2))[10], person_speeds(_labels(0.0))[10])] \
+        == ["walking", "slow", "standing"]
+    assert person_speeds(_labels(0.5, n=2))[0] is None  # two scans do not give a speed
+
+
+def test_labelled_metrics_recall_error_and_far_reports() -> None:
+    labels = _labels(0.8)
+    cycles = []
+    for i, (t, legs) in enumerate(labels):
+        reports = []
+        if i < 10:
+            reports.append((1, legs[0, 0] + 0.2, 0.1))  # 0.2 m from a leg
+        elif i < 15:
+            reports.append((1, legs[0, 0] + 0.4, 0.1))  # 0.4 m: found at 0.5 m, not at 0.3 m
+        reports.append((2, -3.0, 0.0))  # far from every leg
+        cycles.append(Cycle(t, (0.0, 0.0, 0.0), reports, False, None))
+    m = labelled_metrics(Run("/scan", cycles), labels, 0.1)
+    assert m["labelled_scans"]["all"] == 20
+    assert m["recall_0.3m"]["all"] == pytest.approx(0.5) and m["recall_0.5m"]["all"] == pytest.approx(0.75)
+    assert m["position_error_median_m"] == pytest.approx(0.2, abs=1e-6)
+    assert m["far_reports_per_min"] == pytest.approx(20 / (20 * 0.1 / 60), rel=1e-3)
+
+
+def test_background_reports_and_still_tracks() -> None:
+    b = np.linspace(-1.0, 1.0, 101)
+    ranges = [np.full(101, 4.0) for _ in range(61)]  # a wall at 4 m, 6 s at 10 Hz
+    cycles = []
+    for i in range(61):
+        reports = [(1, 4.0 * math.cos(0.2), 4.0 * math.sin(0.2)),  # on the wall, never moving
+                   (2, 1.0 + 0.03 * i, 0.0)]  # a walker in front of it, up to 2.8 m
+        cycles.append(Cycle(i * 0.1, (0.0, 0.0, 0.0), reports, False, None))
+    m = background_metrics(Run("/scan", cycles, ranges, b))
+    assert m["background_reports_per_min"] == pytest.approx(61 / 0.1, rel=1e-3)
+    assert m["still_tracks_per_min"] == pytest.approx(10.0) and m["tracks"] == 2
+
+
+def test_refusals_and_path_comparison() -> None:
+    cycles = [Cycle(i * 0.1, (0.0 if i >= 5 else 0.1 * i, 0.0, 0.0), [], i >= 5, "no_valid_shift" if i >= 5 else None)
+              for i in range(10)]
+    run = Run("/scan", cycles)
+    assert refusal_metrics(run) == {"refused_share": 0.5, "refusal_reasons": {"no_valid_shift": 5}}
+    ref = np.array([[0.1 * i, 0.0, 0.0] for i in range(10)])
+    m = path_comparison(run, ref)
+    assert m["kiss_icp_path_m"] == pytest.approx(0.9) and m["max_offset_m"] == pytest.approx(0.9)
+    assert m["lost_after_s"] == pytest.approx(0.6)  # 0.5 m behind at 0.6 s
+
+
+def test_suite_on_one_recording_skips_the_absent(shared_data: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    src = shared_data / "real_people_laser"
+    if not (src / "positive_2.bag").exists() or not (src / "positive_2_extracted.bag").exists():
+        pytest.skip(f"positive_2 not in {src}")
+    for name in ("positive_2.bag", "positive_2_extracted.bag"):  # linked, not copied
+        (tmp_path / name).symlink_to(src / name)
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--max-scans", "120", "--json"]) == 0
+    suite = json.loads(capsys.readouterr().out)
+    assert suite["skipped"] == [r.name for r in RECORDINGS if r.name != "positive_2"]
+    (r,) = suite["recordings"]
+    assert r["recording"] == "positive_2" and r["scans"] == 120 and r["sensor"]["beams"] == 768
+    assert 0 < r["labelled_scans"]["all"] < 83  # the labelled scans among the first 120
+    assert 0.0 <= r["recall_0.5m"]["all"] <= 1.0 and r["recall_0.3m"]["all"] <= r["recall_0.5m"]["all"]
+    assert 0.0 <= r["refused_share"] <= 1.0 and r["background_reports_per_min"] is not None
+
+
+def test_eval_real_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path / "none")]) == 2
+    assert "not a directory" in capsys.readouterr().err
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--only", "nope"]) == 2
+    assert "unknown recording(s) nope" in capsys.readouterr().err
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["skipped"] == [r.name for r in RECORDINGS]
+
+
+def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The drive's first 40 scans of each laser: kiss-icp runs as the reference, and the three lasers'
+    kiss-icp headings agree (the reference is consistent whatever the lasers' mounts)."""
+    pytest.importorskip("kiss_icp", reason="kiss-icp (the optional 'eval' dependency) is not installed")
+    src = shared_data / "real_people_laser"
+    if not (src / "negative_2.bag").exists():
+        pytest.skip(f"negative_2.bag not in {src}")
+    assert main(["eval", "--data", "real", "--data-dir", str(src), "--only", "negative_2", "--max-scans", "40",
+                 "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["recordings"]
+    assert [r["topic"] for r in rows] == ["/left_scan", "/rear_scan", "/right_scan"]
+    for r in rows:
+        k = r["kiss_icp"]
+        assert k["done"] and k["kiss_icp_path_m"] > 0.5  # the robot drove
+        assert k["heading_vs_other_lasers_max_deg"] < 5.0
+        assert r["reports_per_min"] is not None and "background_reports_per_min" not in r  # not a still laser

@@ -1,0 +1,114 @@
+"""Sensor-derived thresholds: the geometry and period come from the scan, and the matcher's minimum valid
+beams, its search windows and the scanner-stall age follow them (a 180-degree 10 Hz URG-04LX-class
+scanner and a 270-degree 7.5 Hz one, besides the UTM-30LX whose values stay as they were)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from app.config import LoopConfig
+from app.daemon import scan_age_limit_s
+from vipsm.estimator import Estimator, EstimatorConfig
+from vipsm.psm import PsmConfig
+from vipsm.sensor import scan_geometry, scan_period_from_stamps
+from vipsm.types import EstimateFlag, Odometry, Scan
+
+STEP_1024 = 2 * math.pi / 1024  # 0.3516 deg: URG-04LX and the leg_tracker recordings' scanners
+
+#: (beams, first bearing, step, period): the three geometries
+UTM = (1081, math.radians(-135.0), math.radians(0.25), 0.025)
+URG_180_10HZ = (512, -math.pi / 2, STEP_1024, 0.1)
+WIDE_270_7HZ = (768, math.radians(-135.0), STEP_1024, 1 / 7.5)
+
+
+def make_scan(geom: tuple[int, float, float, float], pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+              stamp_s: float = 0.0, max_range_m: float = 5.6) -> Scan:
+    """A 7 m x 5 m room with two pillars, ray-cast from ``pose``; returns beyond ``max_range_m`` are
+    missing (as on a 5.6 m URG-04LX)."""
+    n, first, step, period = geom
+    b = first + step * np.arange(n)
+    x0, y0, th = pose
+    ang = th + b
+    c, s = np.cos(ang), np.sin(ang)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = np.where(c > 0, (4.0 - x0) / c, (-3.0 - x0) / c)
+        ty = np.where(s > 0, (2.5 - y0) / s, (-2.5 - y0) / s)
+    r = np.minimum(np.where(tx > 0, tx, np.inf), np.where(ty > 0, ty, np.inf))
+    for px, py, pr in ((1.5, 1.0, 0.15), (-1.0, -1.2, 0.2)):
+        dx, dy = px - x0, py - y0
+        proj = dx * c + dy * s
+        d2 = dx * dx + dy * dy - proj * proj
+        hit = (proj > 0) & (d2 < pr * pr)
+        r = np.where(hit, np.minimum(r, proj - np.sqrt(np.maximum(pr * pr - d2, 0.0))), r)
+    r = np.where(r <= max_range_m, r, np.nan)
+    return Scan(r, b, stamp_s, 0, period / (2 * math.pi / step))
+
+
+@pytest.mark.parametrize(("geom", "fov_deg", "rate_hz"), [(UTM, 270.0, 40.0), (URG_180_10HZ, 179.6, 10.0),
+                                                           (WIDE_270_7HZ, 269.6, 7.5)])
+def test_geometry_and_period_come_from_the_scan(geom: tuple[int, float, float, float], fov_deg: float,
+                                                rate_hz: float) -> None:
+    g = scan_geometry(make_scan(geom))
+    assert g.n_beams == geom[0]
+    assert math.degrees(g.fov_rad) == pytest.approx(fov_deg, abs=0.1)
+    assert g.rate_hz == pytest.approx(rate_hz)
+    assert scan_period_from_stamps(np.arange(5) * geom[3]) == pytest.approx(geom[3])
+
+
+def test_utm30lx_counts_stay_as_tuned() -> None:
+    psm = EstimatorConfig().psm.for_scan(1081, math.radians(0.25))
+    assert (psm.min_valid_beams, psm.search_window_first_beams, psm.search_window_beams) == (300, 30, 10)
+
+
+@pytest.mark.parametrize(("geom", "min_valid", "first_window"), [(URG_180_10HZ, 143, 21), (WIDE_270_7HZ, 214, 21)])
+def test_counts_follow_the_sensor(geom: tuple[int, float, float, float], min_valid: int, first_window: int) -> None:
+    psm = EstimatorConfig().psm.for_scan(geom[0], geom[2])
+    assert psm.min_valid_beams == min_valid  # a share of the beams, not the UTM-30LX's 300
+    assert psm.search_window_first_beams == first_window  # +-7.5 deg whatever the step
+    assert PsmConfig(min_valid_beams=120).for_scan(geom[0], geom[2]).min_valid_beams == 120  # a count set stays
+
+
+@pytest.mark.parametrize("geom", [URG_180_10HZ, WIDE_270_7HZ], ids=["180deg_10Hz", "270deg_7.5Hz"])
+def test_matcher_accepts_a_scanner_with_fewer_beams(geom: tuple[int, float, float, float]) -> None:
+    """A still laser whose range limit leaves 36 % of its beams valid (far fewer than the UTM-30LX's
+    300; the URG-04LX's 5.6 m gives 140-220 of 512 in the leg_tracker recording): matched on every scan,
+    never refused, the pose held."""
+    reach_m = float(np.nanquantile(make_scan(geom, max_range_m=np.inf).ranges_m, 0.36))
+    first = make_scan(geom, max_range_m=reach_m)
+    valid = int(np.count_nonzero(np.isfinite(first.ranges_m)))
+    assert valid < 300
+    est = Estimator(EstimatorConfig())
+    period = geom[3]
+    for k in range(12):
+        stamp = k * period
+        e = est.step(make_scan(geom, stamp_s=stamp, max_range_m=reach_m), Odometry(0.0, 0.0, 0.0, 0.0, 0.0, stamp))
+        if k > 0:
+            assert not e.flags & EstimateFlag.ODOMETRY_FALLBACK, (k, e.flags, e.quality)
+            assert e.quality.beams_used >= 0.2775 * geom[0] - 1
+    assert math.hypot(e.pose.x_m, e.pose.y_m) < 0.02 and abs(e.pose.theta_rad) < math.radians(0.5)
+
+
+def test_matcher_tracks_motion_on_a_180_degree_scanner() -> None:
+    est = Estimator(EstimatorConfig())
+    e = None
+    for k in range(10):
+        stamp, x = k * 0.1, 0.03 * k
+        e = est.step(make_scan(URG_180_10HZ, (x, 0.0, 0.0), stamp), Odometry(0.0, 0.0, 0.0, 0.0, 0.0, stamp))
+    assert e is not None and e.pose.x_m == pytest.approx(0.27, abs=0.05)
+
+
+@pytest.mark.parametrize(("geom", "limit_s"), [(UTM, 0.25), (URG_180_10HZ, 0.7), (WIDE_270_7HZ, 0.9)])
+def test_scanner_stall_age_is_counted_in_scan_periods(geom: tuple[int, float, float, float], limit_s: float) -> None:
+    loop = LoopConfig()
+    assert scan_age_limit_s(loop, make_scan(geom)) == pytest.approx(limit_s)
+    # a 7.5 Hz scanner's scan is normally up to two periods old when a cycle samples it: not stalled
+    assert scan_age_limit_s(loop, make_scan(geom)) > 2 * geom[3] + loop.period_s
+
+
+def test_scanner_stall_age_fixed_or_without_timing() -> None:
+    assert scan_age_limit_s(LoopConfig(max_scan_age_s=0.5), make_scan(WIDE_270_7HZ)) == 0.5
+    untimed = Scan(np.ones(10), np.linspace(0.0, 1.0, 10), 0.0)  # no beam timing: the loop's period stands in
+    assert scan_age_limit_s(LoopConfig(), untimed) == pytest.approx(7 * LoopConfig().period_s)
