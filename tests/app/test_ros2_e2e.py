@@ -121,3 +121,19 @@ def test_frames_stamps_and_content(run: dict) -> None:
     assert {"vipsm-robot: scanner", "vipsm-robot: base", "vipsm-robot: camera", "vipsm-robot: loop",
             "vipsm-robot: field log", "vipsm-robot: ros2 publisher"} == set(names)
     assert names["vipsm-robot: scanner"]["level"] == 0 and names["vipsm-robot: scanner"]["message"] == "ok"
+
+
+def test_a_dds_failure_leaves_the_run_going(tmp_path: Path) -> None:
+    """An unusable Cyclone config: the participant cannot be made; the run goes on without ROS 2,
+    says so once and reports the state in its summary."""
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<CycloneDDS><Domain><General><NoSuchSetting/></General></Domain></CycloneDDS>")
+    proc = subprocess.run(
+        [sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", "2", "--ros2", "--json", "--no-progress",
+         "--log", str(tmp_path / "sim.mcap"), "--set", f'ros2.cyclonedds_config="{bad}"', "--set", "status.port=0"],
+        env={**os.environ, "PYTHONPATH": str(ROOT)}, cwd=tmp_path, capture_output=True, text=True, timeout=150)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads(proc.stdout)
+    assert summary["ros2"]["state"] == "failed" and "DDS" in summary["ros2"]["error"]
+    assert summary["estimates"] > 0
+    assert sum("ros2: starting -> failed" in e for e in summary["events"]) == 1
