@@ -44,7 +44,10 @@ def estimate(obstacles: tuple[Obstacle, ...]) -> Estimate:
 
 
 def test_the_loop_side_never_waits_and_the_queue_is_bounded() -> None:
-    pub = Ros2Publisher(Ros2Config(enabled=True, queue_size=8), MOUNTS, 0.1)  # thread not started: nothing drains
+    pub = Ros2Publisher(Ros2Config(enabled=True, queue_size=8), MOUNTS, 0.1)
+    pub.scan(scan_sample(-1.0), 999.0)
+    assert len(pub._queue) == 0  # DDS not up yet: nobody can listen, nothing stale piles up
+    pub.state = "ok"  # as if DDS were up, with the thread not started: nothing drains
     t0 = time.perf_counter()
     for i in range(100):
         pub.scan(scan_sample(float(i)), 1000.0 + i)
@@ -130,8 +133,17 @@ def test_tracks_and_markers_carry_each_obstacle() -> None:
 
 def test_the_publisher_splits_people_from_obstacles() -> None:
     pub = Ros2Publisher(Ros2Config(enabled=True), MOUNTS, 0.1)
-    pub.estimate(estimate((obstacle(1, False), obstacle(2, True))), Odometry(0, 0, 0, 0, 0, 1.0), 10.0, (0.1, 0.0),
-                 None)
+    pub.state = "ok"  # as if DDS were up, with the thread not started
+    est = estimate((obstacle(1, False), obstacle(2, True)))
+    for wall_s in (10.0, 10.025, 10.05, 10.075, 10.1, 10.125):  # estimates at 40 Hz
+        pub.estimate(est, Odometry(0, 0, 0, 0, 0, 1.0), wall_s, (0.1, 0.0), None)
+    names = [name for name, _ in pub._queue]
+    assert names.count("/vipsm/obstacles/tracks") == 6 and names.count("/odom") == 6
+    assert names.count("/vipsm/obstacles") == names.count("/vipsm/people") == 2  # markers at 10 Hz
+    pub._queue.clear()
+    for wall_s in (20.0, 20.098, 20.201, 20.299):  # a 10 Hz loop with jitter: markers every estimate
+        pub.estimate(est, Odometry(0, 0, 0, 0, 0, 1.0), wall_s, (0.1, 0.0), None)
+    assert [name for name, _ in pub._queue].count("/vipsm/obstacles") == 4
     built = {name: build() for name, build in pub._queue}
     assert [tr.uuid.uuid[-1] for tr in built["/vipsm/people/tracks"].tracks] == [2]
     assert len(built["/vipsm/obstacles/tracks"].tracks) == 2
