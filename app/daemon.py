@@ -411,7 +411,7 @@ class ControlLoop:
         if self.ros2 is not None:
             truth = self.truth(scan_sample.scan.stamp_s) if self.truth is not None else None
             pan_tilt = (frame.pan_rad, frame.tilt_rad) if frame is not None else None
-            self.ros2.estimate(est, odom_at_scan, wall, pan_tilt, truth)
+            self.ros2.estimate(est, odom_at_scan, self.wall(est.stamp_s), pan_tilt, truth)
         return est
 
     def _command(self, now_s: float, device_ok: bool, coil: bool) -> bool:
@@ -534,6 +534,7 @@ class ControlLoop:
             self.log.log("/diagnostics", self.wall(now_s), diag)
         if self.ros2 is not None:
             self.ros2.diagnostics(diag, self._device_counters, self.wall(now_s))
+            self.ros2.flush()  # the cycle's work is done: the publisher may build and send now
         if self.status is not None:
             sigma = 0.0
             if last is not None:

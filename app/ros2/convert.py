@@ -5,7 +5,9 @@ Frames as in the field log (REP 105): ``odom`` (the estimator's frame), ``base_l
 (REP 117 scan, the first beam's time in the header), ``camera`` (the camera body, panned and tilted,
 x forward) and ``camera_optical`` (REP 103's optical frame under it: z forward, x right, y down; the
 images' frame); in simulated runs also ``world`` and ``truth/base_link``. Stamps are wall-clock time
-(ROS's system time), as the log's.
+(ROS's system time): a scan's is its first beam's (REP 117), an estimate's (``/odom``, ``/tf``, the
+obstacles) its scan's, the time the pose and the obstacles' positions refer to, so that tf
+transforms the scan with the pose matched to it.
 """
 
 from __future__ import annotations

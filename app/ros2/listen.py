@@ -24,9 +24,9 @@ MAX_AGES = 20_000
 
 def _stamp_s(sample: typing.Any) -> float | None:
     h = getattr(sample, "header", None)
-    if h is None:
-        transforms = getattr(sample, "transforms", None)
-        h = transforms[0].header if transforms else None
+    if h is None:  # TFMessage, MarkerArray: the first element's
+        items = getattr(sample, "transforms", None) or getattr(sample, "markers", None)
+        h = items[0].header if items else None
     return None if h is None else h.stamp.sec + h.stamp.nanosec * 1e-9
 
 

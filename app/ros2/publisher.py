@@ -3,7 +3,8 @@ never a DDS call); its own thread builds the ROS 2 messages and writes them over
 
 * Never blocks the loop: one bounded queue (``ros2.queue_size``); when it is full the oldest item
   is dropped for the newest and counted (``dropped``). Messages are built on the thread, from the
-  loop's immutable samples and estimates.
+  loop's immutable samples and estimates, after the loop's cycle (:meth:`flush`): the thread's
+  Python work then shares the GIL with the loop's idle time, not with its estimate.
 * A DDS failure is a device-like state, never a crash: ``state`` goes ``starting`` -> ``ok``, or
   ``failed`` (no participant: bad config file, no usable network interface, ...), and a write that
   fails counts in ``errors`` (``last_error`` kept). Each state change and the first write error are
@@ -126,6 +127,12 @@ class Ros2Publisher:
                 self._queue.popleft()
                 self.dropped += 1
             self._queue.append((topic, build))
+
+    def flush(self) -> None:
+        """Wakes the thread: the loop calls it once its cycle's work is done, so that building and
+        serialising (Python, under the GIL) runs in the loop's idle time, not during its estimate
+        (the thread also wakes by itself every 0.5 s)."""
+        with self._cond:
             self._cond.notify()
 
     def scan(self, sample: ScanSample, wall_s: float) -> None:
@@ -146,7 +153,7 @@ class Ros2Publisher:
     def estimate(self, est: Estimate, odom: Odometry, wall_s: float, pan_tilt_rad: tuple[float, float] | None,
                  truth: dict[str, typing.Any] | None) -> None:
         """An estimate: ``/odom``, ``/tf``, the obstacles' and people's tracks, and their markers (at
-        most every MARKER_PERIOD_S)."""
+        most every MARKER_PERIOD_S); ``wall_s`` is its scan's time on the wall clock."""
         if pan_tilt_rad is not None:
             self._pan_tilt = pan_tilt_rad
         pt, p, life = self._pan_tilt, est.pose, self.lifetime_s
