@@ -220,6 +220,10 @@ class Ros2Publisher:
         try:
             self._write("/tf_static", lambda: convert.static_transforms(self.mounts, self.wall_clock()))
             self._serve()
+        except Exception as exc:  # a bug here must still surface: the state says it, the loop says it once
+            self.error = f"{type(exc).__name__}: {exc}"
+            self.state = "failed"
+            self._events.append(("error", f"ros2: ok -> failed ({self.error}); the loop runs without it"))
         finally:
             self._writers.clear()
             del participant  # deletes the topics and writers with it

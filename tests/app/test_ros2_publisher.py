@@ -179,3 +179,16 @@ def test_close_stops_the_thread() -> None:
     assert done.wait(30.0)  # close waits at most its timeout
     pub._thread.join(30.0)
     assert not pub._thread.is_alive()
+
+
+def test_an_unexpected_error_on_the_thread_surfaces_as_a_state() -> None:
+    pub = Ros2Publisher(Ros2Config(enabled=True, domain_id=204), MOUNTS, 0.1)
+
+    def broken() -> None:
+        raise RuntimeError("boom")
+
+    pub._serve = broken  # type: ignore[method-assign]
+    pub.start()
+    pub._thread.join(30.0)
+    assert pub.state == "failed" and "boom" in (pub.error or "")
+    assert [level for level, _ in pub.take_events()] == ["info", "error"]  # up, then down: each said once
