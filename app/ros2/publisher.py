@@ -193,8 +193,9 @@ class Ros2Publisher:
                 "namespace": self.namespace or "/", "published": dict(self.published), "dropped": self.dropped,
                 "errors": self.errors, "last_error": self.last_error}
 
-    def close(self, timeout_s: float = 1.0) -> None:
-        """Stops the thread (what is still queued is not sent) and deletes the DDS entities."""
+    def close(self, timeout_s: float = 0.5) -> None:
+        """Stops the thread (what is still queued is not sent; the thread deletes the DDS entities),
+        waiting at most ``timeout_s``: the SIGTERM budget of the whole shutdown is 2 s."""
         with self._cond:
             self._stop = True
             self._cond.notify()
