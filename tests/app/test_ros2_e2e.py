@@ -85,7 +85,7 @@ def test_every_topic_arrives_with_its_ros2_type_and_qos(run: dict) -> None:
         assert w["durability"] == ("Policy.Durability.TransientLocal" if profile.transient_local
                                    else "Policy.Durability.Volatile"), (name, w)
         assert w["history"] == f"Policy.History.KeepLast(depth={profile.depth})", (name, w)
-    assert seen["/scan"]["count"] > seen["/odom"]["count"] >= 5  # a scan every 25 ms, an estimate every cycle
+    assert seen["/scan"]["count"] >= seen["/odom"]["count"]  # at most one estimate per scan
 
 
 def test_frames_stamps_and_content(run: dict) -> None:
@@ -95,7 +95,12 @@ def test_frames_stamps_and_content(run: dict) -> None:
     assert scan["angle_increment"] > 0 and scan["time_increment"] > 0
     assert scan["angle_min"] < 0 < scan["angle_max"] and len(scan["ranges"]) > 100
     assert 0 < scan["range_min"] < 0.1 and scan["range_max"] >= 30.0  # the sensor's own DMIN/DMAX (PP)
-    assert seen["/scan"]["samples"][-1]["scan_time"] == pytest.approx(0.025, rel=0.2)
+    # scan_time: the interval since the previous scan (equal to the stamps' difference when no scan
+    # was lost between two received ones)
+    scans = seen["/scan"]["samples"]
+    stamps = [s["header"]["stamp"]["sec"] + s["header"]["stamp"]["nanosec"] * 1e-9 for s in scans]
+    for prev, scan_s, this in zip(stamps, stamps[1:], scans[1:], strict=False):
+        assert 0.0 < this["scan_time"] <= scan_s - prev + 1e-6
     odom = seen["/odom"]["last"]
     header_ok(odom["header"], "odom", t0, t1)
     assert odom["child_frame_id"] == "base_link"
