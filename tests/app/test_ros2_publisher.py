@@ -192,3 +192,16 @@ def test_an_unexpected_error_on_the_thread_surfaces_as_a_state() -> None:
     pub._thread.join(30.0)
     assert pub.state == "failed" and "boom" in (pub.error or "")
     assert [level for level, _ in pub.take_events()] == ["info", "error"]  # up, then down: each said once
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--duration", "0"], "--duration"),
+    (["--domain-id", "233"], "--domain-id"),
+    (["--namespace", "9x"], "ros2.namespace"),
+    (["--cyclonedds-config", "/no/such/file.xml"], "ros2.cyclonedds_config"),
+])
+def test_ros2_listen_refuses_bad_arguments(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    from app.cli import main
+
+    assert main(["ros2-listen", *argv]) == 2
+    assert message in capsys.readouterr().err
