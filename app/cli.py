@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "app.cmd_eval",
     "app.cmd_daemon",
     "app.cmd_export",
+    "app.cmd_ros2",
 )
 
 # probe flag -> command module that answers it

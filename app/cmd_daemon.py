@@ -31,6 +31,12 @@ def _add_live_arg(p: argparse.ArgumentParser) -> None:
                         "given; a non-loopback host needs live.allow_remote = true); sets live.listen")
 
 
+def _add_ros2_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ros2", action="store_true",
+                   help="publish live ROS 2 topics over DDS (Cyclone DDS; domain, namespace and DDS config in "
+                        "ros2.*); sets ros2.enabled")
+
+
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("dump-config", help="print the default configuration as TOML")
     _add_config_args(p)
@@ -41,6 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--log", metavar="FILE", help="field log path (overrides log.path)")
     _add_live_arg(p)
+    _add_ros2_arg(p)
     p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
     p.set_defaults(func=cmd_run)
 
@@ -53,6 +60,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     add_scenario_arguments(p, allow_all=False)
     p.add_argument("--log", metavar="FILE", default=None, help="field log path (default: sim-<time>.mcap)")
     _add_live_arg(p)
+    _add_ros2_arg(p)
     p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
     p.add_argument("--no-progress", action="store_true", help="no progress line")
     p.add_argument(
@@ -81,6 +89,8 @@ def _config(args: argparse.Namespace) -> Config:
     config = load_config(args.config, args.set)
     if getattr(args, "live", None) is not None:
         config = dataclasses.replace(config, live=dataclasses.replace(config.live, listen=args.live))
+    if getattr(args, "ros2", False):
+        config = dataclasses.replace(config, ros2=dataclasses.replace(config.ros2, enabled=True))
     return config
 
 

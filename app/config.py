@@ -121,6 +121,23 @@ class LiveConfig:
 
 
 @dataclass(frozen=True)
+class Ros2Config:
+    enabled: bool = _f(False, "publish live ROS 2 topics over DDS (Cyclone DDS, no ROS install needed); --ros2 sets it")
+    domain_id: int = _f(-1, "DDS domain (ROS_DOMAIN_ID of the ROS 2 machines); -1 = the ROS_DOMAIN_ID environment "
+                        "variable, else 0", min=-1, max=232)
+    namespace: str = _f("", "ROS namespace before every topic, tf's too (/robot1 -> /robot1/scan); empty = none")
+    cyclonedds_config: str = _f("", "Cyclone DDS XML config file (interfaces, peers); empty = CYCLONEDDS_URI, "
+                                "else Cyclone's defaults (multicast on the default interface)")
+    queue_size: int = _f(64, "messages waiting for the publisher's thread; more drop the oldest (counted)",
+                         min=8, max=4096)
+
+    def __post_init__(self) -> None:
+        from .ros2.qos import normalise_namespace
+
+        normalise_namespace(self.namespace)  # ConfigError naming ros2.namespace
+
+
+@dataclass(frozen=True)
 class Config:
     devices: DevicesConfig = field(default_factory=DevicesConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
@@ -128,6 +145,7 @@ class Config:
     log: LogConfig = field(default_factory=LogConfig)
     status: StatusConfig = field(default_factory=StatusConfig)
     live: LiveConfig = field(default_factory=LiveConfig)
+    ros2: Ros2Config = field(default_factory=Ros2Config)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
 
 

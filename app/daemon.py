@@ -56,6 +56,8 @@ class ScanSample:
     rep117_ranges_m: np.ndarray | None = None
     #: when the host read the scan's last byte (the driver's clock, the loop's clock); None: unknown
     host_stamp_s: float | None = None
+    #: the sensor's (min, max) valid range (the UTM-30LX's DMIN/DMAX), for ``/scan`` on ROS 2; None: unknown
+    range_limits_m: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -251,6 +253,7 @@ class ControlLoop:
         notifier: SystemdNotifier | None = None,
         truth: TruthFn | None = None,
         live_view: Any = None,
+        ros2: Any = None,
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
@@ -265,6 +268,8 @@ class ControlLoop:
         self.truth = truth
         #: the live view serving the log's channels (``app.liveview.LiveView``), stopped at shutdown
         self.live_view = live_view
+        #: the ROS 2 publisher (``app.ros2.publisher.Ros2Publisher``): fed beside the log, closed at shutdown
+        self.ros2 = ros2
         self.clock = clock
         self._wall_offset = wall_clock() - clock()
         self.health = LoopHealth(config.loop.period_s)
@@ -349,6 +354,8 @@ class ControlLoop:
                 if self.log is not None:
                     w = self.wall(s.scan.stamp_s)
                     self.log.log("/scan", w, lambda s=s, w=w: scan_message(s, w))
+                if self.ros2 is not None:
+                    self.ros2.scan(s, self.wall(s.scan.stamp_s))
         if self.base is not None:
             for o in self.base.poll():
                 self.stats.odometry_in += 1
@@ -364,6 +371,8 @@ class ControlLoop:
             if self.log is not None and self.config.log.frames:
                 fs, fw = frame_sample, self.wall(frame_sample.frame.stamp_s)
                 self.log.log("/camera/image", fw, lambda fs=fs, fw=fw: lm.compressed_image(fs.jpeg, fw))
+            if self.ros2 is not None:
+                self.ros2.frame(frame_sample, self.wall(frame_sample.frame.stamp_s))
 
     def _device_states(self, now_s: float) -> tuple[str, str, str, Frame | None]:
         """Each device's state ("ok" turns "stalled" when its newest sample is too old) and the frame
@@ -414,6 +423,10 @@ class ControlLoop:
             self.on_estimate(est, scan_sample.scan.stamp_s)
         if self.log is not None:
             self._log_estimate(est, scan_sample.scan, odom_at_scan, frame, wall)
+        if self.ros2 is not None:
+            truth = self.truth(scan_sample.scan.stamp_s) if self.truth is not None else None
+            pan_tilt = (frame.pan_rad, frame.tilt_rad) if frame is not None else None
+            self.ros2.estimate(est, odom_at_scan, self.wall(est.stamp_s), pan_tilt, truth)
         return est
 
     def _command(self, now_s: float, device_ok: bool, coil: bool) -> bool:
@@ -511,6 +524,11 @@ class ControlLoop:
             flags.add("log_error")
         if healthy and not log_failed:
             flags.add("loop_healthy")
+        if self.ros2 is not None:
+            for level, message in self.ros2.take_events():
+                self.say(level, message, now_s)
+            if self.ros2.state == "failed" or self.ros2.errors:
+                flags.add("ros2_error")
         if self.truth is not None:
             flags.add("simulated")
         last = self.last_estimate
@@ -529,6 +547,9 @@ class ControlLoop:
         }
         if self.log is not None:
             self.log.log("/diagnostics", self.wall(now_s), diag)
+        if self.ros2 is not None:
+            self.ros2.diagnostics(diag, self._device_counters, self.wall(now_s))
+            self.ros2.flush()  # the cycle's work is done: the publisher may build and send now
         if self.status is not None:
             sigma = 0.0
             if last is not None:
@@ -649,4 +670,10 @@ class ControlLoop:
             self.log.close()
         if self.live_view is not None:
             self.live_view.stop()
+        if self.ros2 is not None:
+            self.ros2.close()
         self.notifier.close()
+
+    def _device_counters(self) -> dict[str, dict[str, int]]:
+        return {name: dev.counters() for name in ("scanner", "base", "camera")
+                if (dev := getattr(self, name)) is not None}

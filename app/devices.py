@@ -31,6 +31,7 @@ from drivers.ptz_cam.frames import CameraFrame, MjpegFrameSource
 from vipsm.estimator import Estimator
 from vipsm.types import Odometry, Scan
 
+from . import logmessages as lm
 from .cmd_camera import to_vipsm_frame
 from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
@@ -208,7 +209,8 @@ class ScannerAdapter(ClientAdapter[Utm30lxClient]):
         c = self.opener.client
         if c is None:
             return []
-        return [ScanSample(scan_from_driver(s), s.device_stamp_ms, s.rep117_ranges_m(), s.host_stamp_s)
+        return [ScanSample(scan_from_driver(s), s.device_stamp_ms, s.rep117_ranges_m(), s.host_stamp_s,
+                           (s.dmin_mm / 1000.0, s.dmax_mm / 1000.0) if s.dmax_mm > s.dmin_mm else None)
                 for s in drain(c.next_scan)]
 
 
@@ -424,6 +426,18 @@ def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None
     return live
 
 
+def _ros2_publisher(config: Config) -> Any:
+    """The ROS 2 publisher when ``ros2.enabled``, not started (its DDS start-up runs on its own thread:
+    a failure there is a state the loop reports, not an error here; a bad setting is a ConfigError)."""
+    if not config.ros2.enabled:
+        return None
+    from .ros2.publisher import Ros2Publisher
+
+    e = config.estimator
+    mounts = lm.Mounts(e.laser_x_m, e.laser_y_m, e.laser_theta_rad, e.camera_x_m, e.camera_y_m, e.camera_z_m)
+    return Ros2Publisher(config.ros2, mounts, config.loop.period_s)
+
+
 def _warm_up_matcher(config: Config) -> None:
     """The estimator's compiled kernels are loaded (compiled and cached the first time) here, not in
     the control loop's first cycle; how long it took is said on stderr."""
@@ -444,6 +458,7 @@ def build_loop(
 ) -> ControlLoop:
     """Devices, estimator, field log, status server and systemd notifier, wired into one loop."""
     deterministic_opencv()
+    ros2 = _ros2_publisher(config)  # its settings checked before anything is opened
     d = config.devices
     scanner = ScannerAdapter(d.scanner_url, d.scanner_intensity, d.reconnect_max_s) if d.scanner_url else None
     base = (BaseAdapter(d.robot_url, d.robot_baud, d.robot_command_timeout_s, d.reconnect_max_s,
@@ -474,6 +489,8 @@ def build_loop(
                 field_log.close()
             raise
     _warm_up_matcher(config)
+    if ros2 is not None:
+        ros2.start()
     loop = ControlLoop(
         config,
         scanner=scanner,
@@ -485,6 +502,7 @@ def build_loop(
         notifier=SystemdNotifier(),
         truth=truth,
         live_view=live,
+        ros2=ros2,
     )
     # give the devices a moment to open so the first cycles are not spent in device_stop
     wait_s = config.devices.startup_wait_s if wait_for_devices_s is None else wait_for_devices_s

@@ -12,7 +12,8 @@ addr   name                  type    meaning (unit)
 0      status_bits           uint16  bit0 scanner ok, bit1 base ok, bit2 camera ok, bit3 plain PSM
                                      (no camera), bit4 safety stop active, bit5 stop coil active,
                                      bit6 odometry fallback this cycle, bit7 loop healthy,
-                                     bit8 simulated run
+                                     bit8 simulated run, bit9 field log error, bit10 ROS 2
+                                     publisher failed or a write failed (``ros2.*``)
 1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop
 2-3    cycle                 uint32  control cycles run
 4-5    pose_x_mm             int32   matched pose x (mm, odometry frame of the first scan)
@@ -82,6 +83,7 @@ STATUS_BITS = {
     "loop_healthy": 7,
     "simulated": 8,
     "log_error": 9,
+    "ros2_error": 10,
 }
 
 

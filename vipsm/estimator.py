@@ -385,6 +385,8 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
         scan_index_start=int(i0),
         scan_index_stop=int(i1),
         age_cycles=int(t.age_cycles),
+        covariance=tuple(float(v) for v in np.asarray(t.cov, float).ravel()),
+        person=bool(t.seen_as_person),
     )
 
 

@@ -117,6 +117,10 @@ class Obstacle:
     scan_index_start: int
     scan_index_stop: int  # exclusive
     age_cycles: int = 1
+    #: the track's 4x4 covariance of (x_m, y_m, vx_mps, vy_mps), row-major; () = not known
+    covariance: tuple[float, ...] = ()
+    #: the tracker has seen it as a leg pair (a person)
+    person: bool = False
 
 
 @dataclass(frozen=True)
