@@ -36,6 +36,14 @@ addr   name                  type    meaning (unit)
 Coil 0 (function codes 1, 5, 15): stop the base while set. Writes are honoured only when the config
 enables it (``status.allow_stop_coil``); otherwise they are refused with Modbus exception 1
 (illegal function) and nothing changes.
+
+Function codes answered: the reads 1, 2, 3, 4, the coil writes 5 and 15 (as above) and Report
+Server ID (17, the server's identification: ``vipsm-robot``). Every other function code is answered
+with exception 1 (illegal function) and changes nothing: the holding-register writes (6, 16, 22,
+23), the diagnostics (7 read exception status, 8 diagnostics including force listen-only mode,
+11/12 communication event counter/log), the file records and FIFO queue (20, 21, 24), encapsulated
+interfaces (43, including Read Device Identification: FC 17 already identifies the server) and any
+code pymodbus does not know.
 """
 
 from __future__ import annotations
@@ -65,6 +73,9 @@ from .errors import AppError
 N_INPUT_REGISTERS = 52
 #: write single register, write multiple registers, mask write, read/write multiple: all refused
 HOLDING_WRITE_FUNCTIONS = (6, 16, 22, 23)
+#: the function codes a status server answers (reads, the stop coil, identification); all others are
+#: refused with exception 1 before pymodbus acts on them
+ANSWERED_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 15, 17}) | frozenset(HOLDING_WRITE_FUNCTIONS)
 #: what Report Server ID (FC 17) answers, instead of the library's name
 SERVER_ID = b"vipsm-robot"
 MAX_OBSTACLES = 4
@@ -267,6 +278,8 @@ class StatusServer:
         self.error: BaseException | None = None
         #: coil writes refused because the config does not allow them
         self.refused_writes = 0
+        #: requests refused because their function code is not one a status server answers
+        self.refused_functions = 0
         # pymodbus logs every junk frame a client sends at ERROR level (">>>>> recv ...", "Invalid Modbus
         # protocol id"): a remote client could flood the journal. Start failures still surface as
         # exceptions (start() raises AppError).
@@ -354,7 +367,7 @@ class StatusServer:
     async def _listen(self) -> asyncio.Future[Any]:
         """A new listener on (host, port); raises what pymodbus raised if it cannot listen."""
         self._server = _GuardedServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id,
-                                      custom_pdu=[self._strict_write_coil()],
+                                      custom_pdu=[self._strict_write_coil(), *self._refused_functions()],
                                       max_connections=self.max_connections, idle_timeout_s=self.idle_timeout_s)
         task = asyncio.ensure_future(self._server.serve_forever())
         for _ in range(200):
@@ -417,6 +430,23 @@ class StatusServer:
                 return await super().datastore_update(context, device_id)
 
         return StrictWriteSingleCoil
+
+    def _refused_functions(self) -> list[type[ModbusPDU]]:
+        """A request class for every function code not in ``ANSWERED_FUNCTIONS``: it takes any body and
+        answers exception 1 (illegal function), counted in ``refused_functions``. Registered in place of
+        pymodbus's own classes, so diagnostics (FC 8 force listen-only mode, ...) never reach them."""
+        server = self
+
+        class RefusedFunction(ModbusPDU):
+            def decode(self, data: bytes) -> None:
+                pass  # the body is not looked at: the function itself is refused
+
+            async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+                server.refused_functions += 1
+                return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_FUNCTION)
+
+        return [type(f"RefusedFunction{fc}", (RefusedFunction,), {"function_code": fc})
+                for fc in range(1, 0x80) if fc not in ANSWERED_FUNCTIONS]
 
     def connection_counts(self) -> dict[str, int]:
         """Connections refused over the cap and closed for idleness (by the current listener)."""
