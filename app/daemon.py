@@ -36,6 +36,7 @@ from . import logmessages as lm
 from .config import Config
 from .fieldlog import FieldLog
 from .health import LoopHealth, OdometryHistory, SafetyMonitor
+from .protective_field import FieldParams, ProtectiveField
 from .sdnotify import SystemdNotifier
 from .status import ObstacleStatus, StatusServer, StatusSnapshot
 
@@ -194,6 +195,16 @@ def normalised_bearings(first_rad: float, step_rad: float, n: int) -> np.ndarray
     return first_rad + step_rad * np.arange(n, dtype=float)
 
 
+def protective_field(config: Config) -> ProtectiveField | None:
+    """The protective field from ``safety.*`` and the laser mount (None when ``safety.field_enabled`` is off)."""
+    s, e = config.safety, config.estimator
+    if not s.field_enabled:
+        return None
+    params = FieldParams(s.corridor_width_m, s.front_m, s.deceleration_mps2, s.latency_s, s.margin_m,
+                         s.cluster_gap_m, s.min_returns)
+    return ProtectiveField(params, (e.laser_x_m, e.laser_y_m, e.laser_theta_rad), config.mission.resume_after_clear_s)
+
+
 def freeze_startup_objects() -> None:
     """Collect once, then move every object alive now (modules, numba's and LLVM's compiled state,
     the estimator: about 136 k tracked objects) out of the garbage collector's reach. A full
@@ -219,6 +230,8 @@ class RunStats:
     fallback_cycles: int = 0
     device_stop_cycles: int = 0
     safety_stop_cycles: int = 0
+    protective_stop_cycles: int = 0
+    protective_stops: int = 0
     #: the most recent state changes (bounded: a flapping device must not grow memory)
     state_changes: deque[str] = field(default_factory=lambda: deque(maxlen=200))
 
@@ -256,6 +269,7 @@ class ControlLoop:
         self.health = LoopHealth(config.loop.period_s)
         m = config.mission
         self.safety = SafetyMonitor(m.safety_radius_m, m.safety_horizon_s, m.resume_after_clear_s)
+        self.field = protective_field(config)
         self.odom = OdometryHistory()
         self.stats = RunStats()
         self.last_scan: ScanSample | None = None
@@ -412,10 +426,13 @@ class ControlLoop:
         safety_stop = pose is not None and self.safety.update(
             now_s, pose.x_m, pose.y_m, pose.theta_rad, max(v_now, 0.0), obstacles
         )
+        protective_stop = self._protective(now_s, max(v_now, 0.0))
         if not device_ok:
             state = "device_stop"
         elif coil:
             state = "coil_stop"
+        elif protective_stop:
+            state = "protective_stop"
         elif safety_stop:
             state = "safety_stop"
         elif cfg.mission.mode == "cruise":
@@ -431,12 +448,43 @@ class ControlLoop:
             self.stats.device_stop_cycles += 1
         if state == "safety_stop":
             self.stats.safety_stop_cycles += 1
+        if state == "protective_stop":
+            self.stats.protective_stop_cycles += 1
         if self.base is not None:
             if state == "moving":
                 self.base.command(cfg.mission.cruise_speed_mps, 0.0)
             else:
                 self.base.command(0.0, 0.0)
         return safety_stop
+
+    def _protective(self, now_s: float, v_mps: float) -> bool:
+        """The protective field on the newest fresh scan (cruise only; hold never moves): whether it
+        holds the robot. Its changes are logged with what it saw."""
+        sample = self.last_scan
+        if self.field is None or self.config.mission.mode != "cruise" or sample is None or not self._scan_fresh(now_s):
+            return self.field is not None and self.field.stopped
+        was = self.field.stopped
+        v = max(v_mps, self.config.mission.cruise_speed_mps)  # the field the robot needs once it moves
+        stopped = self.field.update(now_s, sample.scan.ranges_m, sample.scan.bearings_rad, v, sample.scan.seq)
+        res = self.field.last
+        assert res is not None
+        if stopped and not was:
+            self.stats.protective_stops += 1
+            self.say("warning", f"protective field: object {res.nearest_m:.2f} m ahead of the robot's origin "
+                     f"(field {res.length_m:.2f} m at {v:.2f} m/s)", now_s)
+        elif was and not stopped:
+            self.say("info", f"protective field: clear for {self.field.resume_after_clear_s:g} s", now_s)
+        return stopped
+
+    def safety_summary(self) -> dict[str, Any]:
+        """The protective field's part of the run summary."""
+        f = self.field
+        return {
+            "protective_stop_cycles": self.stats.protective_stop_cycles,
+            "protective_stops": self.stats.protective_stops,
+            "protective_intrusion_scans": f.intrusion_scans if f is not None else 0,
+            "protective_unconfirmed_returns": f.unconfirmed_returns if f is not None else 0,
+        }
 
     def _notify(self, now_s: float) -> None:
         """READY once the loop is first healthy, then the watchdog at its interval."""
@@ -489,6 +537,8 @@ class ControlLoop:
             flags.add("odometry_fallback")
         if safety_stop:
             flags.add("safety_stop")
+        if self.field is not None and self.field.stopped:
+            flags.add("protective_stop")
         if coil:
             flags.add("coil_stop")
         log_failed = self.log is not None and (self.log.stats.state == "disk_error" or self.log.stats.error is not None)
@@ -541,8 +591,15 @@ class ControlLoop:
                     base_state=base_state,
                     camera_state=camera_state,
                     battery_v=battery,
+                    **self._field_status(),
                 )
             )
+
+    def _field_status(self) -> dict[str, float]:
+        res = self.field.last if self.field is not None else None
+        if res is None:
+            return {}
+        return {"field_length_m": res.length_m, "field_nearest_m": 0.0 if math.isnan(res.nearest_m) else res.nearest_m}
 
     # -- the run --------------------------------------------------------------------------------
 

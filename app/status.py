@@ -12,8 +12,10 @@ addr   name                  type    meaning (unit)
 0      status_bits           uint16  bit0 scanner ok, bit1 base ok, bit2 camera ok, bit3 plain PSM
                                      (no camera), bit4 safety stop active, bit5 stop coil active,
                                      bit6 odometry fallback this cycle, bit7 loop healthy,
-                                     bit8 simulated run
-1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop
+                                     bit8 simulated run, bit9 field-log error, bit10 protective
+                                     field holds the robot
+1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop,
+                                     5 protective stop (something in the path)
 2-3    cycle                 uint32  control cycles run
 4-5    pose_x_mm             int32   matched pose x (mm, odometry frame of the first scan)
 6-7    pose_y_mm             int32   matched pose y (mm)
@@ -31,6 +33,10 @@ addr   name                  type    meaning (unit)
 49     base_state            uint16  same codes
 50     camera_state          uint16  same codes
 51     battery_dv            uint16  base battery (0.1 V)
+52     field_length_mm       uint16  protective field's reach ahead of the robot's origin (mm; 0 = not
+                                     judged: field off, hold mode, no fresh scan yet)
+53     field_nearest_mm      uint16  nearest confirmed return in the field, ahead of the origin (mm;
+                                     0 = clear)
 =====  ====================  ======  ===============================================================
 
 Coil 0 (function codes 1, 5, 15): stop the base while set. Writes are honoured only when the config
@@ -70,7 +76,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .errors import AppError
 
-N_INPUT_REGISTERS = 52
+N_INPUT_REGISTERS = 54
 #: write single register, write multiple registers, mask write, read/write multiple: all refused
 HOLDING_WRITE_FUNCTIONS = (6, 16, 22, 23)
 #: the function codes a status server answers (reads, the stop coil, identification); all others are
@@ -81,7 +87,7 @@ SERVER_ID = b"vipsm-robot"
 MAX_OBSTACLES = 4
 
 DEVICE_STATES = {"absent": 0, "connecting": 1, "ok": 2, "stalled": 3, "failed": 4}
-MISSION_STATES = {"hold": 0, "moving": 1, "safety_stop": 2, "device_stop": 3, "coil_stop": 4}
+MISSION_STATES = {"hold": 0, "moving": 1, "safety_stop": 2, "device_stop": 3, "coil_stop": 4, "protective_stop": 5}
 STATUS_BITS = {
     "scanner_ok": 0,
     "base_ok": 1,
@@ -93,6 +99,7 @@ STATUS_BITS = {
     "loop_healthy": 7,
     "simulated": 8,
     "log_error": 9,
+    "protective_stop": 10,
 }
 
 
@@ -124,6 +131,8 @@ class StatusSnapshot:
     base_state: str = "absent"
     camera_state: str = "absent"
     battery_v: float = 0.0
+    field_length_m: float = 0.0
+    field_nearest_m: float = 0.0
     extra: dict[str, float] = field(default_factory=dict)
 
 
@@ -178,6 +187,8 @@ def encode_registers(s: StatusSnapshot) -> list[int]:
     regs[49] = DEVICE_STATES[s.base_state]
     regs[50] = DEVICE_STATES[s.camera_state]
     regs[51] = _u16(s.battery_v * 10.0)
+    regs[52] = _u16(s.field_length_m * 1000.0)
+    regs[53] = _u16(s.field_nearest_m * 1000.0)
     return regs
 
 
@@ -449,10 +460,11 @@ class StatusServer:
                 for fc in range(1, 0x80) if fc not in ANSWERED_FUNCTIONS]
 
     def connection_counts(self) -> dict[str, int]:
-        """Connections refused over the cap and closed for idleness (by the current listener)."""
+        """Connections refused over the cap and closed for idleness (by the current listener), and requests
+        refused for their function code (whole run)."""
         srv = self._server
         return {"refused_connections": srv.refused_connections if srv else 0,
-                "idle_closed": srv.idle_closed if srv else 0}
+                "idle_closed": srv.idle_closed if srv else 0, "refused_functions": self.refused_functions}
 
     def _event(self, level: str, message: str) -> None:
         if self.on_event is not None:
