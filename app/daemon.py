@@ -7,7 +7,14 @@ hardware, the byte-level fakes and tests. Degraded modes, each logged on ``/log`
 status registers:
 
 * no camera (absent, failed, stale frames): plain PSM for the cycle, flagged ``plain_psm``;
-* no scanner, or scans older than ``loop.max_scan_age_s``: base stopped (``device_stop``);
+* no scanner, or no scan received for ``loop.max_scan_age_s`` (on receipt time, less the time the
+  loop itself was busy, at most that much again: a late loop is not a stalled scanner): base
+  stopped (``device_stop``);
+* the estimator slower than the scans (``overloaded``, with hysteresis, one log line per change):
+  the newest scan is estimated every n-th scan/period, the scans in between skipped and counted;
+  the protective field still judges every scan;
+* something in the path in cruise (``protective_stop``, ``app.protective_field``): base stopped
+  until the corridor has been clear for ``mission.resume_after_clear_s``;
 * no odometry newer than ``loop.max_odometry_age_s``: base stopped;
 * the loop itself stalled: the base driver's own command timeout zeroes the velocity, and the
   base firmware's watchdog stops it after that;
@@ -35,7 +42,7 @@ from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
 from . import logmessages as lm
 from .config import Config
 from .fieldlog import FieldLog
-from .health import LoopHealth, OdometryHistory, SafetyMonitor
+from .health import LoopHealth, OdometryHistory, OverloadMonitor, SafetyMonitor
 from .protective_field import FieldParams, ProtectiveField
 from .sdnotify import SystemdNotifier
 from .status import ObstacleStatus, StatusServer, StatusSnapshot
@@ -232,6 +239,11 @@ class RunStats:
     safety_stop_cycles: int = 0
     protective_stop_cycles: int = 0
     protective_stops: int = 0
+    #: scans received but superseded by a newer one before the estimator took them
+    scans_skipped: int = 0
+    #: cycles with a fresh unused scan left to a later cycle by the lowered obstacle rate (overload)
+    estimates_deferred: int = 0
+    overload_cycles: int = 0
     #: the most recent state changes (bounded: a flapping device must not grow memory)
     state_changes: deque[str] = field(default_factory=lambda: deque(maxlen=200))
 
@@ -270,6 +282,11 @@ class ControlLoop:
         m = config.mission
         self.safety = SafetyMonitor(m.safety_radius_m, m.safety_horizon_s, m.resume_after_clear_s)
         self.field = protective_field(config)
+        self.overload = OverloadMonitor()
+        #: (start, end) of the recent cycles: time the loop held the interpreter, not the scanner's fault
+        self._busy: deque[tuple[float, float]] = deque(maxlen=64)
+        self._scan_period_s: float | None = None
+        self._last_estimate_s = -math.inf
         self.odom = OdometryHistory()
         self.stats = RunStats()
         self.last_scan: ScanSample | None = None
@@ -339,12 +356,16 @@ class ControlLoop:
                                        None if received is None else now - received)
         if healthy:
             self._notify(now_s)
+        if self.overload.overloaded:
+            self.stats.overload_cycles += 1
+        self._busy.append((now_s, self.clock()))
 
     def _drain(self) -> None:
         """Every sample the devices delivered since the last cycle: logged, the newest kept."""
         if self.scanner is not None:
             for s in self.scanner.poll():
                 self.stats.scans_in += 1
+                self._note_scan(s)
                 self.last_scan = s
                 if self.log is not None:
                     w = self.wall(s.scan.stamp_s)
@@ -388,7 +409,63 @@ class ControlLoop:
         return scanner_state, base_state, camera_state, frame
 
     def _scan_fresh(self, now_s: float) -> bool:
-        return self.last_scan is not None and now_s - self.last_scan.scan.stamp_s <= self.config.loop.max_scan_age_s
+        return self.last_scan is not None and self._scan_quiet_s(now_s) <= self.config.loop.max_scan_age_s
+
+    # -- overload: the newest scan, a lower obstacle rate, stall judged on receipt --------------
+
+    def _note_scan(self, sample: ScanSample) -> None:
+        """Count a scan superseded before the estimator took it, and follow the scan period."""
+        old = self.last_scan
+        if old is None:
+            return
+        if old.scan.seq != self._last_scan_seq_used:
+            self.stats.scans_skipped += 1
+        dt = sample.scan.stamp_s - old.scan.stamp_s
+        if 0.0 < dt < 1.0:
+            p = self._scan_period_s
+            self._scan_period_s = dt if p is None else p + 0.1 * (dt - p)
+
+    def _scan_quiet_s(self, now_s: float) -> float:
+        """How long the scanner has delivered nothing, on the newest scan's receipt time (its stamp when
+        the receipt is unknown), less the time the loop itself was busy since: a late loop (whose
+        reader thread may have waited for the interpreter) is not a stalled scanner."""
+        assert self.last_scan is not None
+        received = self.last_scan.host_stamp_s
+        since = self.last_scan.scan.stamp_s if received is None else received
+        busy = sum(max(0.0, min(end, now_s) - max(start, since)) for start, end in self._busy)
+        # at most max_scan_age_s is excused: the scan the loop acts on is never older than twice that
+        return now_s - since - min(busy, self.config.loop.max_scan_age_s)
+
+    def _obstacle_budget_s(self) -> float | None:
+        """The time one estimate may take to keep up: the scan period when every scan triggers a cycle
+        (None until two scans showed it), else the loop's period."""
+        if self.config.loop.trigger == "scan" and self.scanner is not None:
+            return self._scan_period_s
+        return self.config.loop.period_s
+
+    def _estimate_due(self, now_s: float) -> bool:
+        """Under overload the obstacles come at a lower rate: an estimate every ``overload.every`` budgets."""
+        budget = self._obstacle_budget_s()
+        if not self.overload.overloaded or budget is None:
+            return True
+        return now_s - self._last_estimate_s >= (self.overload.every - 0.5) * budget
+
+    def _timed_step(self, scan: Scan, odom: Odometry, frame: Frame | None, now_s: float) -> Estimate:
+        """The estimator, timed against the budget; an overload change is logged once."""
+        t0 = self.clock()
+        est = self.estimator.step(scan, odom, frame)
+        took, budget = self.clock() - t0, self._obstacle_budget_s()
+        self._last_estimate_s = now_s
+        if budget is not None and self.overload.record(took, budget):
+            o = self.overload
+            assert o.compute_s is not None
+            if o.overloaded:
+                self.say("warning", f"loop: overloaded: the estimator takes {o.compute_s * 1e3:.1f} ms per scan, "
+                         f"budget {budget * 1e3:.1f} ms; obstacles from every {o.every}th scan", now_s)
+            else:
+                self.say("info", f"loop: overload over: the estimator takes {o.compute_s * 1e3:.1f} ms per scan; "
+                         "obstacles from every scan", now_s)
+        return est
 
     def _estimate(self, now_s: float, frame: Frame | None, wall: float) -> Estimate | None:
         """The estimator run on the newest scan, once per scan (None: no new fresh scan, or no
@@ -399,8 +476,11 @@ class ControlLoop:
         odom_at_scan = self.odom.at(scan_sample.scan.stamp_s)
         if odom_at_scan is None:
             return None
+        if not self._estimate_due(now_s):
+            self.stats.estimates_deferred += 1
+            return None
         self._last_scan_seq_used = scan_sample.scan.seq
-        est = self.estimator.step(scan_sample.scan, odom_at_scan, frame)
+        est = self._timed_step(scan_sample.scan, odom_at_scan, frame, now_s)
         self.last_estimate = est
         self.stats.estimates += 1
         if frame is not None:
@@ -484,6 +564,10 @@ class ControlLoop:
             "protective_stops": self.stats.protective_stops,
             "protective_intrusion_scans": f.intrusion_scans if f is not None else 0,
             "protective_unconfirmed_returns": f.unconfirmed_returns if f is not None else 0,
+            "scans_skipped": self.stats.scans_skipped,
+            "estimates_deferred": self.stats.estimates_deferred,
+            "overload_cycles": self.stats.overload_cycles,
+            "overload_episodes": self.overload.transitions,
         }
 
     def _notify(self, now_s: float) -> None:
@@ -539,6 +623,8 @@ class ControlLoop:
             flags.add("safety_stop")
         if self.field is not None and self.field.stopped:
             flags.add("protective_stop")
+        if self.overload.overloaded:
+            flags.add("overloaded")
         if coil:
             flags.add("coil_stop")
         log_failed = self.log is not None and (self.log.stats.state == "disk_error" or self.log.stats.error is not None)
@@ -596,10 +682,11 @@ class ControlLoop:
             )
 
     def _field_status(self) -> dict[str, float]:
+        out: dict[str, float] = {"estimate_every": float(self.overload.every)}
         res = self.field.last if self.field is not None else None
-        if res is None:
-            return {}
-        return {"field_length_m": res.length_m, "field_nearest_m": 0.0 if math.isnan(res.nearest_m) else res.nearest_m}
+        if res is not None:
+            out.update(field_length_m=res.length_m, field_nearest_m=0.0 if math.isnan(res.nearest_m) else res.nearest_m)
+        return out
 
     # -- the run --------------------------------------------------------------------------------
 

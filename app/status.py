@@ -13,7 +13,8 @@ addr   name                  type    meaning (unit)
                                      (no camera), bit4 safety stop active, bit5 stop coil active,
                                      bit6 odometry fallback this cycle, bit7 loop healthy,
                                      bit8 simulated run, bit9 field-log error, bit10 protective
-                                     field holds the robot
+                                     field holds the robot, bit11 overloaded (the estimator cannot
+                                     keep up with the scans: obstacles at a lower rate)
 1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop,
                                      5 protective stop (something in the path)
 2-3    cycle                 uint32  control cycles run
@@ -37,6 +38,8 @@ addr   name                  type    meaning (unit)
                                      judged: field off, hold mode, no fresh scan yet)
 53     field_nearest_mm      uint16  nearest confirmed return in the field, ahead of the origin (mm;
                                      0 = clear)
+54     estimate_every        uint16  obstacles from every n-th scan (timer: period); 1 = all, more
+                                     while overloaded
 =====  ====================  ======  ===============================================================
 
 Coil 0 (function codes 1, 5, 15): stop the base while set. Writes are honoured only when the config
@@ -76,7 +79,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .errors import AppError
 
-N_INPUT_REGISTERS = 54
+N_INPUT_REGISTERS = 55
 #: write single register, write multiple registers, mask write, read/write multiple: all refused
 HOLDING_WRITE_FUNCTIONS = (6, 16, 22, 23)
 #: the function codes a status server answers (reads, the stop coil, identification); all others are
@@ -100,6 +103,7 @@ STATUS_BITS = {
     "simulated": 8,
     "log_error": 9,
     "protective_stop": 10,
+    "overloaded": 11,
 }
 
 
@@ -133,6 +137,7 @@ class StatusSnapshot:
     battery_v: float = 0.0
     field_length_m: float = 0.0
     field_nearest_m: float = 0.0
+    estimate_every: float = 1.0
     extra: dict[str, float] = field(default_factory=dict)
 
 
@@ -189,6 +194,7 @@ def encode_registers(s: StatusSnapshot) -> list[int]:
     regs[51] = _u16(s.battery_v * 10.0)
     regs[52] = _u16(s.field_length_m * 1000.0)
     regs[53] = _u16(s.field_nearest_m * 1000.0)
+    regs[54] = _u16(s.estimate_every)
     return regs
 
 
