@@ -4,7 +4,12 @@ mixed-pixel rule, the hold and resume, and the control loop's use of it on a sim
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +22,7 @@ from app.protective_field import FieldParams, ProtectiveField, evaluate
 from vipsm.estimator import Estimator
 from vipsm.types import Odometry, Scan
 
+ROOT = Path(__file__).resolve().parents[2]
 BEARINGS = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)  # the UTM-30LX's 0.25 deg beams
 PARAMS = FieldParams(corridor_width_m=0.625, front_m=0.256, deceleration_mps2=0.3, latency_s=0.3, margin_m=0.2,
                      cluster_gap_m=0.1, min_returns=2)
@@ -268,3 +274,43 @@ def test_hold_and_a_disabled_field_never_stop_for_the_field() -> None:
     scanner.ranges = cast(wall_x_m=0.4)
     _run(loop, clock, 0.3)
     assert loop.mission_state == "moving" and base.commands[-1] == (0.2, 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# sim: the daemon, the byte-level fakes and the world; a box on the robot's path in cruise
+
+
+def test_sim_cruise_stops_before_a_box_in_its_path(tmp_path: Path) -> None:
+    """The robot starts at x = 0.6 m and cruises at 0.2 m/s; a 0.5 m box stands at x = 1.9 m (its near face
+    at 1.65 m). The robot's front (0.256 m ahead of its origin) must stop short of the face, and stay."""
+    from app.logread import read_log
+
+    scenario = tmp_path / "box.toml"
+    scenario.write_text('name = "box_in_path"\nobstacles = 0\nbox_in_path_x_m = 1.9\nduration_s = 8.0\n')
+    log = tmp_path / "box.mcap"
+    proc = subprocess.run(
+        [sys.executable, "-m", "app", "sim", "--scenario-file", str(scenario), "--json", "--no-progress",
+         "--log", str(log), "--set", "status.port=0"],
+        cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads(proc.stdout)
+    assert summary["protective_stops"] >= 1 and summary["protective_stop_cycles"] > 0
+    assert any(e.startswith("protective field: object") for e in summary["events"])
+    robot_x = [m.data["robot"][0] for m in read_log(log) if m.topic == "/truth"]
+    assert robot_x and max(robot_x) + 0.256 < 1.9 - 0.25  # never touched the box
+    assert max(robot_x) > 0.9  # it did drive towards it
+    assert summary["scenario"]["params"]["box_in_path_x_m"] == 1.9
+
+
+def test_the_box_in_path_parameter_adds_only_the_box() -> None:
+    from hil_fakes.world.scenarios import ScenarioError, build_scenario, paper_scenario
+
+    plain = paper_scenario("1")
+    with_box = build_scenario({**plain.params, "box_in_path_x_m": 2.5})
+    assert with_box.walls[: len(plain.walls)] == plain.walls and len(with_box.walls) == len(plain.walls) + 4
+    assert with_box.static_footprints() == [(2.5, 0.0, pytest.approx(0.3536, abs=1e-4), "box")]
+    assert with_box.obstacles == plain.obstacles and plain.static_footprints() == []
+    with pytest.raises(ScenarioError, match="box_in_path_x_m"):
+        build_scenario({"box_in_path_x_m": 1.0})  # on the robot at its start
