@@ -461,10 +461,10 @@ class ControlLoop:
             assert o.compute_s is not None
             if o.overloaded:
                 self.say("warning", f"loop: overloaded: the estimator takes {o.compute_s * 1e3:.1f} ms per scan, "
-                         f"budget {budget * 1e3:.1f} ms; obstacles from every {o.every}th scan", now_s)
+                         f"budget {budget * 1e3:.1f} ms; obstacles from 1 scan in {o.every}", now_s)
             else:
                 self.say("info", f"loop: overload over: the estimator takes {o.compute_s * 1e3:.1f} ms per scan; "
-                         "obstacles from every scan", now_s)
+                         "obstacles from every scan again", now_s)
         return est
 
     def _estimate(self, now_s: float, frame: Frame | None, wall: float) -> Estimate | None:

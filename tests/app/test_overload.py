@@ -150,7 +150,7 @@ def test_a_late_loop_is_overloaded_not_a_stalled_scanner(capsys: pytest.CaptureF
     err = capsys.readouterr().err
     assert "scanner: ok -> stalled" not in err and loop.stats.device_stop_cycles == 0
     assert loop.mission_state == "moving"
-    assert err.count("loop: overloaded") == 1 and "every 15th scan" in err  # ceil(254 / 25 / 0.7)
+    assert err.count("loop: overloaded") == 1 and "obstacles from 1 scan in 15" in err  # ceil(254 / 25 / 0.7)
     assert loop.overload.overloaded and loop.overload.transitions == 1
     # the newest scan each time, the rest skipped and counted; obstacles at the lower rate
     s = loop.stats
@@ -182,11 +182,15 @@ def test_a_scanner_that_falls_silent_is_still_stalled_under_overload() -> None:
 
 
 def test_overload_has_hysteresis() -> None:
-    m = OverloadMonitor(enter_load=1.0, leave_load=0.7, alpha=1.0)
+    m = OverloadMonitor(enter_load=1.0, leave_load=0.7, alpha=1.0, leave_after=3)
     assert not m.record(0.020, 0.025) and not m.overloaded  # load 0.8
     assert m.record(0.030, 0.025) and m.overloaded and m.every == 2  # load 1.2: enter
     assert not m.record(0.020, 0.025) and m.overloaded  # 0.8: inside the band, stays
-    assert m.record(0.017, 0.025) and not m.overloaded and m.every == 1  # 0.68: leave
+    assert not m.record(0.017, 0.025) and not m.record(0.017, 0.025) and m.overloaded  # 0.68 twice: dwell
+    assert not m.record(0.020, 0.025) and m.overloaded  # back in the band: the dwell starts over
+    for _ in range(2):
+        assert not m.record(0.017, 0.025)
+    assert m.record(0.017, 0.025) and not m.overloaded and m.every == 1  # three in a row: leave
     assert m.transitions == 1
 
 
