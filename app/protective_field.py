@@ -20,8 +20,12 @@ reflection; of the order of 1e-4 per beam) or a mixed pixel at a depth edge (a p
 between a foreground and a background surface) is a single beam whose neighbours are far from it.
 So a return counts only in a chain of at least ``min_returns`` in-field returns from beams at most
 two apart (one dropout tolerated), each within ``cluster_gap_m`` of the next. Two independent
-spurious returns in adjacent beams within 0.1 m of each other are a ~1e-10 event per beam pair and
-scan. A persistence rule (the same return in two scans) is not used: a mixed pixel at a static edge
+spurious returns (p ~ 1e-4 each, at a range uniform up to the true one, a few metres) in adjacent
+beams and within 0.1 m of each other are a ~1e-9 event per beam pair and scan: over the ~500 beams
+facing the path at 40 scans/s, and with both in the field, of the order of one 1 s stop a day at
+most. In the simulated paper scenario 2 (30 s, nothing in the path, the world's mixed pixels and
+spurious returns on), ``min_returns = 1`` stopped the robot 4 times; the default 2 never did. A
+persistence rule (the same return in two scans) is not used: a mixed pixel at a static edge
 beside the path recurs scan after scan at the same place and would stop the robot.
 """
 
