@@ -94,6 +94,39 @@ class MissionConfig:
 
 
 @dataclass(frozen=True)
+class SafetyConfig:
+    """The protective field (``app.protective_field``) and the loop's overload handling."""
+
+    field_enabled: bool = _f(
+        True, "protective field on the raw scan: in mission.mode = cruise, stop while a confirmed return lies in the "
+        "corridor ahead within the stopping distance (hold never moves, so the field is not judged there)"
+    )
+    corridor_width_m: float = _f(
+        0.625, "corridor width, centred on the heading: the Pioneer 3-DX's 0.425 m plus 0.10 m each side", min=0.1,
+        max=5.0
+    )
+    front_m: float = _f(0.256, "robot origin to the front bumper (Pioneer 3-DX: half its 0.511 m length)",
+                        min=0.0, max=5.0)
+    deceleration_mps2: float = _f(
+        0.3, "braking the stopping distance assumes (Pioneer 3-DX firmware TRANSDECEL: 300 mm/s^2)", min=0.05, max=10.0
+    )
+    latency_s: float = _f(
+        0.3, "object appearing -> base decelerating: one scan (25 ms), one loop period (0.1 s), one ARCOS server "
+        "cycle (0.1 s), serial and margin", min=0.0, max=5.0
+    )
+    margin_m: float = _f(0.2, "distance kept to the object after stopping (odometry and range errors)",
+                         min=0.0, max=5.0)
+    cluster_gap_m: float = _f(
+        0.1, "two in-field returns of beams at most two apart belong to one object if closer than this", min=0.005,
+        max=1.0
+    )
+    min_returns: int = _f(
+        2, "returns one object must show in the field to stop the robot (1: any single return, even a mixed pixel "
+        "or a spurious return)", min=1, max=50
+    )
+
+
+@dataclass(frozen=True)
 class LogConfig:
     path: str = _f("vipsm-%Y%m%d-%H%M%S.mcap", "field log file (strftime pattern); empty = no log")
     compression: str = _f("zstd", "MCAP chunk compression", choices=("zstd", "lz4", "none"))
@@ -142,6 +175,7 @@ class Config:
     devices: DevicesConfig = field(default_factory=DevicesConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
     mission: MissionConfig = field(default_factory=MissionConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
     log: LogConfig = field(default_factory=LogConfig)
     status: StatusConfig = field(default_factory=StatusConfig)
     live: LiveConfig = field(default_factory=LiveConfig)

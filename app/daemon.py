@@ -7,8 +7,14 @@ hardware, the byte-level fakes and tests. Degraded modes, each logged on ``/log`
 status registers:
 
 * no camera (absent, failed, stale frames): plain PSM for the cycle, flagged ``plain_psm``;
-* no scanner, or scans older than ``loop.max_scan_age_s`` (scan periods, :func:`scan_age_limit_s`): base
+* no scanner, or no scan received for the stall age (:func:`scan_age_limit_s`; on receipt time, less the time the
+  loop itself was busy, at most that much again: a late loop is not a stalled scanner): base
   stopped (``device_stop``);
+* the estimator slower than the scans (``overloaded``, with hysteresis, one log line per change):
+  the newest scan is estimated every n-th scan/period, the scans in between skipped and counted;
+  the protective field still judges every scan;
+* something in the path in cruise (``protective_stop``, ``app.protective_field``): base stopped
+  until the corridor has been clear for ``mission.resume_after_clear_s``;
 * no odometry newer than ``loop.max_odometry_age_s``: base stopped;
 * the loop itself stalled: the base driver's own command timeout zeroes the velocity, and the
   base firmware's watchdog stops it after that;
@@ -36,7 +42,8 @@ from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
 from . import logmessages as lm
 from .config import Config
 from .fieldlog import FieldLog
-from .health import LoopHealth, OdometryHistory, SafetyMonitor
+from .health import LoopHealth, OdometryHistory, OverloadMonitor, SafetyMonitor
+from .protective_field import FieldParams, ProtectiveField
 from .sdnotify import SystemdNotifier
 from .status import ObstacleStatus, StatusServer, StatusSnapshot
 
@@ -210,6 +217,16 @@ def scan_age_limit_s(loop: Any, scan: Scan) -> float:
     return float(loop.max_scan_age_periods * period + loop.period_s)
 
 
+def protective_field(config: Config) -> ProtectiveField | None:
+    """The protective field from ``safety.*`` and the laser mount (None when ``safety.field_enabled`` is off)."""
+    s, e = config.safety, config.estimator
+    if not s.field_enabled:
+        return None
+    params = FieldParams(s.corridor_width_m, s.front_m, s.deceleration_mps2, s.latency_s, s.margin_m,
+                         s.cluster_gap_m, s.min_returns)
+    return ProtectiveField(params, (e.laser_x_m, e.laser_y_m, e.laser_theta_rad), config.mission.resume_after_clear_s)
+
+
 def freeze_startup_objects() -> None:
     """Collect once, then move every object alive now (modules, numba's and LLVM's compiled state,
     the estimator: about 136 k tracked objects) out of the garbage collector's reach. A full
@@ -235,6 +252,13 @@ class RunStats:
     fallback_cycles: int = 0
     device_stop_cycles: int = 0
     safety_stop_cycles: int = 0
+    protective_stop_cycles: int = 0
+    protective_stops: int = 0
+    #: scans received but superseded by a newer one before the estimator took them
+    scans_skipped: int = 0
+    #: cycles with a fresh unused scan left to a later cycle by the lowered obstacle rate (overload)
+    estimates_deferred: int = 0
+    overload_cycles: int = 0
     #: the most recent state changes (bounded: a flapping device must not grow memory)
     state_changes: deque[str] = field(default_factory=lambda: deque(maxlen=200))
 
@@ -275,6 +299,12 @@ class ControlLoop:
         self.health = LoopHealth(config.loop.period_s)
         m = config.mission
         self.safety = SafetyMonitor(m.safety_radius_m, m.safety_horizon_s, m.resume_after_clear_s)
+        self.field = protective_field(config)
+        self.overload = OverloadMonitor()
+        #: (start, end) of the recent cycles: time the loop held the interpreter, not the scanner's fault
+        self._busy: deque[tuple[float, float]] = deque(maxlen=64)
+        self._scan_period_s: float | None = None
+        self._last_estimate_s = -math.inf
         self.odom = OdometryHistory()
         self.stats = RunStats()
         self.last_scan: ScanSample | None = None
@@ -344,12 +374,16 @@ class ControlLoop:
                                        None if received is None else now - received)
         if healthy:
             self._notify(now_s)
+        if self.overload.overloaded:
+            self.stats.overload_cycles += 1
+        self._busy.append((now_s, self.clock()))
 
     def _drain(self) -> None:
         """Every sample the devices delivered since the last cycle: logged, the newest kept."""
         if self.scanner is not None:
             for s in self.scanner.poll():
                 self.stats.scans_in += 1
+                self._note_scan(s)
                 self.last_scan = s
                 if self.log is not None:
                     w = self.wall(s.scan.stamp_s)
@@ -397,8 +431,68 @@ class ControlLoop:
         return scanner_state, base_state, camera_state, frame
 
     def _scan_fresh(self, now_s: float) -> bool:
-        last = self.last_scan
-        return last is not None and now_s - last.scan.stamp_s <= scan_age_limit_s(self.config.loop, last.scan)
+        return self.last_scan is not None and self._scan_quiet_s(now_s) <= self._scan_age_limit_s()
+
+    # -- overload: the newest scan, a lower obstacle rate, stall judged on receipt --------------
+
+    def _note_scan(self, sample: ScanSample) -> None:
+        """Count a scan superseded before the estimator took it, and follow the scan period."""
+        old = self.last_scan
+        if old is None:
+            return
+        if old.scan.seq != self._last_scan_seq_used:
+            self.stats.scans_skipped += 1
+        dt = sample.scan.stamp_s - old.scan.stamp_s
+        if 0.0 < dt < 1.0:
+            p = self._scan_period_s
+            self._scan_period_s = dt if p is None else p + 0.1 * (dt - p)
+
+    def _scan_quiet_s(self, now_s: float) -> float:
+        """How long the scanner has delivered nothing, on the newest scan's receipt time (its stamp when
+        the receipt is unknown), less the time the loop itself was busy since: a late loop (whose
+        reader thread may have waited for the interpreter) is not a stalled scanner."""
+        assert self.last_scan is not None
+        received = self.last_scan.host_stamp_s
+        since = self.last_scan.scan.stamp_s if received is None else received
+        busy = sum(max(0.0, min(end, now_s) - max(start, since)) for start, end in self._busy)
+        # at most max_scan_age_s is excused: the scan the loop acts on is never older than twice that
+        return now_s - since - min(busy, self._scan_age_limit_s())
+
+    def _scan_age_limit_s(self) -> float:
+        """The stall age for the newest scan's sensor (:func:`scan_age_limit_s`)."""
+        assert self.last_scan is not None
+        return scan_age_limit_s(self.config.loop, self.last_scan.scan)
+
+    def _obstacle_budget_s(self) -> float | None:
+        """The time one estimate may take to keep up: the scan period when every scan triggers a cycle
+        (None until two scans showed it), else the loop's period."""
+        if self.config.loop.trigger == "scan" and self.scanner is not None:
+            return self._scan_period_s
+        return self.config.loop.period_s
+
+    def _estimate_due(self, now_s: float) -> bool:
+        """Under overload the obstacles come at a lower rate: an estimate every ``overload.every`` budgets."""
+        budget = self._obstacle_budget_s()
+        if not self.overload.overloaded or budget is None:
+            return True
+        return now_s - self._last_estimate_s >= (self.overload.every - 0.5) * budget
+
+    def _timed_step(self, scan: Scan, odom: Odometry, frame: Frame | None, now_s: float) -> Estimate:
+        """The estimator, timed against the budget; an overload change is logged once."""
+        t0 = self.clock()
+        est = self.estimator.step(scan, odom, frame)
+        took, budget = self.clock() - t0, self._obstacle_budget_s()
+        self._last_estimate_s = now_s
+        if budget is not None and self.overload.record(took, budget):
+            o = self.overload
+            assert o.compute_s is not None
+            if o.overloaded:
+                self.say("warning", f"loop: overloaded: the estimator takes {o.compute_s * 1e3:.1f} ms per scan, "
+                         f"budget {budget * 1e3:.1f} ms; obstacles from 1 scan in {o.every}", now_s)
+            else:
+                self.say("info", f"loop: overload over: the estimator takes {o.compute_s * 1e3:.1f} ms per scan; "
+                         "obstacles from every scan again", now_s)
+        return est
 
     def _estimate(self, now_s: float, frame: Frame | None, wall: float) -> Estimate | None:
         """The estimator run on the newest scan, once per scan (None: no new fresh scan, or no
@@ -409,8 +503,11 @@ class ControlLoop:
         odom_at_scan = self.odom.at(scan_sample.scan.stamp_s)
         if odom_at_scan is None:
             return None
+        if not self._estimate_due(now_s):
+            self.stats.estimates_deferred += 1
+            return None
         self._last_scan_seq_used = scan_sample.scan.seq
-        est = self.estimator.step(scan_sample.scan, odom_at_scan, frame)
+        est = self._timed_step(scan_sample.scan, odom_at_scan, frame, now_s)
         self.last_estimate = est
         self.stats.estimates += 1
         if frame is not None:
@@ -440,10 +537,13 @@ class ControlLoop:
         safety_stop = pose is not None and self.safety.update(
             now_s, pose.x_m, pose.y_m, pose.theta_rad, max(v_now, 0.0), obstacles
         )
+        protective_stop = self._protective(now_s, max(v_now, 0.0))
         if not device_ok:
             state = "device_stop"
         elif coil:
             state = "coil_stop"
+        elif protective_stop:
+            state = "protective_stop"
         elif safety_stop:
             state = "safety_stop"
         elif cfg.mission.mode == "cruise":
@@ -459,12 +559,47 @@ class ControlLoop:
             self.stats.device_stop_cycles += 1
         if state == "safety_stop":
             self.stats.safety_stop_cycles += 1
+        if state == "protective_stop":
+            self.stats.protective_stop_cycles += 1
         if self.base is not None:
             if state == "moving":
                 self.base.command(cfg.mission.cruise_speed_mps, 0.0)
             else:
                 self.base.command(0.0, 0.0)
         return safety_stop
+
+    def _protective(self, now_s: float, v_mps: float) -> bool:
+        """The protective field on the newest fresh scan (cruise only; hold never moves): whether it
+        holds the robot. Its changes are logged with what it saw."""
+        sample = self.last_scan
+        if self.field is None or self.config.mission.mode != "cruise" or sample is None or not self._scan_fresh(now_s):
+            return self.field is not None and self.field.stopped
+        was = self.field.stopped
+        v = max(v_mps, self.config.mission.cruise_speed_mps)  # the field the robot needs once it moves
+        stopped = self.field.update(now_s, sample.scan.ranges_m, sample.scan.bearings_rad, v, sample.scan.seq)
+        res = self.field.last
+        assert res is not None
+        if stopped and not was:
+            self.stats.protective_stops += 1
+            self.say("warning", f"protective field: object {res.nearest_m:.2f} m ahead of the robot's origin "
+                     f"(field {res.length_m:.2f} m at {v:.2f} m/s)", now_s)
+        elif was and not stopped:
+            self.say("info", f"protective field: clear for {self.field.resume_after_clear_s:g} s", now_s)
+        return stopped
+
+    def safety_summary(self) -> dict[str, Any]:
+        """The protective field's part of the run summary."""
+        f = self.field
+        return {
+            "protective_stop_cycles": self.stats.protective_stop_cycles,
+            "protective_stops": self.stats.protective_stops,
+            "protective_intrusion_scans": f.intrusion_scans if f is not None else 0,
+            "protective_unconfirmed_returns": f.unconfirmed_returns if f is not None else 0,
+            "scans_skipped": self.stats.scans_skipped,
+            "estimates_deferred": self.stats.estimates_deferred,
+            "overload_cycles": self.stats.overload_cycles,
+            "overload_episodes": self.overload.transitions,
+        }
 
     def _notify(self, now_s: float) -> None:
         """READY once the loop is first healthy, then the watchdog at its interval."""
@@ -517,6 +652,10 @@ class ControlLoop:
             flags.add("odometry_fallback")
         if safety_stop:
             flags.add("safety_stop")
+        if self.field is not None and self.field.stopped:
+            flags.add("protective_stop")
+        if self.overload.overloaded:
+            flags.add("overloaded")
         if coil:
             flags.add("coil_stop")
         log_failed = self.log is not None and (self.log.stats.state == "disk_error" or self.log.stats.error is not None)
@@ -577,8 +716,16 @@ class ControlLoop:
                     base_state=base_state,
                     camera_state=camera_state,
                     battery_v=battery,
+                    **self._field_status(),
                 )
             )
+
+    def _field_status(self) -> dict[str, float]:
+        out: dict[str, float] = {"estimate_every": float(self.overload.every)}
+        res = self.field.last if self.field is not None else None
+        if res is not None:
+            out.update(field_length_m=res.length_m, field_nearest_m=0.0 if math.isnan(res.nearest_m) else res.nearest_m)
+        return out
 
     # -- the run --------------------------------------------------------------------------------
 

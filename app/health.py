@@ -170,3 +170,42 @@ def _advance(o: Odometry, dt_s: float) -> Odometry:
     y = o.y_m + o.v_mps * dt_s * math.sin(th)
     th2 = o.theta_rad + o.w_radps * dt_s
     return Odometry(x, y, math.atan2(math.sin(th2), math.cos(th2)), o.v_mps, o.w_radps, o.stamp_s + dt_s)
+
+
+class OverloadMonitor:
+    """Whether the estimator keeps up with the scans, with hysteresis, and the obstacle rate it can hold.
+
+    ``load`` is the estimator's smoothed time per scan over the budget (the scan period with a
+    scan-triggered loop, ``loop.period_s`` with the timer). Overload starts when the load reaches
+    ``enter_load`` and ends only when it has stayed at or below ``leave_load`` for ``leave_after``
+    estimates in a row (a band and a dwell, so a load near 1 does not flap). While overloaded the
+    estimator runs on the newest scan every ``every`` budgets, with ``every`` the whole number of
+    budgets that holds its time at ``leave_load`` of the interval; the scans in between are skipped
+    (counted by the loop). Outside overload ``every`` is 1.
+    """
+
+    def __init__(self, enter_load: float = 1.0, leave_load: float = 0.7, alpha: float = 0.3,
+                 leave_after: int = 10) -> None:
+        if not 0.0 < leave_load < enter_load:
+            raise ValueError("leave_load must be positive and below enter_load")
+        self.enter_load, self.leave_load, self.alpha, self.leave_after = enter_load, leave_load, alpha, leave_after
+        self._low = 0
+        self.compute_s: float | None = None
+        self.overloaded = False
+        self.every = 1
+        self.transitions = 0
+
+    def record(self, compute_s: float, budget_s: float) -> bool:
+        """One estimator run of ``compute_s`` against ``budget_s``; returns True when the state changed."""
+        c = compute_s if self.compute_s is None else self.compute_s + self.alpha * (compute_s - self.compute_s)
+        self.compute_s = c
+        load = c / budget_s if budget_s > 0 else 0.0
+        was = self.overloaded
+        self._low = self._low + 1 if load <= self.leave_load else 0
+        if not was and load >= self.enter_load:
+            self.overloaded = True
+            self.transitions += 1
+        elif was and self._low >= self.leave_after:
+            self.overloaded = False
+        self.every = max(1, math.ceil(load / self.leave_load)) if self.overloaded else 1
+        return self.overloaded != was

@@ -88,6 +88,7 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "events": list(s.state_changes)[-50:],
         }
     )
+    out.update(loop.safety_summary())  # protective field and overload figures (app/daemon.py)
     out["devices"] = loop.final_counters or {
         name: dev.counters() for name in ("scanner", "base", "camera") if (dev := getattr(loop, name)) is not None
     }

@@ -12,9 +12,12 @@ addr   name                  type    meaning (unit)
 0      status_bits           uint16  bit0 scanner ok, bit1 base ok, bit2 camera ok, bit3 plain PSM
                                      (no camera), bit4 safety stop active, bit5 stop coil active,
                                      bit6 odometry fallback this cycle, bit7 loop healthy,
-                                     bit8 simulated run, bit9 field log error, bit10 ROS 2
-                                     publisher failed or a write failed (``ros2.*``)
-1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop
+                                     bit8 simulated run, bit9 field-log error, bit10 protective
+                                     field holds the robot, bit11 overloaded (the estimator cannot
+                                     keep up with the scans: obstacles at a lower rate),
+                                     bit12 ROS 2 publisher failed or a write failed (``ros2.*``)
+1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop,
+                                     5 protective stop (something in the path)
 2-3    cycle                 uint32  control cycles run
 4-5    pose_x_mm             int32   matched pose x (mm, odometry frame of the first scan)
 6-7    pose_y_mm             int32   matched pose y (mm)
@@ -32,11 +35,25 @@ addr   name                  type    meaning (unit)
 49     base_state            uint16  same codes
 50     camera_state          uint16  same codes
 51     battery_dv            uint16  base battery (0.1 V)
+52     field_length_mm       uint16  protective field's reach ahead of the robot's origin (mm; 0 = not
+                                     judged: field off, hold mode, no fresh scan yet)
+53     field_nearest_mm      uint16  nearest confirmed return in the field, ahead of the origin (mm;
+                                     0 = clear)
+54     estimate_every        uint16  obstacles from every n-th scan (timer: period); 1 = all, more
+                                     while overloaded
 =====  ====================  ======  ===============================================================
 
 Coil 0 (function codes 1, 5, 15): stop the base while set. Writes are honoured only when the config
 enables it (``status.allow_stop_coil``); otherwise they are refused with Modbus exception 1
 (illegal function) and nothing changes.
+
+Function codes answered: the reads 1, 2, 3, 4, the coil writes 5 and 15 (as above) and Report
+Server ID (17, the server's identification: ``vipsm-robot``). Every other function code is answered
+with exception 1 (illegal function) and changes nothing: the holding-register writes (6, 16, 22,
+23), the diagnostics (7 read exception status, 8 diagnostics including force listen-only mode,
+11/12 communication event counter/log), the file records and FIFO queue (20, 21, 24), encapsulated
+interfaces (43, including Read Device Identification: FC 17 already identifies the server) and any
+code pymodbus does not know.
 """
 
 from __future__ import annotations
@@ -63,15 +80,18 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .errors import AppError
 
-N_INPUT_REGISTERS = 52
+N_INPUT_REGISTERS = 55
 #: write single register, write multiple registers, mask write, read/write multiple: all refused
 HOLDING_WRITE_FUNCTIONS = (6, 16, 22, 23)
+#: the function codes a status server answers (reads, the stop coil, identification); all others are
+#: refused with exception 1 before pymodbus acts on them
+ANSWERED_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 15, 17}) | frozenset(HOLDING_WRITE_FUNCTIONS)
 #: what Report Server ID (FC 17) answers, instead of the library's name
 SERVER_ID = b"vipsm-robot"
 MAX_OBSTACLES = 4
 
 DEVICE_STATES = {"absent": 0, "connecting": 1, "ok": 2, "stalled": 3, "failed": 4}
-MISSION_STATES = {"hold": 0, "moving": 1, "safety_stop": 2, "device_stop": 3, "coil_stop": 4}
+MISSION_STATES = {"hold": 0, "moving": 1, "safety_stop": 2, "device_stop": 3, "coil_stop": 4, "protective_stop": 5}
 STATUS_BITS = {
     "scanner_ok": 0,
     "base_ok": 1,
@@ -83,7 +103,9 @@ STATUS_BITS = {
     "loop_healthy": 7,
     "simulated": 8,
     "log_error": 9,
-    "ros2_error": 10,
+    "protective_stop": 10,
+    "overloaded": 11,
+    "ros2_error": 12,
 }
 
 
@@ -115,6 +137,9 @@ class StatusSnapshot:
     base_state: str = "absent"
     camera_state: str = "absent"
     battery_v: float = 0.0
+    field_length_m: float = 0.0
+    field_nearest_m: float = 0.0
+    estimate_every: float = 1.0
     extra: dict[str, float] = field(default_factory=dict)
 
 
@@ -169,6 +194,9 @@ def encode_registers(s: StatusSnapshot) -> list[int]:
     regs[49] = DEVICE_STATES[s.base_state]
     regs[50] = DEVICE_STATES[s.camera_state]
     regs[51] = _u16(s.battery_v * 10.0)
+    regs[52] = _u16(s.field_length_m * 1000.0)
+    regs[53] = _u16(s.field_nearest_m * 1000.0)
+    regs[54] = _u16(s.estimate_every)
     return regs
 
 
@@ -269,6 +297,8 @@ class StatusServer:
         self.error: BaseException | None = None
         #: coil writes refused because the config does not allow them
         self.refused_writes = 0
+        #: requests refused because their function code is not one a status server answers
+        self.refused_functions = 0
         # pymodbus logs every junk frame a client sends at ERROR level (">>>>> recv ...", "Invalid Modbus
         # protocol id"): a remote client could flood the journal. Start failures still surface as
         # exceptions (start() raises AppError).
@@ -356,7 +386,7 @@ class StatusServer:
     async def _listen(self) -> asyncio.Future[Any]:
         """A new listener on (host, port); raises what pymodbus raised if it cannot listen."""
         self._server = _GuardedServer(self._device(), address=(self.host, self.port), trace_pdu=_own_server_id,
-                                      custom_pdu=[self._strict_write_coil()],
+                                      custom_pdu=[self._strict_write_coil(), *self._refused_functions()],
                                       max_connections=self.max_connections, idle_timeout_s=self.idle_timeout_s)
         task = asyncio.ensure_future(self._server.serve_forever())
         for _ in range(200):
@@ -420,11 +450,29 @@ class StatusServer:
 
         return StrictWriteSingleCoil
 
+    def _refused_functions(self) -> list[type[ModbusPDU]]:
+        """A request class for every function code not in ``ANSWERED_FUNCTIONS``: it takes any body and
+        answers exception 1 (illegal function), counted in ``refused_functions``. Registered in place of
+        pymodbus's own classes, so diagnostics (FC 8 force listen-only mode, ...) never reach them."""
+        server = self
+
+        class RefusedFunction(ModbusPDU):
+            def decode(self, data: bytes) -> None:
+                pass  # the body is not looked at: the function itself is refused
+
+            async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+                server.refused_functions += 1
+                return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_FUNCTION)
+
+        return [type(f"RefusedFunction{fc}", (RefusedFunction,), {"function_code": fc})
+                for fc in range(1, 0x80) if fc not in ANSWERED_FUNCTIONS]
+
     def connection_counts(self) -> dict[str, int]:
-        """Connections refused over the cap and closed for idleness (by the current listener)."""
+        """Connections refused over the cap and closed for idleness (by the current listener), and requests
+        refused for their function code (whole run)."""
         srv = self._server
         return {"refused_connections": srv.refused_connections if srv else 0,
-                "idle_closed": srv.idle_closed if srv else 0}
+                "idle_closed": srv.idle_closed if srv else 0, "refused_functions": self.refused_functions}
 
     def _event(self, level: str, message: str) -> None:
         if self.on_event is not None:

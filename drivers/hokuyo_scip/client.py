@@ -435,6 +435,7 @@ class Utm30lxClient:
         return self._port
 
     def _write(self, data: bytes) -> None:
+        self._decoder.sent(data)  # what was sent tells an echo from junk that looks like one
         try:
             write_all(self._require_port(), data)
         except DriverTimeoutError as exc:

@@ -14,6 +14,15 @@ UTM-30LX II quirk), the timestamp line and every data line. A reply that fails a
 and the raw bytes; decoding goes on with the next reply (resynchronising on the next echo line
 followed by a valid status line when two replies were merged by a lost line end).
 
+Junk glued to an echo (no line end between them) can itself look like an echo with a tag (``CR00;``
+before ``MD...``, ``QT;`` before ``CR00``). The client tells the decoder every request it sends
+(:meth:`ScipDecoder.sent`); the decoder then takes the longest tail of the line that echoes a request
+sent (a stream request's frames echo it with the count replaced) and drops the rest as junk; a
+decoder told nothing (a recording) judges by the echo grammar. A line where a reply must start but
+that holds no echo of a SCIP command (``DM1``) is junk up to the next reply start, and a reply that
+has no payload (BM, QT, RS, RT, RB, SS, CR, HS) never takes the lines after its status as payload: a
+reply merged into it is decoded on its own.
+
 Status codes stay two-character strings; :func:`status_for` maps them per command to a
 :class:`StatusMeaning` with a success flag (``00`` everywhere, ``99`` in scan frames, BM ``02``,
 TM ``02``/``03``, SS/CR ``03``, HS ``02``), with :attr:`StatusMeaning.UNKNOWN` as fallback. They
@@ -173,6 +182,8 @@ _GENERAL_CODES: dict[str, StatusMeaning] = {
     "0M": StatusMeaning.UNSTABLE,
 }
 
+#: commands whose reply is an echo and a status only [SPEC]
+_STATUS_ONLY_COMMANDS = frozenset({"BM", "QT", "RS", "RT", "RB", "SS", "CR", "HS"})
 SCAN_COMMANDS = frozenset({"MD", "MS", "ME", "ND", "NE", "GD", "GS", "GE", "HD", "HE"})
 STREAM_COMMANDS = frozenset({"MD", "MS", "ME", "ND", "NE"})
 
@@ -503,6 +514,9 @@ _ECHO_RE = re.compile(
     rb"|SS[0-9]{6}|CR[0-9]{2}|HS[0-9]|DB[0-9]{2}|%ST|%SL)(?:;[A-Za-z0-9 ._+@]{0,16})?"
 )
 
+#: the shape of any command line: 2 letters (3 with '%'), digits, an optional tag
+_ANY_ECHO_RE = re.compile(rb"%?[A-Z]{2}[0-9]*(?:;[A-Za-z0-9 ._+@]{0,16})?")
+
 
 def _check_tag(tag: str | None) -> str:
     if tag is None or tag == "":
@@ -745,20 +759,69 @@ def _decode_reply(lines: list[bytes]) -> Event:
         return _decode_scan_data(request, payload, status, echo)
     if command in SCAN_COMMANDS and code == "99":
         raise ScipProtocolError(f"{command} scan frame without data", code=code)
+    if command in _STATUS_ONLY_COMMANDS and payload:  # another reply merged in: resynchronise on it
+        raise ScipProtocolError(f"{command} reply carries {len(payload)} payload lines; it has none", code=code)
     checked = tuple(_check_plain_line(line, "payload") for line in payload)
     return StatusReply(echo, command, status, checked)
 
 
-def _split_garbage(echo_line: bytes) -> tuple[bytes, bytes]:
-    """Split junk glued in front of a known echo: (junk, echo). Unknown echoes are left whole."""
+def _split_garbage(echo_line: bytes, sent: SentCommands | None = None) -> tuple[bytes, bytes]:
+    """Split junk glued in front of an echo: (junk, echo). With ``sent``, the longest tail that echoes a
+    command actually sent wins (junk can itself look like an echo with a tag: ``CR00;`` before
+    ``MD...``, ``QT;`` before ``CR00``); otherwise the whole line if the echo grammar takes it, else the
+    longest tail it takes. A line holding no echo is left whole."""
+    # The longest echo is 32 characters ("MD" + 13 digits + ";" + 16); only the tail can hold it.
+    first = max(0, len(echo_line) - _MAX_ECHO_CHARS)
+    if sent is not None and sent:
+        for start in range(first, len(echo_line) - 1):
+            if sent.echoes(echo_line[start:]):
+                return echo_line[:start], echo_line[start:]
     if _ECHO_RE.fullmatch(echo_line):
         return b"", echo_line
-    # The longest echo is 32 characters ("MD" + 13 digits + ";" + 16); only the tail can hold it.
-    first = max(1, len(echo_line) - _MAX_ECHO_CHARS)
-    for start in range(first, len(echo_line) - 1):
+    for start in range(max(1, first), len(echo_line) - 1):
         if _ECHO_RE.fullmatch(echo_line, start):
             return echo_line[:start], echo_line[start:]
     return b"", echo_line
+
+
+class SentCommands:
+    """The request lines recently sent (bounded), so the decoder can tell an echo from junk that looks
+    like one. A stream request (MD/ME...) is echoed by each of its frames with the last two digits
+    replaced by the remaining count; those echoes match it too."""
+
+    def __init__(self, keep: int = 32) -> None:
+        self._lines: dict[bytes, None] = {}
+        self._streams: dict[tuple[bytes, bytes], None] = {}
+        self._keep = keep
+
+    def __len__(self) -> int:
+        return len(self._lines)
+
+    def add(self, request: bytes) -> None:
+        line = request.rstrip(b"\r\n")
+        if not line:
+            return
+        for table, key in ((self._lines, line), (self._streams, self._stream_key(line))):
+            if key is None:
+                continue
+            table.pop(key, None)  # type: ignore[arg-type]
+            table[key] = None  # type: ignore[index]
+            while len(table) > self._keep:
+                del table[next(iter(table))]
+
+    @staticmethod
+    def _stream_key(line: bytes) -> tuple[bytes, bytes] | None:
+        body, sep, tag = line.partition(b";")
+        if body[:2].decode("latin-1") in STREAM_COMMANDS and len(body) == 15 and body[2:].isdigit():
+            return body[:13], sep + tag
+        return None
+
+    def echoes(self, echo: bytes) -> bool:
+        """Whether ``echo`` is the echo of a request sent (or of a frame of a stream request sent)."""
+        if echo in self._lines:
+            return True
+        key = self._stream_key(echo)
+        return key is not None and key in self._streams
 
 
 def _looks_like_reply_start(lines: list[bytes], i: int) -> bool:
@@ -792,6 +855,7 @@ class ScipDecoder:
         self._search_from = 0
         self._pending_cr = False
         self._max = max_buffer_bytes
+        self._sent = SentCommands()
         #: counters of what was decoded or dropped since construction
         self.replies = 0
         self.errors = 0
@@ -800,6 +864,12 @@ class ScipDecoder:
     def buffered(self) -> int:
         """Bytes waiting for the rest of their reply."""
         return len(self._buf)
+
+    def sent(self, request: bytes) -> None:
+        """Note a request line as sent (the client calls this for every request it writes). Once any
+        was noted, junk glued to an echo is told apart by what was sent; a decoder told nothing (a
+        recording) judges by the echo grammar alone."""
+        self._sent.add(request)
 
     def reset(self) -> None:
         """Forget any partial reply (after a reconnect)."""
@@ -843,7 +913,7 @@ class ScipDecoder:
 
     def _decode_message(self, message: bytes, events: list[Event]) -> None:
         lines = message.split(b"\n")
-        junk, echo = _split_garbage(lines[0])
+        junk, echo = _split_garbage(lines[0], self._sent)
         if junk:
             self.errors += 1
             err = ScipProtocolError(f"{len(junk)} bytes of garbage before the echo {echo[:20]!r}", raw=junk)
@@ -851,15 +921,41 @@ class ScipDecoder:
             lines[0] = echo
         # A reply that lost its closing empty line runs into the next one; its echo line can pass as a
         # checksummed payload line (1 in 64), so split at every full echo followed by a valid status.
-        cuts = [i for i in range(2, len(lines)) if _ECHO_RE.fullmatch(lines[i]) and _looks_like_reply_start(lines, i)]
+        cuts = [i for i in range(2, len(lines)) if self._reply_start_within(lines, i)]
         for a, b in zip([0, *cuts], [*cuts, len(lines)], strict=True):
             if a < b:
                 self._decode_lines(lines[a:b], events)
+
+    def _reply_start_within(self, lines: list[bytes], i: int) -> bool:
+        """Line ``i`` of a message starts another reply: a full echo (or, once requests were noted, junk
+        glued to the echo of one sent) followed by a valid status line."""
+        if not _looks_like_reply_start(lines, i):
+            return False
+        if _ECHO_RE.fullmatch(lines[i]):
+            return True
+        if not self._sent:
+            return False
+        junk, echo = _split_garbage(lines[i], self._sent)
+        if junk and self._sent.echoes(echo):
+            lines[i] = echo  # the junk before it belonged to the reply before: dropped with it
+            return True
+        return False
+
+    def _known_echo(self, lines: list[bytes], i: int) -> bool:
+        """Line ``i`` can start a reply: the echo of a SCIP command (by grammar or as sent), or of a command
+        the sensor does not know, answered as such (0D/0E; it never answers one with data)."""
+        line = lines[i]
+        if _ECHO_RE.fullmatch(line) or self._sent.echoes(line):
+            return True
+        return bool(_ANY_ECHO_RE.fullmatch(line)) and i + 1 < len(lines) and lines[i + 1][:2] in (b"0D", b"0E")
 
     def _decode_lines(self, lines: list[bytes], events: list[Event]) -> None:
         start = 0
         while start < len(lines):
             try:
+                if not self._known_echo(lines, start):  # junk with line ends in it: "DM1", "00P", ...
+                    # a reply that lost its head, or junk: dropped up to the next reply
+                    raise ScipProtocolError(f"{lines[start][:40]!r} is no echo of a SCIP command", raw=lines[start])
                 event = _decode_reply(lines[start:])
             except ScipProtocolError as exc:
                 # Look for a later reply merged into this one (a lost line end or a truncated reply).
@@ -871,7 +967,7 @@ class ScipDecoder:
                 events.append(DecodeError(_error_kind(exc), exc, raw, cmd))
                 if nxt is None:
                     return
-                junk, echo = _split_garbage(lines[nxt])
+                junk, echo = _split_garbage(lines[nxt], self._sent)
                 lines[nxt] = echo
                 start = nxt
                 continue

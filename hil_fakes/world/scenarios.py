@@ -41,7 +41,7 @@ import numpy as np
 from hil_fakes.wheel_odometry import OdometryNoise
 
 from .camera_effects import IDEAL_CAMERA, CameraEffects
-from .clutter import Clutter, furnish
+from .clutter import Clutter, box, furnish
 from .geometry import Gait, ObstaclePath, Wall
 from .laser_effects import IDEAL_LASER, LaserEffects
 from .pedestrians import PEDESTRIAN_DATA_DIR, TrajectoryFileError, fitted_waypoints, load_paths
@@ -51,6 +51,8 @@ ROOM_WIDTH_M = 4.9
 ROBOT_START = (0.6, 0.0, 0.0)
 #: Pioneer 3-DX half diagonal (width 425 mm, length 511 mm): the robot's bounding radius
 ROBOT_RADIUS_M = 0.33
+#: side of the ``box_in_path_x_m`` box (a cardboard box, as in the clutter)
+BOX_IN_PATH_M = 0.5
 #: clearance kept between an obstacle and a wall at the ends of its path
 WALL_MARGIN_M = 0.05
 #: base odometry noise; ``odom_noise`` scales all of it (0 = perfect odometry)
@@ -113,6 +115,10 @@ PARAMS: dict[str, Param] = {
     "person_path_id": Param(int, 0, 0, None, "", "recorded pedestrian id in person_path_source (0: the first usable)"),
     # static clutter
     "clutter": Param(int, 0, 0, 3, "", "furniture: 0 none, 1-3 chairs, tables, boxes, a bin, a post per level"),
+    "box_in_path_x_m": Param(
+        float, 0.0, 0.0, ROOM_LENGTH_M - 0.5, "m", "a 0.5 m box standing on the robot's path, its centre at this x "
+        "(the robot starts at 0.6 m; 0: none): what the protective field must stop for"
+    ),
     # the realistic world's effects (ignored by the ideal world); defaults from datasheets and physics
     "laser_divergence_deg": Param(float, 0.3, 0.0, 2.0, "deg", "UTM-30LX beam divergence [?] (0.25-0.4)"),
     "laser_mixed_prob": Param(float, 0.5, 0.0, 1.0, "", "probability a footprint on a depth edge mixes"),
@@ -455,6 +461,11 @@ def build_scenario(raw: dict[str, Any]) -> Scenario:
             for i in range(len(o.waypoints) - 1)
         )
         clutter = furnish(rng, prm["clutter"], (0.3, ROOM_LENGTH_M), (-half, half), ROBOT_RADIUS_M + 0.45, keepout)
+    if prm["box_in_path_x_m"] > 0.0:
+        if prm["box_in_path_x_m"] - BOX_IN_PATH_M / 2 <= ROBOT_START[0] + ROBOT_RADIUS_M:
+            raise ScenarioError("box_in_path_x_m", "the box would stand on the robot at its start")
+        walls = box(prm["box_in_path_x_m"], ROBOT_START[1], 0.0, BOX_IN_PATH_M, 0.6)
+        clutter = Clutter(clutter.circles, clutter.walls + tuple(walls))
     return Scenario(
         name=str(prm["name"]),
         params=prm,

@@ -299,3 +299,50 @@ def test_an_illegal_fc5_value_in_a_segment_of_several_frames_never_sets_the_coil
         assert not server.stop_requested
     finally:
         server.stop()
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 32 row 11: a status server answers reads of its registers, the stop coil and identification
+# (FC 17), nothing else; diagnostics are refused before pymodbus acts on them
+
+
+REFUSED_REQUESTS = {
+    "FC 7 read exception status": b"\x07",
+    "FC 8/0 return query data": bytes.fromhex("08 0000 a537"),
+    "FC 8/1 restart communications": bytes.fromhex("08 0001 ff00"),
+    "FC 8/4 force listen-only mode": bytes.fromhex("08 0004 0000"),
+    "FC 8/10 clear counters": bytes.fromhex("08 000a 0000"),
+    "FC 11 comm event counter": b"\x0b",
+    "FC 12 comm event log": b"\x0c",
+    "FC 20 read file record": bytes.fromhex("14 07 06 0004 0001 0002"),
+    "FC 24 read FIFO queue": bytes.fromhex("18 0000"),
+    "FC 43/14 read device identification": bytes.fromhex("2b 0e 01 00"),
+    "FC 43/13 CANopen general reference": bytes.fromhex("2b 0d 00"),
+    "FC 65 user defined": bytes.fromhex("41 0000"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REFUSED_REQUESTS))
+def test_diagnostic_and_other_function_codes_are_refused(name: str) -> None:
+    pdu = REFUSED_REQUESTS[name]
+    server = StatusServer(port=0).start()
+    try:
+        assert _raw_request(server.port, pdu) == bytes([0x80 | pdu[0], 1]), name  # exception 1: illegal function
+        assert server.refused_functions == 1
+        # force listen-only mode (or any of these) left the server answering reads
+        assert _read_one(server.port)[:2] == bytes.fromhex("0402")
+    finally:
+        server.stop()
+
+
+def test_reads_and_identification_are_still_answered() -> None:
+    server = StatusServer(port=0).start()
+    try:
+        assert _raw_request(server.port, bytes.fromhex("0100000001"))[:2] == bytes.fromhex("0101")
+        assert _raw_request(server.port, bytes.fromhex("0200000001"))[:2] == bytes.fromhex("0201")
+        assert _raw_request(server.port, bytes.fromhex("0300000001"))[:2] == bytes.fromhex("0302")
+        assert _raw_request(server.port, bytes.fromhex("0400000034"))[:2] == bytes.fromhex("0468")
+        assert b"vipsm-robot" in _raw_request(server.port, b"\x11")
+        assert server.refused_functions == 0
+    finally:
+        server.stop()

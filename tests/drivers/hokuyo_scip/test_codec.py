@@ -285,3 +285,65 @@ def test_a_reply_without_its_empty_line_does_not_swallow_the_next_scan(split: in
     scans = [e for e in events if isinstance(e, ScanFrame)]
     assert len(scans) == 1 and np.array_equal(scans[0].distances, FULL)
     assert any(isinstance(e, StatusReply) and e.command == "CR" for e in events)
+
+
+# issue 32 row 10: junk without a line feed glued to the next echo was read as a tagged echo (the first
+# audit's three inputs). The client notes every request it sends; the decoder prefers the echo of one.
+
+
+def ge_reply(ts: int = 77) -> bytes:
+    chars = encode_values(np.column_stack((FULL, FULL % 97)).ravel(), 3)
+    return b"GE0000108001\n00P\n" + encode_timestamp_line(ts) + encode_data_block(chars) + b"\n"
+
+
+def _client_decoder(*requests: bytes) -> ScipDecoder:
+    dec = ScipDecoder()
+    for r in requests:
+        dec.sent(r)
+    return dec
+
+
+def test_a_tag_like_junk_before_a_scan_frame_does_not_lose_the_scan() -> None:
+    dec = _client_decoder(build_simple("QT"), b"CR00\n", build_scan(0, 1080, count=0))
+    events = dec.feed(b"CR00;" + md_frame(FULL, ts=5))
+    assert isinstance(events[0], DecodeError) and events[0].kind is DecodeErrorKind.GARBAGE
+    assert events[0].raw == b"CR00;"
+    assert isinstance(events[1], ScanFrame) and np.array_equal(events[1].distances, FULL) and len(events) == 2
+
+
+def test_qt_junk_before_a_cr_reply_leaves_the_cr_reply() -> None:
+    dec = _client_decoder(build_simple("QT"), b"CR00\n")
+    events = dec.feed(b"QT;CR00\n04T\n\n")
+    assert isinstance(events[0], DecodeError) and events[0].raw == b"QT;"
+    reply = events[1]
+    assert isinstance(reply, StatusReply) and reply.echo == "CR00"
+    assert reply.status.meaning is StatusMeaning.NOT_SUPPORTED
+
+
+@pytest.mark.parametrize("noted", [True, False])
+def test_junk_lines_before_a_ge_reply_are_not_a_reply_that_swallows_it(noted: bool) -> None:
+    """``DM1`` is no SCIP command: its lines are junk, the GE reply after them decodes (with or without
+    the requests noted: the echo grammar alone rejects ``DM1``)."""
+    dec = _client_decoder(build_scan(0, 1080, intensity=True, stream=False)) if noted else ScipDecoder()
+    events = dec.feed(b"DM1\n00P\n<" + ge_reply(ts=77))
+    frames = [e for e in events if isinstance(e, ScanFrame)]
+    assert len(frames) == 1 and frames[0].timestamp_ms == 77 and np.array_equal(frames[0].distances, FULL)
+    assert all(isinstance(e, DecodeError) for e in events if e is not frames[0])
+    assert not any(isinstance(e, StatusReply) for e in events)
+
+
+def test_a_status_only_reply_never_carries_another_reply_as_payload() -> None:
+    """QT (no payload) that lost its empty line, then junk glued to a scan frame such that every line after
+    the status passes as a checksummed payload line: the frame survives even without the requests noted."""
+    echo = b"MD0000108001000"
+    junk = next(bytes([c]) for c in range(0x21, 0x7F) if checksum(bytes([c]) + echo[:-1]) == echo[-1])
+    events = ScipDecoder().feed(b"QT\n00P\n" + junk + md_frame(FULL, ts=8, echo=echo))
+    frames = [e for e in events if isinstance(e, ScanFrame)]
+    assert len(frames) == 1 and frames[0].timestamp_ms == 8
+
+
+def test_an_echo_of_a_request_not_sent_is_still_decoded_by_its_grammar() -> None:
+    """A scanner left streaming by a previous client: its frames echo a request this client never sent."""
+    dec = _client_decoder(build_simple("VV"))
+    [frame] = dec.feed(md_frame(FULL[:101], echo=b"MD0100020001000"))
+    assert isinstance(frame, ScanFrame) and frame.request.start == 100 and len(frame.distances) == 101

@@ -133,3 +133,27 @@ def test_decode_of_random_frame_matches_numpy_reference() -> None:
     chars = encode_values(values, 3)
     ref = [(chars[i] - 48) * 4096 + (chars[i + 1] - 48) * 64 + (chars[i + 2] - 48) for i in range(0, len(chars), 3)]
     assert ref == values.tolist()
+
+
+_SENT = (b"QT\n", b"CR00\n", b"BM\n", b"II\n", b"TM1\n", b"MD0000108001000\n", b"GE0000108001\n")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=80).filter(lambda b: b"\n" not in b and b"\r" not in b), st.integers(0, 6))
+def test_a_junk_prefix_never_loses_the_following_frame(junk: bytes, which: int) -> None:
+    """Issue 32 row 10: whatever junk without a line end is glued before an echo, the frame after it is
+    decoded intact (the decoder knows the requests sent, as the client tells it)."""
+    dec = ScipDecoder()
+    for r in _SENT:
+        dec.sent(r)
+    values = [23 + (7 * i) % 4000 for i in range(1081)]
+    frames = [
+        b"MD0000108001000\n99b\n" + encode_timestamp_line(11) + encode_data_block(encode_values(values, 3)) + b"\n",
+        b"GE0000108001\n00P\n" + encode_timestamp_line(11)
+        + encode_data_block(encode_values([v for x in values for v in (x, 5)], 3)) + b"\n",
+    ]
+    frame = frames[which % 2]
+    events = dec.feed(junk + frame)
+    scans = [e for e in events if isinstance(e, ScanFrame)]
+    assert len(scans) == 1 and scans[0].timestamp_ms == 11 and scans[0].distances.tolist() == values
+    assert all(isinstance(e, DecodeError) for e in events if e is not scans[0])
