@@ -82,7 +82,8 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "log_last_disk_error": loop.log.stats.last_disk_error if loop.log is not None else None,
             "live_url": loop.live_view.url if loop.live_view is not None else None,
             "status_server": None if loop.status is None else {
-                "restarts": loop.status.restarts, "last_failure": loop.status.last_failure,
+                "host": loop.status.host, "port": loop.status.port, "restarts": loop.status.restarts,
+                "last_failure": loop.status.last_failure,
                 "refused_writes": loop.status.refused_writes, **loop.status.connection_counts()},
             "events": list(s.state_changes)[-50:],
         }
