@@ -399,6 +399,9 @@ def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
         loop = build_loop(cfg, log_path=log_path, truth=scorer.truth_for_log)
         loop.on_estimate = scorer.on_estimate
         try:
+            from .daemon import freeze_startup_objects
+
+            freeze_startup_objects()  # the loop's own start-up pause, before the world's clock starts
             start_world(child, truth)  # the daemon is ready: kernels loaded, devices open
         except AppError:
             loop.shutdown()
