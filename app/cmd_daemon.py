@@ -19,6 +19,9 @@ from .config import Config, dump_toml, load_config
 from .errors import AppError
 from .runtime import Progress, install_signal_handlers, loop_summary
 
+#: ``run --duration``'s exit code when a configured device never opened during the run
+EXIT_DEVICE_NEVER_OPENED = 4
+
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", metavar="FILE.toml", help="configuration file (defaults: vipsm-robot dump-config)")
@@ -44,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
     p = sub.add_parser("run", help="run the daemon: devices from the config, 0.1 s control loop")
     _add_config_args(p)
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help=f"stop after S seconds; exit {EXIT_DEVICE_NEVER_OPENED} if a configured device never opened")
     p.add_argument("--log", metavar="FILE", help="field log path (overrides log.path)")
     _add_live_arg(p)
     _add_ros2_arg(p)
@@ -63,6 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     _add_ros2_arg(p)
     p.add_argument("--json", action="store_true", help="print the run summary as one JSON object")
     p.add_argument("--no-progress", action="store_true", help="no progress line")
+    p.add_argument("--verbose", action="store_true",
+                   help="print every figure of the summary (devices, latencies, fakes), the headline last")
     p.add_argument(
         "--mission",
         choices=("cruise", "hold"),
@@ -116,25 +122,43 @@ def cmd_run(args: argparse.Namespace) -> int:
     finally:
         loop.shutdown()
     summary = loop_summary(loop)
+    never = loop.devices_never_opened()
+    summary["devices_never_opened"] = sorted(never)
     emit(summary, args.json)
+    if args.duration is not None and never:
+        for name, detail in never.items():
+            print(f"vipsm-robot run: error: the {name} never opened during the run ({detail})", file=sys.stderr)
+        return EXIT_DEVICE_NEVER_OPENED
     return 0
+
+
+def _sim_status_port(config: Config, args: argparse.Namespace) -> Config:
+    """``sim``'s status server listens on any free port (0, printed in the summary) unless the port
+    is given (``--set status.port=N`` or the config file), so two runs at once do not clash."""
+    if any(text.split("=", 1)[0].strip() == "status.port" for text in args.set):
+        return config
+    if args.config:
+        import tomllib
+
+        with open(args.config, "rb") as f:  # already read and checked by load_config
+            if "port" in tomllib.load(f).get("status", {}):
+                return config
+    return dataclasses.replace(config, status=dataclasses.replace(config.status, port=0))
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
     from .evaluation.runner import tune_allocator
-    from .sim import run_sim
+    from .sim import run_sim, summary_lines
 
-    config = _config(args)
+    config = _sim_status_port(_config(args), args)
     tune_allocator()
     summary = run_sim(config, args)
     if args.json:
         emit(summary, True)
         return 0
-    from .sim import headline_lines
-
-    print("\n".join(headline_lines(summary)))
-    print("details:")
-    emit({k: v for k, v in summary.items() if k != "headline"}, False)
+    if args.verbose:
+        emit({k: v for k, v in summary.items() if k != "headline"}, False)
+    print("\n".join(summary_lines(summary)))
     return 0
 
 
@@ -235,7 +259,7 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         argv = [*BENCH_SIM_ARGV, "--duration", str(BENCH_SIM_S), "--log", os.path.join(tmp, "bench.mcap")]
         sim_args = parser.parse_args(argv)
         tune_allocator()
-        summary = run_sim(_config(sim_args), sim_args)
+        summary = run_sim(_sim_status_port(_config(sim_args), sim_args), sim_args)
     return {
         "command": shlex.join(["vipsm-robot", *argv[:-2]]),  # without the temporary --log
         "duration_s": BENCH_SIM_S,

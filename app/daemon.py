@@ -314,7 +314,9 @@ class ControlLoop:
         self.mission_state = "hold"
         self._last_scan_seq_used: int | None = None
         self._states: dict[str, str] = {}
+        self._opened: set[str] = set()  # devices seen past "connecting"
         self._ready_sent = False
+        self._first_cycle_s: float | None = None
         self._last_watchdog_s = -1e9
         self.cycle = 0
         e = config.estimator
@@ -342,7 +344,20 @@ class ControlLoop:
         if self.log is not None:
             self.log.log("/log", self.wall(now_s), lm.log_line(level, message, self.wall(now_s)))
 
+    def devices_never_opened(self) -> dict[str, str]:
+        """The configured devices that never opened during the run (never past "connecting": for the
+        camera, no frame ever came), each with its detail (URL and last error); for the exit code of a
+        bounded run."""
+        out = {}
+        for name in ("scanner", "base", "camera"):
+            dev = getattr(self, name)
+            if dev is not None and name not in self._opened:
+                out[name] = dev.detail() if hasattr(dev, "detail") else ""
+        return out
+
     def _track_state(self, device: str, state: str, now_s: float) -> None:
+        if state != "connecting":
+            self._opened.add(device)
         old = self._states.get(device)
         if old != state:
             self._states[device] = state
@@ -422,9 +437,14 @@ class ControlLoop:
         if base_state == "ok" and not odom_fresh:
             base_state = "stalled"
         frame = None
-        if self.last_frame is not None and now_s - self.last_frame.frame.stamp_s <= cfg.max_frame_age_s:
-            frame = self.last_frame.frame
-        elif camera_state == "ok":
+        if self._first_cycle_s is None:
+            self._first_cycle_s = now_s
+        newest_frame_s = self.last_frame.frame.stamp_s if self.last_frame is not None else -math.inf
+        if now_s - newest_frame_s <= cfg.max_frame_age_s:
+            frame = self.last_frame.frame if self.last_frame is not None else None
+        elif camera_state == "ok" and now_s - max(newest_frame_s, self._first_cycle_s) > cfg.max_frame_age_s:
+            # stalled: no frame for max_frame_age_s while the loop ran (a frame aged by the start-up
+            # itself, before the first cycle, is not used but is no stall of the camera)
             camera_state = "stalled"
         for dev, st in (("scanner", scanner_state), ("base", base_state), ("camera", camera_state)):
             self._track_state(dev, st, now_s)

@@ -350,9 +350,9 @@ class CameraAdapter:
         return url + (f"; last error: {err}" if err is not None and not self.source.connected else "")
 
     def state(self) -> str:
-        if self.source.last_error is not None and not self.source.connected:
-            return "connecting"
-        return "ok" if self.source.connected else "connecting"
+        """"ok" once the stream is connected and its first frame came through (the HTTP answer comes
+        before the first frame, when frames are not flowing yet), else "connecting"."""
+        return "ok" if self.source.connected and self.source.stats.frames > 0 else "connecting"
 
     def latest(self) -> FrameSample | None:
         f = self.source.latest()
@@ -389,17 +389,29 @@ class CameraAdapter:
 # ---------------------------------------------------------------------------------------------
 
 
-def _open_field_log(config: Config, path: str) -> FieldLog | None:
-    """The field log (to ``path``, and/or feeding the live view); None when neither is wanted."""
+def _new_field_log(config: Config, path: str) -> FieldLog | None:
+    """The field log (to ``path``, and/or feeding the live view), not yet started (no file yet); None
+    when neither is wanted."""
     if not path and not config.live.listen:
         return None
     lc = config.log
-    log = FieldLog(path or None, compression=lc.compression, rotate_bytes=lc.rotate_bytes, rotate_s=lc.rotate_s,
-                   flush_s=lc.flush_s, queue_size=lc.queue_size)
+    return FieldLog(path or None, compression=lc.compression, rotate_bytes=lc.rotate_bytes, rotate_s=lc.rotate_s,
+                    flush_s=lc.flush_s, queue_size=lc.queue_size)
+
+
+def _start_field_log(log: FieldLog, path: str) -> None:
+    """Opens the first file and starts the writer."""
     try:
-        return log.start()
+        log.start()
     except OSError as exc:  # unwritable folder, name too long, no such folder, disk full
         raise AppError(f"config key 'log.path': cannot open {path!r} for writing: {exc.strerror or exc}") from exc
+
+
+def _start_status_server(config: Config) -> StatusServer | None:
+    if not config.status.enabled:
+        return None
+    s = config.status
+    return StatusServer(s.host, s.port, s.allow_stop_coil, s.max_connections, s.idle_timeout_s).start()
 
 
 def _live_address(config: Config) -> tuple[str, int] | None:
@@ -418,9 +430,9 @@ def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None
     assert field_log is not None
     try:
         live = LiveView(field_log.context, *address).start()
-    except AppError:
-        field_log.close()
-        raise
+    except AppError as exc:  # name the usual cause (a second instance) and the fix
+        raise AppError(f"{exc} (port in use by another instance? give another with --live [HOST:]PORT or "
+                       "live.listen, port 0 = any free port)") from exc
     print(f"vipsm-robot: info: live view on {live.url} (Foxglove or Lichtblick: open connection, Foxglove "
           f"WebSocket; layout: {layout_path()})", file=sys.stderr, flush=True)
     return live
@@ -465,29 +477,25 @@ def build_loop(
                         d.robot_command_period_s) if d.robot_url else None)
     camera = CameraAdapter(config) if d.camera_http_url else None
     path = log_path if log_path is not None else config.log.path
+    field_log: FieldLog | None = None
+    live: LiveView | None = None
+    status: StatusServer | None = None
     try:
-        live_at = _live_address(config)  # a refused address leaves no log file behind
-        field_log = _open_field_log(config, path)
+        # the ports first, the file last: a start that fails on a port in use leaves no empty log behind
+        live_at = _live_address(config)
+        field_log = _new_field_log(config, path)
         live = _start_live_view(live_at, field_log)
+        status = _start_status_server(config)
+        if field_log is not None:
+            _start_field_log(field_log, path)
     except (AppError, OSError):
+        for server in (status, live):
+            if server is not None:
+                server.stop()
         for dev in (scanner, base, camera):
             if dev is not None:
                 dev.close()
         raise
-    status = None
-    if config.status.enabled:
-        s = config.status
-        try:
-            status = StatusServer(s.host, s.port, s.allow_stop_coil, s.max_connections, s.idle_timeout_s).start()
-        except AppError:
-            for dev in (scanner, base, camera):
-                if dev is not None:
-                    dev.close()
-            if live is not None:
-                live.stop()
-            if field_log is not None:
-                field_log.close()
-            raise
     _warm_up_matcher(config)
     if ros2 is not None:
         ros2.start()

@@ -83,7 +83,8 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "live_url": loop.live_view.url if loop.live_view is not None else None,
             "ros2": loop.ros2.summary() if getattr(loop, "ros2", None) is not None else None,
             "status_server": None if loop.status is None else {
-                "restarts": loop.status.restarts, "last_failure": loop.status.last_failure,
+                "host": loop.status.host, "port": loop.status.port, "restarts": loop.status.restarts,
+                "last_failure": loop.status.last_failure,
                 "refused_writes": loop.status.refused_writes, **loop.status.connection_counts()},
             "events": list(s.state_changes)[-50:],
         }

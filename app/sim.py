@@ -6,6 +6,13 @@ server) with the fakes' addresses as device URLs and the ``cruise`` mission at t
 speed. The child streams the world's ground truth; the summary compares the daemon's live estimates
 with it, using the evaluation's metric (``app.evaluation.metrics``: obstacle errors over the cycles where a
 moving obstacle is in the camera's view, greedy nearest assignment, located within 0.5 m).
+
+The scenario starts only when the daemon is ready: the child serves the world frozen at its time 0
+while this process compiles its kernels and opens the devices, then ``start`` (``app.simhost``)
+starts the world's clock just before the first cycle, however slow the machine.
+
+Test hook: ``VIPSM_TEST_SLOW_START_S=S`` delays the daemon's start by S seconds after the simulated
+devices are up (a slow or busy machine, simulated); for tests only, never set it otherwise.
 """
 
 from __future__ import annotations
@@ -46,6 +53,10 @@ from .evaluation.runner import _replace_fields, mount_values
 from .evaluation.scenarios import scenario_param_sets
 
 SIM_LOG_PATTERN = "sim-%Y%m%d-%H%M%S.mcap"
+#: the test hook delaying the daemon's start (see the module's doc)
+SLOW_START_ENV = "VIPSM_TEST_SLOW_START_S"
+#: how long the child may take to start the world's clock once asked
+START_TIMEOUT_S = 30.0
 
 
 def compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
@@ -69,6 +80,9 @@ class TruthStream:
         self._lock = threading.Lock()
         self.final: dict[str, Any] | None = None
         self.error: str | None = None
+        #: set when the child started the world's clock (its T0 in ``t0_mono``), or when the stream ended
+        self.started = threading.Event()
+        self.t0_mono: float | None = None
         self._thread = threading.Thread(target=self._run, name="sim-truth", daemon=True)
         self._thread.start()
 
@@ -76,6 +90,10 @@ class TruthStream:
         try:
             for line in self._stream:
                 msg = json.loads(line)
+                if "started" in msg:
+                    self.t0_mono = float(msg["started"])
+                    self.started.set()
+                    continue
                 if "final" in msg:
                     self.final = msg["final"]
                     continue
@@ -84,6 +102,8 @@ class TruthStream:
                     self._samples.append(msg)
         except (ValueError, OSError) as exc:
             self.error = f"{type(exc).__name__}: {exc}"
+        finally:
+            self.started.set()
 
     def at(self, t: float) -> dict[str, Any] | None:
         with self._lock:
@@ -203,6 +223,29 @@ class SimScorer:
         return out
 
 
+def _slow_start_for_tests() -> None:
+    """The test hook: sleeps ``$VIPSM_TEST_SLOW_START_S`` seconds (unset: none)."""
+    text = os.environ.get(SLOW_START_ENV, "")
+    if text:
+        try:
+            delay_s = float(text)
+        except ValueError as exc:
+            raise AppError(f"{SLOW_START_ENV}={text!r}: not a number of seconds") from exc
+        time.sleep(max(0.0, delay_s))
+
+
+def start_world(child: subprocess.Popen[str], truth: TruthStream) -> float:
+    """Tells the child the daemon is ready and waits for the world's clock to start; returns its T0
+    (monotonic)."""
+    assert child.stdin is not None
+    child.stdin.write("start\n")
+    child.stdin.flush()
+    if not truth.started.wait(START_TIMEOUT_S) or truth.t0_mono is None:
+        raise AppError(f"the simulated world did not start within {START_TIMEOUT_S:g} s"
+                       + (f" ({truth.error})" if truth.error else ""))
+    return truth.t0_mono
+
+
 def _sim_config(config: Config, addresses: dict[str, Any], speed_mps: float, mode: str = "cruise") -> Config:
     d = dataclasses.replace(
         config.devices,
@@ -265,6 +308,24 @@ def headline_lines(summary: dict[str, Any]) -> list[str]:
         verdict = {True: "met", False: "MISSED", None: ""}[row["met"]]
         lines.append(f"  {label:<24} {value:>12}   {target:<20} {verdict}")
     return lines
+
+
+def summary_lines(summary: dict[str, Any]) -> list[str]:
+    """``sim``'s short summary for a terminal: what ran, where its log and status server are, and the
+    headline table last (so it is what stays on the screen)."""
+    devices = summary.get("devices") or {}
+    counts = (f"{summary.get('scans', 0)} scans, {summary.get('odometry_samples', 0)} odometry samples, "
+              f"{summary.get('frames_used', 0)} frames used")
+    lines = [f"devices: {counts}" + ("" if len(devices) == 3 else f" ({', '.join(sorted(devices))} only)")]
+    log = summary.get("log_path")
+    lines.append(f"log:     {log}   (vipsm-robot replay {log})" if log else "log:     none")
+    status = summary.get("status_server")
+    if status is not None:
+        lines.append(f"status:  Modbus TCP on {status['host']}:{status['port']}")
+    if summary.get("live_url"):
+        lines.append(f"live:    {summary['live_url']}")
+    lines.append("more:    --verbose (every figure), --json (the same as one JSON object)")
+    return lines + headline_lines(summary)
 
 
 SIM_DIR_PREFIX = "vipsm-sim-"
@@ -334,8 +395,17 @@ def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:
         scorer = SimScorer(truth)
         cfg = _sim_config(config, addresses, float(scenario.robot_speed_mps), getattr(args, "mission", "cruise"))
         log_path = args.log if args.log is not None else (cfg.log.path if args.config else SIM_LOG_PATTERN)
+        _slow_start_for_tests()
         loop = build_loop(cfg, log_path=log_path, truth=scorer.truth_for_log)
         loop.on_estimate = scorer.on_estimate
+        try:
+            from .daemon import freeze_startup_objects
+
+            freeze_startup_objects()  # the loop's own start-up pause, before the world's clock starts
+            start_world(child, truth)  # the daemon is ready: kernels loaded, devices open
+        except AppError:
+            loop.shutdown()
+            raise
         stop = threading.Event()
         from .runtime import install_signal_handlers
 

@@ -3,16 +3,24 @@
 ``python -m app.simhost PARAMS_JSON DIR`` builds the world from scenario parameters and serves
 the three byte-level fakes on it: the UTM-30LX and the Pioneer on pseudo-terminals (stable links
 ``DIR/scanner`` and ``DIR/robot``), the SNC-RZ50's VISCA on a pseudo-terminal (``DIR/camera``) and
-its frames over loopback HTTP. The world's clock is ``time.monotonic() - T0`` (T0: when serving
-starts), shared by every fake, so the daemon's host stamps and the truth line up.
+its frames over loopback HTTP. The world's clock is ``time.monotonic() - T0`` (T0: when the
+daemon says it is ready), shared by every fake, so the daemon's host stamps and the truth line up.
 
-Protocol on stdout, one JSON object per line:
+The world stands still at its time 0 until the daemon is ready: the fakes serve it from the start
+(so the daemon's devices can open and stream), but no scenario time passes while the daemon compiles
+its kernels and opens its devices, however long that takes on a slow or busy machine.
 
-* first ``{"scanner": path, "robot": path, "camera": path, "camera_http": url, "t0_mono": T0}``;
-* then ``{"t": monotonic, "robot": [x, y, theta], "obstacles": [[x, y, vx, vy, r, moving, in_view], ...]}``
+Protocol, one JSON object (or word) per line:
+
+* on stdout, first ``{"scanner": path, "robot": path, "camera": path, "camera_http": url}`` (the world
+  frozen at its time 0);
+* on stdin, ``start`` when the daemon is ready for its first cycle: the world's clock starts (T0);
+* on stdout, ``{"started": T0}`` in reply, then
+  ``{"t": monotonic, "robot": [x, y, theta], "obstacles": [[x, y, vx, vy, r, moving, in_view], ...]}``
   every ``TRUTH_PERIOD_S`` (world frame; ``in_view``: moving and at least half inside the camera's
   horizontal field of view);
-* last, after stdin closes: ``{"final": {...}}`` with the fakes' byte counts and faults.
+* last, after stdin closes (also before ``start``: the daemon gave up): ``{"final": {...}}`` with the
+  fakes' byte counts and faults.
 """
 
 from __future__ import annotations
@@ -41,10 +49,15 @@ TRUTH_PERIOD_S = 0.02
 
 
 class _Shift:
-    """World adapters take world time; the fakes call with host monotonic time."""
+    """World adapters take world time; the fakes call with host monotonic time. Before ``start`` the
+    world's time is 0 (T0 is +inf)."""
 
-    def __init__(self, t0_mono: float) -> None:
-        self.t0 = t0_mono
+    def __init__(self) -> None:
+        self.t0 = math.inf
+
+    def start(self) -> float:
+        self.t0 = time.monotonic()
+        return self.t0
 
     def __call__(self, t_mono: float) -> float:
         return max(0.0, t_mono - self.t0)
@@ -86,8 +99,7 @@ class SimHost:
     def __init__(self, params: dict[str, Any], directory: Path) -> None:
         self.scenario = build_scenario(params)
         self.world = World(self.scenario)
-        self.t0 = time.monotonic()
-        shift = _Shift(self.t0)
+        shift = _Shift()
         self.shift = shift
         w = self.world
         self.scanner = DeviceServer(
@@ -114,8 +126,11 @@ class SimHost:
             "robot": self.robot.address,
             "camera": self.visca.address,
             "camera_http": self.http.url,
-            "t0_mono": self.t0,
         }
+
+    def start(self) -> float:
+        """The daemon is ready: the world's clock starts now; returns T0 (monotonic)."""
+        return self.shift.start()
 
     def truth_line(self, t_mono: float) -> dict[str, Any]:
         tr = self.world.truth(self.shift(t_mono))
@@ -171,14 +186,25 @@ def main(argv: list[str]) -> int:
     out.write(json.dumps(host.addresses()) + "\n")
     out.flush()
     done = threading.Event()
+    started = threading.Event()
 
     def watch_stdin() -> None:
-        sys.stdin.read()  # returns when the parent closes our stdin (or dies)
-        done.set()
+        try:
+            for line in sys.stdin:  # "start" once the daemon is ready; EOF when the parent closes it (or dies)
+                if line.strip() == "start" and not started.is_set():
+                    out.write(json.dumps({"started": host.start()}) + "\n")
+                    out.flush()
+                    started.set()
+        except (OSError, ValueError) as exc:  # the parent went away mid-write
+            print(f"simhost: {type(exc).__name__}: {exc}", file=sys.stderr)
+        finally:
+            done.set()
+            started.set()
 
     threading.Thread(target=watch_stdin, daemon=True).start()
-    next_t = time.monotonic()
     try:
+        started.wait()  # ends at "start" or when stdin closes (the parent closed it, or died)
+        next_t = time.monotonic()
         while not done.is_set():
             now = time.monotonic()
             out.write(json.dumps(host.truth_line(now)) + "\n")

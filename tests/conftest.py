@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Generator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -53,3 +55,29 @@ def _no_files_left_in_the_working_folder() -> object:
     # tools' own caches (.hypothesis, .pytest_cache, __pycache__) appear on a first run: not a test's
     left = sorted(n for n in {p.name for p in cwd.iterdir()} - before if not n.startswith((".", "__")))
     assert not left, f"the test left {left} in {cwd}"
+
+
+def _skipped_for_the_data(report: pytest.TestReport) -> bool:
+    """A test skipped because the recorded data is absent (the ``shared_data`` fixture's reason, or a
+    module's own ``../shared/data/...`` reason)."""
+    longrepr = report.longrepr
+    reason = longrepr[2] if isinstance(longrepr, tuple) and len(longrepr) == 3 else str(longrepr)
+    return "shared/data" in reason or str(shared_data_dir()) in reason or "recorded data not found" in reason
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> Generator[None]:
+    """Says once, at the end (after pytest's short summary, before its count line), how many tests
+    skipped because the recorded data is absent (a fresh clone has no ``../shared/data``), where it
+    was looked for and how to point to it."""
+    try:
+        return (yield)
+    finally:
+        skipped = [r for r in terminalreporter.stats.get("skipped", []) if _skipped_for_the_data(r)]
+        if skipped:
+            terminalreporter.write_sep("-", "real recorded data absent", yellow=True)
+            terminalreporter.write_line(
+                f"{len(skipped)} test(s) skipped: the real recorded data is not at {shared_data_dir()} "
+                "(a fresh clone has none; put it in ../shared/data beside the repository or set "
+                "VIPSM_SHARED_DATA to its folder to run them)"
+            )

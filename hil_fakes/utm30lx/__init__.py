@@ -33,7 +33,8 @@ Unverified device behaviour is a config value with a stated default (see :class:
 
 from __future__ import annotations
 
-from .model import _MAX_CATCH_UP_SCANS, _SS_RATES, _TAG_CHARS, Utm30lxConfig, Utm30lxModel, _PendingSingle, _Stream
+from .config import _MAX_CATCH_UP_SCANS, _SS_RATES, _TAG_CHARS, Utm30lxConfig, _PendingSingle, _Stream
+from .model import Utm30lxModel
 from .protocol import data_block, encode, info_line, scip_sum, status_line, time_line
 from .server import serve_pty, serve_tcp
 from .source import _MASK24, FixedRoom, RangeSource

@@ -1,7 +1,10 @@
 """The daemon end to end: `sim` through the real bytes, signals, replay, unplug/replug, Modbus.
 
-These run the real loop against the byte-level fakes; assertions are on behaviour and counts with
-generous bounds, never on timing (the machine is shared).
+These run the real loop against the byte-level fakes on the wall clock, so every assertion is a
+property that holds however slow or busy the machine is (issue 31): the loop's own accounting, the log
+against the daemon's counters, the estimator's accuracy on the cycles it ran; never a count of cycles
+or messages a real-time run "should" reach, never a latency bound (speed belongs in ``bench``).
+Waits are bounded generously: they end a hung run, they do not measure one.
 """
 
 from __future__ import annotations
@@ -40,8 +43,9 @@ def run_cli(*args: str, timeout_s: float = 240, cwd: Path | None = None) -> subp
 @pytest.fixture(scope="module")
 def sim_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path]:
     log = tmp_path_factory.mktemp("sim") / "run.mcap"
+    # no status.port given: sim listens on any free port (a second run at once does not clash)
     proc = run_cli("sim", "--scenario", "2", "--duration", str(SIM_S), "--json", "--no-progress",
-                   "--log", str(log), "--set", "status.port=0")
+                   "--log", str(log))
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout), log
 
@@ -52,7 +56,10 @@ def test_sim_summary_has_the_interface_fields_and_meets_the_targets(sim_run: tup
                 "log_path"):
         assert key in summary
     assert summary["log_path"] == str(log)
-    assert summary["cycles"] >= 0.9 * SIM_S / 0.1
+    # every period of the run was either a cycle or counted as skipped (a busy machine skips some)
+    assert summary["cycles"] > 0
+    assert summary["cycles"] + summary["skipped_periods"] >= SIM_S / 0.1 - 1
+    assert 0 < summary["status_server"]["port"] != 5020
     assert summary["log_dropped"] == 0 and summary["log_error"] is None
     # the evaluation's targets (issue 6), here through the bytes and the real-time loop
     assert summary["obstacle_err_mean_m"] <= 0.10
@@ -73,9 +80,10 @@ def test_sim_log_has_every_channel_at_its_rate(sim_run: tuple[dict, Path]) -> No
     assert not result.truncated
     cycles = summary["cycles"]
     estimates = summary["estimates"]
-    assert counts["/scan"] >= 0.7 * 40 * SIM_S  # every scan, 40 Hz
-    assert counts["/odom"] >= 0.7 * 10 * SIM_S  # every SIP, 10 Hz
-    assert counts["/camera/image"] >= 0.7 * 10 * SIM_S  # every frame used, 10 fps
+    # every sample the daemon received is in the log (however many a busy machine let through)
+    assert counts["/scan"] == summary["scans"] > 0
+    assert counts["/odom"] == summary["odometry_samples"] > 0
+    assert counts["/camera/image"] == summary["frames"] > 0
     assert counts["/diagnostics"] == cycles
     for topic in ("/pose", "/obstacles", "/vipsm/cycle", "/truth"):
         assert counts[topic] >= estimates - 1, topic
@@ -103,7 +111,7 @@ def _start_sim(log: Path) -> subprocess.Popen[str]:
     )
 
 
-def _wait_for_cycles(log: Path, proc: subprocess.Popen[str], n: int, timeout_s: float = 60) -> None:
+def _wait_for_cycles(log: Path, proc: subprocess.Popen[str], n: int, timeout_s: float = 600) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
@@ -132,20 +140,20 @@ def test_sigterm_stops_cleanly_with_a_complete_log(tmp_path: Path) -> None:
         assert make_reader(f).get_summary() is not None
 
 
-def test_sigkill_leaves_a_readable_log_missing_at_most_the_last_second(tmp_path: Path) -> None:
+def test_sigkill_leaves_a_readable_log_that_keeps_everything_flushed_before(tmp_path: Path) -> None:
+    """The log is flushed every log.flush_s (on a simulated clock in test_fieldlog.py); here: SIGKILL
+    loses nothing that was flushed, and what is left reads back. (How much a kill loses depends on how
+    far the writer got, which a busy machine slows: no bound on seconds here.)"""
     log = tmp_path / "kill.mcap"
     proc = _start_sim(log)
     _wait_for_cycles(log, proc, 20)
-    time.sleep(1.0)
-    killed_wall = time.time()
+    flushed = [m.log_time_ns for m in read_log(log, LogReadResult()) if m.topic == "/diagnostics"]
     proc.send_signal(signal.SIGKILL)
-    proc.communicate(timeout=30)
+    proc.communicate(timeout=60)
     result = LogReadResult()
     msgs = list(read_log(log, result))
-    diag = [m for m in msgs if m.topic == "/diagnostics"]
-    assert len(diag) >= 20
-    lost_s = killed_wall - diag[-1].log_time_ns / 1e9
-    assert lost_s <= 1.0 + 0.5  # flush every 0.5 s; slack for a loaded machine
+    diag = [m.log_time_ns for m in msgs if m.topic == "/diagnostics"]
+    assert len(flushed) >= 20 and diag[: len(flushed)] == flushed
 
 
 # ---------------------------------------------------------------------------------------------
@@ -192,7 +200,7 @@ def run_loop_in_thread(loop, seconds: float) -> tuple[threading.Thread, threadin
     return t, stop
 
 
-def wait_until(pred, timeout_s: float = 20.0) -> bool:  # type: ignore[no-untyped-def]
+def wait_until(pred, timeout_s: float = 120.0) -> bool:  # type: ignore[no-untyped-def]
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if pred():
@@ -210,7 +218,7 @@ def test_unplugged_scanner_stops_the_base_and_is_used_again_after_replug(rig: Ri
         assert wait_until(lambda: loop.mission_state == "device_stop")
         assert wait_until(lambda: rig.robot_model.setpoint[0] == 0.0)
         before = loop.stats.estimates
-        assert wait_until(lambda: loop.mission_state == "moving" and loop.stats.estimates > before + 10, 30)
+        assert wait_until(lambda: loop.mission_state == "moving" and loop.stats.estimates > before + 10)
         events = " | ".join(loop.stats.state_changes)
         assert "scanner: ok ->" in events and "-> ok" in events.split("scanner: ok ->", 1)[1]
         # no camera configured: plain PSM, flagged on every estimate
@@ -357,7 +365,7 @@ def test_a_log_in_the_first_layout_still_replays_identically(sim_run: tuple[dict
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     assert out["log_version"] == 1 and out["bad_messages"] == 0
-    assert out["cycles"] > 50 and out["identical_to_recorded"] == out["cycles"]
+    assert out["cycles"] > 0 and out["identical_to_recorded"] == out["cycles"]
 
 
 def test_rosbag2_export_reads_back_with_types_counts_stamps_and_frames(sim_run: tuple[dict, Path],
@@ -453,14 +461,49 @@ def test_sim_summary_starts_with_the_headline_figures_and_their_targets(sim_run:
     assert head["pose_err_final_m"]["met"] == (summary["pose_err_final_m"] <= 0.05)
 
 
-def test_sim_prints_the_headline_first_on_a_terminal(tmp_path: Path) -> None:
-    proc = run_cli("sim", "--scenario", "2", "--duration", "3", "--no-progress", "--set", "status.port=0",
-                   "--log", str(tmp_path / "h.mcap"))
+def test_sim_prints_a_short_summary_with_the_headline_last(tmp_path: Path) -> None:
+    proc = run_cli("sim", "--scenario", "2", "--duration", "3", "--no-progress", "--log", str(tmp_path / "h.mcap"))
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
-    assert lines[0].startswith("sim: ") and "obstacle error, mean" in lines[1]
-    assert "final pose error" in lines[4] and "deadline misses" in lines[5]
-    assert all(w in " ".join(lines[1:6]) for w in ("target", "met")) and lines[6] == "details:"
+    assert len(lines) <= 15  # it fits on a screen; every figure with --verbose, or --json
+    assert lines[0].startswith("devices: ")
+    assert lines[1] == f"log:     {tmp_path / 'h.mcap'}   (vipsm-robot replay {tmp_path / 'h.mcap'})"
+    assert lines[2].startswith("status:  Modbus TCP on 127.0.0.1:") and not lines[2].endswith(":5020")
+    head = lines[-6:]  # the headline is what stays on the screen
+    assert head[0].startswith("sim: scenario2_90deg") and "obstacle error, mean" in head[1]
+    assert "final pose error" in head[4] and "deadline misses" in head[5]
+    assert all(w in " ".join(head[1:]) for w in ("target", "met"))
+    # the camera's first frame is waited for at start-up: it is never "stalled" before it came
+    assert "camera: stalled" not in proc.stderr and "camera: connecting" not in proc.stderr
+
+
+def test_sim_verbose_prints_every_figure_before_the_short_summary(tmp_path: Path) -> None:
+    proc = run_cli("sim", "--scenario", "2", "--duration", "2", "--no-progress", "--verbose",
+                   "--log", str(tmp_path / "v.mcap"))
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    assert out.index("fakes:") < out.index("devices: ") < out.index("sim: scenario2_90deg")
+    assert out.splitlines()[-1].lstrip().startswith("deadline misses")
+
+
+def test_the_first_run_on_a_slow_machine_still_locates_the_scenarios_obstacle(tmp_path: Path) -> None:
+    """Issue 31: with an empty kernel cache (numba compiles every kernel) and the daemon's start
+    delayed further (the test hook VIPSM_TEST_SLOW_START_S, a slow or busy machine simulated), the
+    scenario waits for the daemon: its obstacle crosses while the daemon runs, not while it compiled.
+    (Before the fix the world's clock ran from the child's start: with 20 s more than the compile,
+    the cylinder had crossed before the first cycle and both obstacle figures were n/a.)"""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty-kernel-cache"), "VIPSM_TEST_SLOW_START_S": "20"}
+    log = tmp_path / "first.mcap"
+    # the cylinder enters the camera's view about 5 s into the scenario: 15 s leave it in view for 10 s
+    proc = subprocess.run([sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", "15", "--json",
+                           "--no-progress", "--log", str(log)], capture_output=True, text=True, timeout=1800, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert any((tmp_path / "empty-kernel-cache").rglob("*.nbi"))  # the kernels were compiled, not loaded
+    s = json.loads(proc.stdout)
+    in_view = [m.data for m in read_log(log) if m.topic == "/truth" and any(o[6] for o in m.data["obstacles"])]
+    assert in_view  # the obstacle crossed the camera's view while the daemon ran its cycles
+    assert s["headline"]["obstacle_err_mean_m"]["value"] is not None
+    assert s["obstacle_detected_fraction"] > 0.0  # located (the targets are checked on sim_run)
 
 
 def test_sim_runs_triggered_by_scans_and_reports_its_latencies(tmp_path: Path) -> None:
@@ -489,7 +532,7 @@ def test_the_lens_distortion_from_the_config_reaches_the_estimator_and_replays(t
     replay = run_cli("replay", str(log), "--json")
     assert replay.returncode == 0, replay.stderr
     out = json.loads(replay.stdout)
-    assert out["identical_to_recorded"] == out["cycles"] > 20
+    assert out["identical_to_recorded"] == out["cycles"] > 0
 
 
 def test_sim_without_a_field_log(tmp_path: Path) -> None:

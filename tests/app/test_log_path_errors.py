@@ -32,7 +32,8 @@ def test_run_names_each_device_its_url_and_why_it_is_not_there(capsys: pytest.Ca
             "--set", "log.path=''", "--set", "devices.startup_wait_s=0.5"]
     code = main(["run", *args, "--duration", "1.0"])
     err = capsys.readouterr().err
-    assert code == 0
+    assert code == 4  # a bounded run in which a configured device never opened (issue 31)
+    assert "vipsm-robot run: error: the scanner never opened during the run (/dev/vipsm-nosuch" in err
     lines = [ln for ln in err.splitlines() if ln.startswith("vipsm-robot: ") and "scanner:" in ln]
     assert lines and "/dev/vipsm-nosuch" in lines[0]
     assert any("last error" in ln for ln in lines) or "connecting" in lines[0]

@@ -263,7 +263,10 @@ def test_stamp_is_the_time_of_the_first_beam_of_the_window(fake: DeviceServer) -
 
 
 def test_clock_drift_is_followed_while_streaming(tmp_path: Path) -> None:
-    # 1 % drift, exaggerated so 3 s of streaming separate tracked (few ms) from untracked (~30 ms) stamps
+    # 1 % drift, exaggerated so 3 s of streaming separate tracked (few ms) from untracked (~30 ms) stamps.
+    # On the wall clock a busy machine delays frames by a varying amount, so this checks what holds
+    # however slow the machine: the correction has the drift's sign and brings the stamps closer to the
+    # truth than the TM offset alone; its accuracy is checked on simulated arrival times (test_timebase.py).
     model = Utm30lxModel(Utm30lxConfig(clock_drift_ppm=10_000.0))
     server = start_fake("pty", tmp_path, model)
     try:
@@ -276,11 +279,10 @@ def test_clock_drift_is_followed_while_streaming(tmp_path: Path) -> None:
             c.stop_stream()
             offset = c.clock_offset
             assert offset is not None
-            assert c.drift_correction_s < -0.015  # the device clock runs fast: the offset shrinks
+            assert c.drift_correction_s < 0.0  # the device clock runs fast: the offset shrinks
         truth = model.host_time_of_device_ms(last.device_stamp_raw_ms)
         untracked = last.device_stamp_ms / 1000.0 + offset.offset_s  # what the TM offset alone gives
-        assert abs(last.stamp_s - truth) < 0.015
-        assert abs(untracked - truth) > 0.02
+        assert abs(last.stamp_s - truth) < abs(untracked - truth)
     finally:
         server.stop()
 
