@@ -571,9 +571,9 @@ class ControlLoop:
         else:
             state = "hold"
         if state != self.mission_state:
-            self.say(
-                "warning" if state.endswith("stop") else "info", f"mission: {self.mission_state} -> {state}", now_s
-            )
+            # a device stop is a fault; a safety, protective or coil stop is the mission doing its job
+            level = "warning" if state == "device_stop" else "info"
+            self.say(level, f"mission: {self.mission_state} -> {state}", now_s)
             self.mission_state = state
         if state == "device_stop":
             self.stats.device_stop_cycles += 1

@@ -235,6 +235,8 @@ def test_cruise_stops_for_a_standing_person_and_resumes_when_clear(capsys: pytes
     err = capsys.readouterr().err
     assert "protective field: object 0.44 m ahead" in err and "mission: moving -> protective_stop" in err
     assert "protective field: clear for 1 s" in err and err.count("protective field:") == 2  # once per change
+    # a stop for something in the path is the mission doing its job, not a fault: no warning line
+    assert "info: mission: moving -> protective_stop" in err and "warning" not in err
 
 
 def test_cruise_stops_for_a_wall_and_a_mixed_pixel_does_not_stop_it() -> None:
