@@ -198,24 +198,29 @@ def export_rosbag2(log_path: str | Path, out_dir: str | Path) -> ExportResult:
     result = ExportResult(str(out))
     from rosbags.rosbag2 import WriterError
 
-    with partial_folder(out) as tmp:
-        try:
+    try:
+        with partial_folder(out) as tmp:
             with _Bag(tmp) as bag:
                 for msg in read_log(log_path, result.read):
                     _export_checked(bag, msg, result)
-        except WriterError as exc:
-            raise AppError(f"cannot write the ROS 2 bag to {out}: {exc}") from exc
-        except OSError as exc:
-            raise AppError(f"cannot write the ROS 2 bag to {out}: {exc.strerror or exc}") from exc
-        if not result.counts:
-            r = result.read
-            why = f"truncated: {r.reason}" if r.truncated else "no /scan, /odom, /tf, /camera/image or /vipsm/cycle"
-            raise AppError(f"{log_path}: no message to export ({why}; {r.bad_messages} malformed, "
-                           f"{r.bad_chunks} damaged chunk(s)){': ' + (r.bad + r.corruption)[0] if r.damaged else ''}")
-        if out.exists():
-            raise AppError(f"{out} appeared while exporting: the bag is not moved there")
-        os.rename(tmp, out)
+            _finish(log_path, out, tmp, result)
+    except WriterError as exc:
+        raise AppError(f"cannot write the ROS 2 bag to {out}: {exc}") from exc
+    except OSError as exc:
+        raise AppError(f"cannot write the ROS 2 bag to {out}: {exc.strerror or exc}") from exc
     return result
+
+
+def _finish(log_path: str | Path, out: Path, tmp: Path, result: ExportResult) -> None:
+    """The complete bag moved to ``out``, unless nothing was exported."""
+    if not result.counts:
+        r = result.read
+        why = f"truncated: {r.reason}" if r.truncated else "no /scan, /odom, /tf, /camera/image or /vipsm/cycle"
+        raise AppError(f"{log_path}: no message to export ({why}; {r.bad_messages} malformed, "
+                       f"{r.bad_chunks} damaged chunk(s)){': ' + (r.bad + r.corruption)[0] if r.damaged else ''}")
+    if out.exists():
+        raise AppError(f"{out} appeared while exporting: the bag is not moved there")
+    os.rename(tmp, out)
 
 
 @contextlib.contextmanager
