@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -110,7 +111,7 @@ def view_limits(traces: Sequence[RunTrace], margin_m: float = 0.8) -> tuple[floa
 
 
 def _metres(ax) -> None:  # type: ignore[no-untyped-def]
-    ax.set_aspect("equal", adjustable="box")
+    ax.set_aspect("equal", adjustable="datalim")  # the panel fills its place; the limits widen to keep 1:1
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.grid(True, lw=0.3, color="0.85")
@@ -120,9 +121,8 @@ def fig8(traces: Sequence[RunTrace], name: str, paper: bool) -> object:
     plt = _plt()
     times = snapshot_times(traces[0], paper)
     x0, x1, y0, y1 = view_limits(traces)
-    row_in = 3.85 * (y1 - y0) / (x1 - x0) + 0.45  # a panel of equal aspect 3.85 in wide, and its title
-    fig, axes = plt.subplots(len(traces), len(times), figsize=(4.2 * len(times), row_in * len(traces) + 0.9),
-                             sharex=True, sharey=True, squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(len(traces), len(times), figsize=(4.2 * len(times), 3.6 * len(traces)),
+                             squeeze=False, layout="constrained")  # same limits set on each; not shared (datalim)
     for row, trace in enumerate(traces):
         for col, t_s in enumerate(times):
             _map_panel(axes[row][col], trace, t_s)
@@ -166,8 +166,8 @@ def _paths_panel(ax, trace: RunTrace) -> None:  # type: ignore[no-untyped-def]
 
 def fig9(traces: Sequence[RunTrace], name: str) -> object:
     plt = _plt()
-    fig, axes = plt.subplots(1, len(traces), figsize=(6.5 * len(traces), 5.6), sharex=True, sharey=True,
-                             squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(1, len(traces), figsize=(6.5 * len(traces), 5.0), squeeze=False,
+                             layout="constrained")
     x0, x1, y0, y1 = view_limits(traces)
     for ax, trace in zip(axes[0], traces):
         _paths_panel(ax, trace)
@@ -208,7 +208,7 @@ def pose_errors(trace: RunTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def fig_errors(traces: Sequence[RunTrace], name: str) -> object:
     plt = _plt()
-    fig, (ax_o, ax_p, ax_h) = plt.subplots(3, 1, figsize=(8.0, 7.8), sharex=True, layout="constrained")
+    fig, (ax_o, ax_p, ax_h) = plt.subplots(3, 1, figsize=(8.0, 7.5), sharex=True, layout="constrained")
     has_truth = any(c.pose_true is not None for tr in traces for c in tr.cycles)
     scored = _shade_scored(ax_o, traces[0]) if traces else False
     for trace in traces:
@@ -303,7 +303,9 @@ def save_atomic(fig: object, path: Path) -> None:
     part: written and fsynced under a temporary name in the same folder, then renamed over it."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
     try:
-        with open(tmp, "wb") as f:
+        with open(tmp, "wb") as f, warnings.catch_warnings():
+            # the maps keep 1:1 by widening the view limits to fill their panel (adjustable="datalim"): wanted
+            warnings.filterwarnings("ignore", message=r"Ignoring fixed [xy] limits to fulfill fixed data aspect")
             fig.savefig(f, format=path.suffix.lstrip("."), dpi=DPI)  # type: ignore[attr-defined]
             f.flush()
             os.fsync(f.fileno())

@@ -49,6 +49,11 @@ def test_every_label_and_title_lies_inside_the_figure(figure: str) -> None:
     texts = [t for ax in fig.axes for t in (ax.xaxis.label, ax.yaxis.label, ax.title) if t.get_text()]
     texts += [lg for lg in fig.legends] + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
     texts.append(fig._suptitle)
+    top = fig._suptitle.get_window_extent(renderer).y0
+    assert all(ax.title.get_window_extent(renderer).y1 <= top + 1 for ax in fig.axes), "the title overlaps a panel's"
+    if fig.legends:  # a legend below the panels: under every x label
+        under = fig.legends[0].get_window_extent(renderer).y1
+        assert all(ax.xaxis.label.get_window_extent(renderer).y0 >= under - 1 for ax in fig.axes if ax.get_xlabel())
     for t in texts:
         ext = t.get_window_extent(renderer)
         assert box.x0 - 1 <= ext.x0 and ext.x1 <= box.x1 + 1 and box.y0 - 1 <= ext.y0 and ext.y1 <= box.y1 + 1, \
