@@ -45,7 +45,8 @@ MAX_BAD_REASONS = 20
 #: a chunk holds at least one message, and no message of a field log comes near this)
 MAX_CHUNK_BYTES = 256 * 1024 * 1024
 
-OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
+OP_MESSAGE_INDEX, OP_ATTACHMENT, OP_METADATA, OP_DATA_END = 0x07, 0x09, 0x0C, 0x0F
 #: opcodes of the MCAP specification (0x01-0x0F) and those it reserves for private records (0x80-0xFF);
 #: anything else where a record should start is damage
 _VALID_OPCODES = frozenset(range(0x01, 0x10)) | frozenset(range(0x80, 0x100))
@@ -360,7 +361,7 @@ def _read_summary(buf: Any, declared: _Declared, result: LogReadResult) -> _Foot
         return _Footer(0, f0)
     if crc != 0 and zlib.crc32(memoryview(buf)[start:f0 + 1 + 8 + 16]) != crc:
         result.note_corrupt(f"summary section (bytes {start}-{f0}): CRC mismatch; the summary is not used")
-        return _Footer(start, start)
+        return _Footer(start, f0)  # summary_start itself may be the damage: the data section ends at its data end
     try:
         for op, body in _inner_records(memoryview(buf)[start:f0]):
             rec = _parse(op, body) if op in (OP_SCHEMA, OP_CHANNEL) else None
@@ -382,27 +383,22 @@ def _records(buf: Any, result: LogReadResult, declared: _Declared) -> Iterator[_
             return _cut(result, pos, f"{stop - pos} bytes of a record header")
         op, length = buf[pos], struct.unpack_from("<Q", buf, pos + 1)[0]
         end = pos + 9 + length
-        if op not in _VALID_OPCODES or end > stop:
+        body = memoryview(buf)[pos + 9:min(end, stop)]
+        bad = _shape_error(op, body, pos) if end <= stop else f"a length of {length} past the end"
+        if bad is not None:
             nxt = _next_chunk(buf, pos + 1, stop)
-            if nxt is None and footer is None and op in _VALID_OPCODES:
+            if nxt is None and footer is None and end > stop:
                 return _cut(result, pos, f"a {length}-byte record of which {stop - pos - 9} bytes are there")
-            why = f"opcode {op:#04x}" if op not in _VALID_OPCODES else f"a length of {length} past the end"
-            result.note_corrupt(f"bytes {pos}-{nxt if nxt is not None else stop}: no record ({why}); skipped"
-                                + (" to the next chunk" if nxt is not None else ""))
+            result.note_corrupt(f"bytes {pos}-{nxt if nxt is not None else stop}: not a record ({bad}); skipped"
+                                + (" to the next chunk" if nxt is not None else ""), chunk=op == OP_CHUNK)
             if nxt is None:
                 return
             pos = nxt
             continue
-        body = memoryview(buf)[pos + 9:end]
         if op == OP_CHUNK:
             yield from _chunk_records(body, pos, result)
         elif op in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
-            try:
-                rec = _parse(op, body)
-            except (ValueError, UnicodeDecodeError) as exc:
-                result.note_corrupt(f"record {op:#04x} at byte {pos}: {exc}")
-            else:
-                yield rec  # type: ignore[misc]
+            yield _parse(op, body)  # type: ignore[misc]  # parses: _shape_error tried it
         elif op == OP_DATA_END:
             _check_data_crc(buf, pos, body, result)
             if footer is None:
@@ -413,6 +409,64 @@ def _records(buf: Any, result: LogReadResult, declared: _Declared) -> Iterator[_
         pos = end
     if footer is None:
         _cut(result, pos, "no footer")
+    else:
+        result.note_corrupt(f"the data section ends at byte {pos} without its data end record")
+
+
+def _shape_error(op: int, body: memoryview, pos: int) -> str | None:
+    """Why a data-section record's body does not fit its opcode (its own lengths disagree with each
+    other or with the record's length), or None. A record whose length was damaged fails here, so a
+    damaged length is never followed into the middle of other records."""
+    if op not in _VALID_OPCODES:
+        return f"opcode {op:#04x}"
+    try:
+        c = _Cursor(body)
+        if op == OP_CHUNK:
+            c.take(28)
+            c.string()
+            c.take(c.int("<Q"))
+        elif op in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
+            _parse(op, body)
+            c.at = len(body) if op == OP_MESSAGE else _parsed_size(op, body)
+        elif op == OP_MESSAGE_INDEX:
+            c.take(2)
+            entries = c.int("<I")
+            if entries % 16:
+                return "a message index whose entries are not 16 bytes each"
+            c.take(entries)
+        elif op == OP_HEADER:
+            if pos != 8:
+                return "a header record after the start"
+            c.string()
+            c.string()
+        elif op in (OP_DATA_END, OP_FOOTER):
+            c.take(4 if op == OP_DATA_END else 20)
+        elif op == OP_ATTACHMENT:
+            c.take(16)
+            c.string()
+            c.string()
+            c.take(c.int("<Q"))
+            c.take(4)
+        elif op == OP_METADATA:
+            c.string()
+            c.take(c.int("<I"))
+        elif op < 0x80:
+            return f"a summary record ({op:#04x}) in the data section"
+        else:  # a private record (0x80-0xFF): its layout is its writer's
+            c.at = len(body)
+    except (ValueError, struct.error, UnicodeDecodeError) as exc:
+        return f"record {op:#04x}: {exc}"
+    return None if c.at == len(body) else f"record {op:#04x}: its fields do not fill its length"
+
+
+def _parsed_size(op: int, body: memoryview) -> int:
+    """How many bytes a schema or channel record's fields take (all of its length, if it is sound)."""
+    c = _Cursor(body)
+    c.take(2 if op == OP_SCHEMA else 4)
+    c.string()
+    c.string()
+    c.take(c.int("<I"))
+    return c.at
 
 
 def _chunk_records(body: memoryview, pos: int, result: LogReadResult) -> Iterator[_Schema | _Channel | _Message]:

@@ -148,10 +148,13 @@ def test_single_bit_flips_are_found_or_harmless_and_never_deliver_a_damaged_mess
     log.close()
     original = src.read_bytes()
     ref = [(m.topic, m.log_time_ns, repr(m.data)) for m in read_log(src)]
+    with open(src, "rb") as f:
+        largest_chunk = max(len(_chunk_messages(c)) for c in StreamReader(f, emit_chunks=True).records
+                            if isinstance(c, Chunk))
     rng = random.Random(5)
     damaged = tmp_path / "flip.mcap"
     silent = []
-    for _ in range(300):
+    for _ in range(400):
         pos, bit = rng.randrange(8, len(original)), rng.randrange(8)
         data = bytearray(original)
         data[pos] ^= 1 << bit
@@ -159,6 +162,7 @@ def test_single_bit_flips_are_found_or_harmless_and_never_deliver_a_damaged_mess
         result = LogReadResult()
         got = [(m.topic, m.log_time_ns, repr(m.data)) for m in read_log(damaged, result)]
         assert set(got) <= set(ref), f"flip at byte {pos} bit {bit} delivered a damaged message"
+        assert len(ref) - len(got) <= largest_chunk, f"flip at byte {pos} bit {bit} lost more than one chunk"
         if got != ref and not (result.damaged or result.truncated):
             silent.append(pos)
     assert not silent, f"flips lost messages silently at bytes {silent}"
@@ -194,3 +198,22 @@ def test_replay_reports_a_bad_chunk_with_exit_3(tmp_path: Path) -> None:
     out = json.loads(proc.stdout)
     assert out["bad_chunks"] == 1 and "chunk at byte" in out["corruption"][0] and out["cycles"] < 12
     assert "damaged part" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_damaged_footer_or_message_index_costs_no_message(tmp_path: Path) -> None:
+    """Records outside the chunks: a damaged footer (its summary_start) or message index length is
+    reported, and every message is still read."""
+    log = tmp_path / "log.mcap"
+    write_chunked(log, data_crc=False)
+    data = log.read_bytes()
+    footer = len(data) - 8 - 29
+    off, length = chunk_offsets(log)[1]
+    index = off + 9 + length  # the message index record after the second chunk
+    assert data[index] == 0x07
+    for pos in (footer + 9 + 2, index + 1 + 1):
+        damaged = tmp_path / f"flip{pos}.mcap"
+        damaged.write_bytes(data)
+        flip(damaged, pos, bit=4)
+        got, result = read(damaged)
+        assert got == list(range(N_MESSAGES)), pos
+        assert result.corruption_count >= 1 and result.damaged, pos
