@@ -217,3 +217,40 @@ def test_a_damaged_footer_or_message_index_costs_no_message(tmp_path: Path) -> N
         got, result = read(damaged)
         assert got == list(range(N_MESSAGES)), pos
         assert result.corruption_count >= 1 and result.damaged, pos
+
+
+def structure_bytes(path: Path) -> list[int]:
+    """Offsets of every byte of the data section that no chunk CRC covers: record headers, chunk
+    headers, message indexes, the data end; and the footer."""
+    data = path.read_bytes()
+    out, pos = [], 8
+    while pos + 9 <= len(data):
+        op, length = data[pos], struct.unpack_from("<Q", data, pos + 1)[0]
+        if op == 0x06:
+            clen = struct.unpack_from("<I", data, pos + 9 + 28)[0]
+            out += range(pos, pos + 9 + 40 + clen)
+        else:
+            out += range(pos, pos + 9 + length)
+        if op == 0x0F:
+            break
+        pos += 9 + length
+    return out + list(range(len(data) - 8 - 29, len(data) - 8))
+
+
+def test_every_flip_outside_the_chunk_payloads_is_reported_and_costs_at_most_one_chunk(tmp_path: Path) -> None:
+    """Exhaustive over the bytes a chunk CRC does not cover (where a damaged length could lead the
+    reader astray): each is reported, and at most one chunk's messages are lost."""
+    log = tmp_path / "log.mcap"
+    write_chunked(log, data_crc=True)
+    with open(log, "rb") as f:
+        largest = max(len(_chunk_messages(c)) for c in StreamReader(f, emit_chunks=True).records
+                      if isinstance(c, Chunk))
+    original = log.read_bytes()
+    damaged = tmp_path / "flip.mcap"
+    for pos in structure_bytes(log):
+        data = bytearray(original)
+        data[pos] ^= 1 << (pos % 8)
+        damaged.write_bytes(bytes(data))
+        got, result = read(damaged)
+        assert result.damaged or result.truncated or got == list(range(N_MESSAGES)), f"silent loss, byte {pos}"
+        assert N_MESSAGES - len(got) <= largest and got == sorted(got), f"byte {pos}: {N_MESSAGES - len(got)} lost"
