@@ -282,6 +282,9 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
     if compression == "zstd":
         import zstandard
 
+        framed = zstandard.frame_content_size(data)  # -1: not in the frame header
+        if framed not in (-1, size):
+            raise ValueError(f"the zstd frame holds {framed} bytes, the chunk header says {size}")
         return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
     if compression == "lz4":
         import lz4.frame
