@@ -11,8 +11,9 @@ the first fault, so that one damaged part costs only itself:
 
 * every chunk's CRC is checked (and its size, compression and records); a bad chunk is skipped,
   counted in :attr:`LogReadResult.bad_chunks` with its reason, and reading goes on with the next one;
-* a damaged record header (a length or an opcode) is skipped by scanning forward for the next
-  record that is a self-consistent chunk (its lengths agree with each other and with what follows);
+* every record's own lengths must agree with its record length (:func:`_shape_error`), so a damaged
+  length or opcode is found where it is, never followed into other records; the reader then scans
+  forward for the next self-consistent chunk record and reads on from there;
 * a complete file's data-section and summary CRCs are checked too (they cover chunk headers and
   indexes, which the chunk CRC does not);
 * the summary's schemas and channels are read first, so messages whose channel was declared in a
