@@ -391,8 +391,8 @@ def _records(buf: Any, result: LogReadResult, declared: _Declared) -> Iterator[_
         bad = _shape_error(op, body, pos) if end <= stop else f"a length of {length} past the end"
         if bad is not None:
             nxt = _next_chunk(buf, pos + 1, stop)
-            if nxt is None and footer is None and end > stop:
-                return _cut(result, pos, f"a {length}-byte record of which {stop - pos - 9} bytes are there")
+            if nxt is None and footer is None:  # the tail of a cut file (a chunk being written: its
+                return _cut(result, pos, f"an unfinished record ({bad})")  # lengths not yet patched)
             result.note_corrupt(f"bytes {pos}-{nxt if nxt is not None else stop}: not a record ({bad}); skipped"
                                 + (" to the next chunk" if nxt is not None else ""), chunk=op == OP_CHUNK)
             if nxt is None:

@@ -254,3 +254,17 @@ def test_every_flip_outside_the_chunk_payloads_is_reported_and_costs_at_most_one
         got, result = read(damaged)
         assert result.damaged or result.truncated or got == list(range(N_MESSAGES)), f"silent loss, byte {pos}"
         assert N_MESSAGES - len(got) <= largest and got == sorted(got), f"byte {pos}: {N_MESSAGES - len(got)} lost"
+
+
+def test_a_file_cut_while_a_chunk_was_written_is_truncated_not_corrupt(tmp_path: Path) -> None:
+    """A writer streams a chunk and patches its lengths afterwards: a file cut in between ends with a
+    chunk whose length fields are still placeholders. That is a cut (exit 0 in replay), not damage."""
+    log = tmp_path / "log.mcap"
+    write_chunked(log)
+    off, length = chunk_offsets(log)[3]
+    data = bytearray(log.read_bytes()[: off + 9 + length // 2])
+    data[off + 1: off + 9] = bytes(8)  # the record length, not yet patched
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bytes(data))
+    got, result = read(cut)
+    assert result.truncated and not result.damaged and got == list(range(len(got))) and got
