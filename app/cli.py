@@ -165,7 +165,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except (AppError, DriverError) as exc:
-        print(f"vipsm-robot {args.command}: error: {exc}", file=sys.stderr)
+        from .config import redact_text
+
+        print(f"vipsm-robot {args.command}: error: {redact_text(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

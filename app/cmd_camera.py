@@ -93,7 +93,9 @@ def _state_dict(client: ViscaClient) -> dict[str, Any]:
 
 
 def probe(args: argparse.Namespace) -> dict[str, Any]:
-    out: dict[str, Any] = {"url": args.camera}
+    from .config import redact_text
+
+    out: dict[str, Any] = {"url": redact_text(args.camera)}  # an http:// VISCA URL may carry the password
     with ViscaClient(args.camera, _visca_config(args)) as client:
         ver = client.version
         out["camera_count"] = client.camera_count

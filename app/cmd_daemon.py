@@ -202,20 +202,18 @@ def cmd_replay(args: argparse.Namespace) -> int:
     progress.finish()
     if not results:
         why = f"; {read.bad_messages} malformed, the first: {read.bad[0]}" if read.bad else ""
+        why += f"; {read.corruption_count} damaged, the first: {read.corruption[0]}" if read.corruption else ""
         raise AppError(f"{path}: no estimator cycle to replay (truncated: {read.truncated} {read.reason}{why})")
     # compared in the log's JSON form (NaN is recorded as null)
     identical = sum(1 for cyc, est in results if json.loads(encode_json(estimate_to_dict(est))) == cyc.recorded)
     summary: dict[str, Any] = {
         "log_path": str(path),
         "cycles": len(results),
-        "truncated": read.truncated,
-        "truncation": read.reason,
         "plain_psm": bool(args.plain_psm),
         "identical_to_recorded": identical,
         "ms_per_cycle": round(1e3 * elapsed / len(results), 3),
         "log_version": recorded_log_version(path),
-        "bad_messages": read.bad_messages,
-        "bad_message_reasons": read.bad,
+        **read.summary(),  # truncated, truncation, bad_messages (+ reasons), bad_chunks, corruption
     }
     truths = [(cyc.truth, est) for cyc, est in results if cyc.truth is not None]
     if truths:
@@ -228,9 +226,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if args.plots:
         summary["plots"] = _replay_plots(path, results, estimator_config, args)
     emit(summary, args.json)
-    if read.bad_messages:
-        print(f"vipsm-robot: warning: {path}: {read.bad_messages} malformed message(s) skipped, the first: "
-              f"{read.bad[0]}", file=sys.stderr)
+    if read.damaged:
+        print(read.warning(path), file=sys.stderr)
         return 3
     return 0
 

@@ -1,9 +1,15 @@
 """``vipsm-robot export LOG.mcap --rosbag2 OUT_DIR``: a field log as a ROS 2 bag
-(:mod:`app.export_rosbag2`)."""
+(:mod:`app.export_rosbag2`).
+
+Exit codes as ``replay``: 0 the whole log exported; 3 the bag is written but something was skipped
+(a malformed message, a message whose schema does not fit its topic, a damaged chunk: counted in
+``bad_messages`` and ``bad_chunks``, with reasons, and named on stderr); 2 nothing exported (not a
+log, no message to export, the bag cannot be written), and then no ``OUT_DIR`` is left behind."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from .cli import emit
@@ -18,8 +24,10 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise AppError(f"no such log: {log}")
     result = export_rosbag2(log, args.rosbag2)
     emit({"log_path": str(log), "rosbag2": result.out_dir, "messages": dict(sorted(result.counts.items())),
-          "truncated": result.read.truncated, "truncation": result.read.reason,
-          "bad_messages": result.read.bad_messages}, args.json)
+          "not_exported": dict(sorted(result.not_exported.items())), **result.read.summary()}, args.json)
+    if result.read.damaged:
+        print(result.read.warning(log), file=sys.stderr)
+        return 3
     return 0
 
 

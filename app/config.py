@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import tomllib
 import types
 import typing
@@ -337,3 +338,55 @@ def dump_toml(obj: Any, prefix: str = "") -> str:
         header = f"[{prefix.rstrip('.')}]\n" if prefix else ""
         out = header + "\n".join(lines) + "\n\n"
     return out + "".join(tables)
+
+
+# ---------------------------------------------------------------------------------------------
+# secrets: redacted in every logged or printed copy of the configuration and in every message line
+# (the field log's /vipsm/config and so the live view, stderr, summaries); ``dump-config`` prints the
+# configuration the user gave, in full, because it is the user's own file to edit
+
+#: a key whose name holds one of these words holds a secret (any section, any future key)
+SECRET_KEY_WORDS = ("password", "passwd", "secret", "token", "api_key", "apikey", "credential", "private_key")
+REDACTED = "***"
+#: ``scheme://netloc``: the user information is what precedes the netloc's last ``@``
+_URL_NETLOC = re.compile(r"(?P<scheme>[A-Za-z][A-Za-z0-9+.\-]*://)(?P<netloc>[^/?#\s]*)")
+#: a secret passed as a URL query parameter (``?password=...``, ``&token=...``)
+_QUERY_SECRET = re.compile(r"(?P<key>[?&;](?:[A-Za-z_]*(?:password|passwd|pwd|token|secret|api_?key))=)[^&#;\s]*",
+                           re.IGNORECASE)
+
+
+def _redact_netloc(m: re.Match[str]) -> str:
+    userinfo, at, host = m["netloc"].rpartition("@")
+    if not at or ":" not in userinfo:
+        return m.group(0)
+    return f"{m['scheme']}{userinfo.partition(':')[0]}:{REDACTED}@{host}"
+
+
+def redact_text(text: str) -> str:
+    """``text`` with the password of every URL in it (``http://user:pw@host`` -> ``http://user:***@host``)
+    and every secret query parameter replaced by ``***``."""
+    return _QUERY_SECRET.sub(lambda m: m["key"] + REDACTED, _URL_NETLOC.sub(_redact_netloc, text))
+
+
+def is_secret_key(key: str) -> bool:
+    k = key.lower()
+    return any(word in k for word in SECRET_KEY_WORDS)
+
+
+def redacted(value: Any, key: str = "") -> Any:
+    """A copy of a configuration tree (dicts, lists, tuples, scalars) with every secret replaced:
+    the value of a key that names one (:data:`SECRET_KEY_WORDS`) when it is set, and the passwords in
+    every string (:func:`redact_text`)."""
+    if isinstance(value, dict):
+        return {k: redacted(v, str(k)) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [redacted(v, key) for v in value]
+    if isinstance(value, str):
+        return REDACTED if value and is_secret_key(key) else redact_text(value)
+    return value
+
+
+def redacted_config(config: Config) -> dict[str, Any]:
+    """The configuration as ``dataclasses.asdict`` gives it, secrets redacted: what the field log
+    records (``/vipsm/config``) and what may be printed."""
+    return redacted(dataclasses.asdict(config))  # type: ignore[no-any-return]

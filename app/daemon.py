@@ -23,7 +23,6 @@ status registers:
 
 from __future__ import annotations
 
-import dataclasses
 import gc
 import math
 import sys
@@ -40,7 +39,7 @@ from vipsm.estimator import Estimator
 from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
 
 from . import logmessages as lm
-from .config import Config
+from .config import Config, redact_text, redacted_config
 from .fieldlog import FieldLog
 from .health import LoopHealth, OdometryHistory, OverloadMonitor, SafetyMonitor
 from .protective_field import FieldParams, ProtectiveField
@@ -324,7 +323,7 @@ class ControlLoop:
         self._last_pan_tilt = (0.0, 0.0)
         if field_log is not None:
             field_log.on_event = lambda level, message: self.say(level, message, self.clock())
-            field_log.log("/vipsm/config", wall_clock(), {"log_version": lm.LOG_VERSION, **dataclasses.asdict(config)})
+            field_log.log("/vipsm/config", wall_clock(), {"log_version": lm.LOG_VERSION, **redacted_config(config)})
         if status is not None:
             status.on_event = lambda level, message: self.say(level, message, self.clock())
         #: device counters taken at shutdown (the clients are closed afterwards)
@@ -338,7 +337,9 @@ class ControlLoop:
         return t_mono_s + self._wall_offset
 
     def say(self, level: str, message: str, now_s: float) -> None:
-        """A state change: one line on stderr (the journal under systemd), on ``/log`` and in the summary."""
+        """A state change: one line on stderr (the journal under systemd), on ``/log`` and in the summary;
+        a password in it (a device URL in an error) is redacted."""
+        message = redact_text(message)
         self.stats.state_changes.append(message)
         print(f"vipsm-robot: {level}: {message}", file=sys.stderr, flush=True)
         if self.log is not None:

@@ -15,12 +15,37 @@ topic               type                              from
 
 Frames follow REP 105 (``odom``, ``base_link``, ``laser``); header stamps are the messages' own
 stamps, bag times the log times. Version 1 logs (no ``/tf``) export without transforms.
+
+Each topic offers the QoS that ``ros2 bag record`` writes for a publisher with ROS 2's default
+profile (reliable, volatile; ``/tf_static`` transient local, as tf2's static broadcaster), in the
+bag-format-8 encoding rosbag2 uses from Humble on (enums as integers, infinite durations as
+``RMW_DURATION_INFINITE``), so ``ros2 bag play`` offers them again.
+
+Covariances (``nav_msgs/msg/Odometry``, row-major 6x6 over x, y, z, roll, pitch, yaw): ``/vipsm/pose``
+carries the estimator's x/y/yaw pose covariance; ``/odom`` (wheel odometry, which measures none) the
+estimator's own dead-reckoning model: a standard deviation of ``estimator.odom_sigma_per_m`` per metre
+driven in x and y and ``estimator.odom_sigma_rad_per_rad`` per radian turned in yaw, accumulated from
+the start (values from the log's ``/vipsm/config``); twists the same per unit of speed. The axes a
+planar robot does not observe (z, roll, pitch and their rates), and any value the log lacks, get
+``UNOBSERVED_VARIANCE`` (1e6: "ignore", as planar odometry publishers do), never -1.
+
+The bag is written into a hidden folder beside ``OUT_DIR`` and renamed to it only when complete, so
+``OUT_DIR`` exists only as a whole bag; the partial folder of a killed export is removed by the next
+export to the same ``OUT_DIR``. A message that cannot be read or converted is skipped and counted
+(``read.bad_messages``), a damaged chunk too (``read.bad_chunks``), as in ``replay``.
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import math
+import os
+import shutil
+import tempfile
+import time
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,11 +72,58 @@ TOPICS = {
 STATIC_CHILDREN = ("laser",)
 
 
+#: variance of an axis the data does not observe (z, roll, pitch; a value the log lacks)
+UNOBSERVED_VARIANCE = 1e6
+#: the smallest standard deviations given (before the robot has moved the model's own would be 0,
+#: a singular matrix a filter cannot invert): 1 mm and 0.001 rad, the encoders' order of resolution
+MIN_SIGMA_M = 1e-3
+MIN_SIGMA_RAD = 1e-3
+#: log topics with no ROS 2 counterpart here (counted in ``ExportResult.not_exported``, not errors)
+NOT_EXPORTED = ("/pose", "/obstacles", "/log", "/diagnostics", "/truth", "/vipsm/config")
+#: the schema each exported log topic must carry
+EXPECTED_SCHEMA = {"/scan": "foxglove.LaserScan", "/odom": "foxglove.PoseInFrame", "/tf": "foxglove.FrameTransforms",
+                   "/camera/image": "foxglove.CompressedImage", "/vipsm/cycle": "vipsm.Cycle"}
+
+
 @dataclass
 class ExportResult:
     out_dir: str
     counts: Counter[str] = field(default_factory=Counter)
+    not_exported: Counter[str] = field(default_factory=Counter)
     read: LogReadResult = field(default_factory=LogReadResult)
+
+
+@dataclass
+class _Odometry:
+    """The dead-reckoning uncertainty model of the module docstring, fed with every ``/odom`` pose."""
+
+    sigma_per_m: float = 0.05
+    sigma_rad_per_rad: float = 0.05
+    driven_m: float = 0.0
+    turned_rad: float = 0.0
+    last: tuple[float, float, float] | None = None
+    speeds: tuple[float, float] | None = None  # (v_mps, w_radps) of the newest cycle
+
+    def configure(self, config: dict[str, Any]) -> None:
+        est = config.get("estimator", {})
+        self.sigma_per_m = float(est.get("odom_sigma_per_m", self.sigma_per_m))
+        self.sigma_rad_per_rad = float(est.get("odom_sigma_rad_per_rad", self.sigma_rad_per_rad))
+
+    def add(self, x: float, y: float, yaw: float) -> None:
+        if self.last is not None:
+            self.driven_m += math.hypot(x - self.last[0], y - self.last[1])
+            self.turned_rad += abs(math.remainder(yaw - self.last[2], math.tau))
+        self.last = (x, y, yaw)
+
+    def pose_sigmas(self) -> tuple[float, float, float]:
+        s = max(MIN_SIGMA_M, self.sigma_per_m * self.driven_m)
+        return s, s, max(MIN_SIGMA_RAD, self.sigma_rad_per_rad * self.turned_rad)
+
+    def twist_sigmas(self) -> tuple[float, float] | None:
+        if self.speeds is None:
+            return None
+        v, w = self.speeds
+        return max(MIN_SIGMA_M, self.sigma_per_m * abs(v)), max(MIN_SIGMA_RAD, self.sigma_rad_per_rad * abs(w))
 
 
 class _Bag:
@@ -65,6 +137,7 @@ class _Bag:
         self.t = self.ts.types
         self.writer = Writer(out_dir, version=8)
         self.conns: dict[str, Any] = {}
+        self.odometry = _Odometry()
 
     def __enter__(self) -> _Bag:
         self.writer.open()
@@ -76,8 +149,8 @@ class _Bag:
     def write(self, topic: str, log_time_ns: int, msg: Any) -> None:
         conn = self.conns.get(topic)
         if conn is None:
-            qos = _latched_qos() if topic == "/tf_static" else ()
-            conn = self.writer.add_connection(topic, TOPICS[topic], typestore=self.ts, offered_qos_profiles=qos)
+            conn = self.writer.add_connection(topic, TOPICS[topic], typestore=self.ts,
+                                              offered_qos_profiles=offered_qos(latched=topic == "/tf_static"))
             self.conns[topic] = conn
         self.writer.write(conn, log_time_ns, self.ts.serialize_cdr(msg, TOPICS[topic]))
 
@@ -102,47 +175,119 @@ class _Bag:
                                                 orientation=self.quat(p["orientation"]))
 
 
-def _latched_qos() -> list[Any]:
+def offered_qos(latched: bool) -> list[Any]:
+    """What ``ros2 bag record`` writes for a publisher with ROS 2's default profile (``latched``: the
+    transient-local profile of a static-transform broadcaster): history unknown and depth 0 (DDS
+    discovery does not carry them), reliable, volatile or transient local, automatic liveliness, and
+    no deadline, lifespan or lease (``RMW_DURATION_INFINITE``)."""
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
-    zero = QosTime(sec=0, nsec=0)
-    return [Qos(history=QosHistory.KEEP_LAST, depth=1, reliability=QosReliability.RELIABLE,
-                durability=QosDurability.TRANSIENT_LOCAL, deadline=zero, lifespan=zero,
-                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=zero,
-                avoid_ros_namespace_conventions=False)]
+    infinite = QosTime(sec=9223372036, nsec=854775807)
+    durability = QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE
+    return [Qos(history=QosHistory.UNKNOWN, depth=0, reliability=QosReliability.RELIABLE, durability=durability,
+                deadline=infinite, lifespan=infinite, liveliness=QosLiveliness.AUTOMATIC,
+                liveliness_lease_duration=infinite, avoid_ros_namespace_conventions=False)]
 
 
 def export_rosbag2(log_path: str | Path, out_dir: str | Path) -> ExportResult:
-    """Writes the bag; the output folder must not exist yet (rosbags refuses to overwrite)."""
+    """Writes the bag into ``out_dir``, which must not exist yet; raises :class:`AppError` (and leaves
+    nothing behind) when the log cannot be read, the bag cannot be written or no message converts."""
     out = Path(out_dir)
     if out.exists():
         raise AppError(f"{out} exists: the ROS 2 bag is written to a new folder")
     result = ExportResult(str(out))
-    cycles: dict[int, dict[str, Any]] = {}  # the newest cycles by log time (speeds, covariance, obstacles)
     from rosbags.rosbag2 import WriterError
 
     try:
-        with _Bag(out) as bag:
-            for msg in read_log(log_path, result.read):
-                _export_one(bag, msg, cycles, result.counts)
+        with partial_folder(out) as tmp:
+            with _Bag(tmp) as bag:
+                for msg in read_log(log_path, result.read):
+                    _export_checked(bag, msg, result)
+            _finish(log_path, out, tmp, result)
     except WriterError as exc:
         raise AppError(f"cannot write the ROS 2 bag to {out}: {exc}") from exc
+    except OSError as exc:
+        raise AppError(f"cannot write the ROS 2 bag to {out}: {exc.strerror or exc}") from exc
     return result
 
 
-def _export_one(bag: _Bag, msg: LogMessage, cycles: dict[int, dict[str, Any]], counts: Counter[str]) -> None:
+def _finish(log_path: str | Path, out: Path, tmp: Path, result: ExportResult) -> None:
+    """The complete bag moved to ``out``, unless nothing was exported."""
+    if not result.counts:
+        r = result.read
+        why = f"truncated: {r.reason}" if r.truncated else "no /scan, /odom, /tf, /camera/image or /vipsm/cycle"
+        raise AppError(f"{log_path}: no message to export ({why}; {r.bad_messages} malformed, "
+                       f"{r.bad_chunks} damaged chunk(s)){': ' + (r.bad + r.corruption)[0] if r.damaged else ''}")
+    if out.exists():
+        raise AppError(f"{out} appeared while exporting: the bag is not moved there")
+    os.rename(tmp, out)
+
+
+@contextlib.contextmanager
+def partial_folder(out: Path) -> Iterator[Path]:
+    """A hidden folder beside ``out`` for the bag being written: ``.<name>.partial-<random>/<name>``
+    (the bag keeps its final name inside), locked while this process writes it. On the way in, the
+    partial folders of exports to the same ``out`` whose writer is gone (their lock is free) are
+    removed; on the way out this one is, whatever happened."""
+    parent = out.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    for stale in parent.glob(f".{out.name}.partial-*"):
+        _remove_if_abandoned(stale)
+    holder = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=parent))
+    lock = open(holder / "lock", "w")  # noqa: SIM115 - closed below
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        yield holder / out.name
+    finally:
+        lock.close()
+        shutil.rmtree(holder, ignore_errors=True)
+
+
+def _remove_if_abandoned(folder: Path) -> None:
+    try:
+        with open(folder / "lock", "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)  # held: another export is writing it
+    except BlockingIOError:
+        return
+    except OSError:  # no lock file: killed between creating the folder and the lock (or not ours)
+        if not folder.is_dir() or time.time() - folder.stat().st_mtime < 60.0:
+            return
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def _export_checked(bag: _Bag, msg: LogMessage, result: ExportResult) -> None:
+    """One log message into the bag; one that does not fit its topic is skipped and counted."""
+    expected = EXPECTED_SCHEMA.get(msg.topic)
+    if expected is None:
+        if msg.topic == "/vipsm/config":
+            bag.odometry.configure(msg.data)
+        result.not_exported[msg.topic] += 1
+        return
+    if msg.schema != expected:
+        result.read.note_bad(f"{msg.topic} message at {msg.log_time_ns} ns: schema {msg.schema!r}, "
+                             f"not {expected!r}; not exported")
+        return
+    try:
+        _export_one(bag, msg, result.counts)
+    except (KeyError, TypeError, ValueError, IndexError, OverflowError, AttributeError) as exc:
+        result.read.note_bad(f"{msg.topic} message at {msg.log_time_ns} ns: cannot convert it: "
+                             f"{type(exc).__name__}: {str(exc)[:200]}")
+
+
+def _export_one(bag: _Bag, msg: LogMessage, counts: Counter[str]) -> None:
     d, t = msg.data, msg.log_time_ns
     if msg.topic == "/vipsm/cycle":
-        cycles[t] = d
-        if len(cycles) > 8:
-            del cycles[min(cycles)]
+        od = d["odometry"]
+        bag.odometry.speeds = (float(od["v_mps"]), float(od["w_radps"]))
         _write(bag, "/vipsm/pose", t, _estimated_pose(bag, d, t), counts)
         _write(bag, "/vipsm/obstacles", t, _markers(bag, d, t), counts)
-    elif msg.topic == "/scan" and msg.schema == "foxglove.LaserScan":
+    elif msg.topic == "/scan":
         _write(bag, "/scan", t, _scan(bag, d), counts)
-    elif msg.topic == "/odom" and msg.schema == "foxglove.PoseInFrame":
-        _write(bag, "/odom", t, _odometry(bag, d, "odom", "base_link", None), counts)
-    elif msg.topic == "/camera/image" and isinstance(d.get("data"), bytes):
+    elif msg.topic == "/odom":
+        _write(bag, "/odom", t, _wheel_odometry(bag, d), counts)
+    elif msg.topic == "/camera/image":
+        if not isinstance(d.get("data"), bytes):
+            raise TypeError("the image data is not bytes")
         img = bag.t["sensor_msgs/msg/CompressedImage"](header=bag.header(d["timestamp"], "camera"), format="jpeg",
                                                         data=np.frombuffer(d["data"], dtype=np.uint8))
         _write(bag, "/camera/image/compressed", t, img, counts)
@@ -156,7 +301,7 @@ def _write(bag: _Bag, topic: str, t: int, msg: Any, counts: Counter[str]) -> Non
 
 
 def _scan(bag: _Bag, d: dict[str, Any]) -> Any:
-    ranges = np.asarray(d["ranges"], dtype=np.float32)
+    ranges = np.asarray([math.nan if v is None else v for v in d["ranges"]], dtype=np.float32)  # v1: null
     n = len(ranges)
     inc = (d["end_angle"] - d["start_angle"]) / (n - 1) if n > 1 else 0.0
     intensities = np.asarray(d["intensities"], dtype=np.float32)
@@ -167,11 +312,15 @@ def _scan(bag: _Bag, d: dict[str, Any]) -> Any:
         intensities=intensities)
 
 
-def _covariance6(cov3: list[float | None] | None) -> np.ndarray:
-    """A 3x3 (x, y, yaw) covariance as ROS's 6x6 (x, y, z, roll, pitch, yaw); unknown: -1 first."""
+def covariance6(cov3: list[float | None] | None) -> np.ndarray:
+    """A 3x3 (x, y, yaw) covariance as ROS's 6x6 (x, y, z, roll, pitch, yaw); the unobserved axes,
+    and all three when the 3x3 is missing or not finite, ``UNOBSERVED_VARIANCE``."""
     out = np.zeros(36, dtype=np.float64)
+    for k in (2, 3, 4):
+        out[k * 7] = UNOBSERVED_VARIANCE
     if cov3 is None or len(cov3) != 9 or any(v is None or not math.isfinite(v) for v in cov3):
-        out[0] = -1.0  # REP: a covariance whose first element is -1 is unknown
+        for k in (0, 1, 5):
+            out[k * 7] = UNOBSERVED_VARIANCE
         return out
     idx = (0, 1, 5)
     for i in range(3):
@@ -180,15 +329,30 @@ def _covariance6(cov3: list[float | None] | None) -> np.ndarray:
     return out
 
 
-def _odometry(bag: _Bag, d: dict[str, Any], frame: str, child: str, cov3: list[float | None] | None) -> Any:
+def _diagonal3(sx: float, sy: float, syaw: float) -> list[float | None]:
+    return [sx * sx, 0.0, 0.0, 0.0, sy * sy, 0.0, 0.0, 0.0, syaw * syaw]
+
+
+def _odometry(bag: _Bag, d: dict[str, Any], cov3: list[float | None] | None) -> Any:
+    """An ``odom -> base_link`` Odometry with the pose covariance ``cov3`` and the twist of the newest
+    cycle (forward speed and turn rate, with the model's covariance; unknown before the first cycle)."""
     t = bag.t
+    speeds, sig = bag.odometry.speeds, bag.odometry.twist_sigmas()
+    v, w = speeds if speeds is not None else (0.0, 0.0)
     twist = t["geometry_msgs/msg/TwistWithCovariance"](
-        twist=t["geometry_msgs/msg/Twist"](linear=bag.vec(0, 0, 0), angular=bag.vec(0, 0, 0)),
-        covariance=_covariance6(None))
+        twist=t["geometry_msgs/msg/Twist"](linear=bag.vec(v, 0, 0), angular=bag.vec(0, 0, w)),
+        covariance=covariance6(None if sig is None else _diagonal3(sig[0], MIN_SIGMA_M, sig[1])))
     return t["nav_msgs/msg/Odometry"](
-        header=bag.header(d["timestamp"], frame), child_frame_id=child,
-        pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=bag.pose(d["pose"]), covariance=_covariance6(cov3)),
+        header=bag.header(d["timestamp"], "odom"), child_frame_id="base_link",
+        pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=bag.pose(d["pose"]), covariance=covariance6(cov3)),
         twist=twist)
+
+
+def _wheel_odometry(bag: _Bag, d: dict[str, Any]) -> Any:
+    p, q = d["pose"]["position"], d["pose"]["orientation"]
+    yaw = 2.0 * math.atan2(float(q["z"]), float(q["w"]))
+    bag.odometry.add(float(p["x"]), float(p["y"]), yaw)
+    return _odometry(bag, d, _diagonal3(*bag.odometry.pose_sigmas()))
 
 
 def _stamp(t_ns: int) -> dict[str, int]:
@@ -200,10 +364,7 @@ def _estimated_pose(bag: _Bag, cyc: dict[str, Any], t_ns: int) -> Any:
     d = {"timestamp": _stamp(t_ns), "pose": {"position": {"x": x, "y": y, "z": 0.0},
                                              "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(th / 2),
                                                              "w": math.cos(th / 2)}}}
-    msg = _odometry(bag, d, "odom", "base_link", cyc["estimate"]["covariance"])
-    od = cyc["odometry"]
-    msg.twist.twist.linear.x, msg.twist.twist.angular.z = float(od["v_mps"]), float(od["w_radps"])
-    return msg
+    return _odometry(bag, d, cyc["estimate"]["covariance"])
 
 
 def _markers(bag: _Bag, cyc: dict[str, Any], t_ns: int) -> Any:

@@ -24,10 +24,10 @@ The control loop only enqueues (``log``); a bounded queue drops and counts what 
 take, so the loop never blocks on the disk. A chunk is closed and the file flushed and fsynced once
 its oldest message is ``0.6 * flush_s`` old, so a process killed with SIGKILL (or a power cut) loses
 at most ``flush_s`` (the rest is the flush's own time). A log closed normally gets its summary and
-index. Files rotate by size or age. A failed write (disk full, I/O error) ends that file where it
-stands (readable up to its last complete chunk), is reported once through ``on_event``, and a new
-file is tried every ``retry_s``; messages in between still reach the live view and are counted as
-``lost_to_disk``.
+index. Files rotate by size or age and are created mode 0640 whatever the umask. A failed write
+(disk full, I/O error) ends that file where it stands (readable up to its last complete chunk), is
+reported once through ``on_event``, and a new file is tried every ``retry_s``; messages in between
+still reach the live view and are counted as ``lost_to_disk``.
 """
 
 from __future__ import annotations
@@ -69,6 +69,10 @@ FOXGLOVE_TOPICS: dict[str, str] = {
 }
 
 TOPICS = (*FOXGLOVE_TOPICS, *JSON_TOPICS)
+
+#: log files are readable by their owner and group only (they hold camera images and the robot's
+#: whereabouts; the configuration in them is redacted, see :func:`app.config.redacted_config`)
+LOG_FILE_MODE = 0o640
 
 
 def schema_for(topic: str) -> str:
@@ -140,7 +144,13 @@ class _GuardedFile:
     headers and checks where it is)."""
 
     def __init__(self, path: str) -> None:
-        self.file = open(path, "wb")  # noqa: SIM115 - closed by close()
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, LOG_FILE_MODE)
+        try:
+            os.fchmod(fd, LOG_FILE_MODE)  # whatever the umask (or a file that was there) made of it
+        except OSError:
+            os.close(fd)
+            raise
+        self.file = os.fdopen(fd, "wb")
         self.bytes = 0  # bytes actually written
         self._pos = 0  # the writer's position, real or (after a failure) virtual
         self._size = 0

@@ -15,6 +15,9 @@ Axes in metres with equal aspect, legends, titles; PNG at 150 dpi, and SVG with 
 from __future__ import annotations
 
 import math
+import os
+import re
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -59,7 +62,7 @@ def _walls(ax, trace: RunTrace) -> None:  # type: ignore[no-untyped-def]
         ax.plot([x0, x1], [y0, y1], color="0.75", lw=2.5, zorder=1, label="walls" if j == 0 else None)
 
 
-def _map_panel(ax, trace: RunTrace, t_s: float, legend: bool) -> None:  # type: ignore[no-untyped-def]
+def _map_panel(ax, trace: RunTrace, t_s: float) -> None:  # type: ignore[no-untyped-def]
     cyc = _upto(trace, t_s)
     _walls(ax, trace)
     pts = [c.scan_xy_m for c in cyc[::2] if len(c.scan_xy_m)]
@@ -70,16 +73,14 @@ def _map_panel(ax, trace: RunTrace, t_s: float, legend: bool) -> None:  # type: 
     if cut:
         a = np.vstack(cut)
         ax.scatter(a[:, 0], a[:, 1], s=1.5, c="tab:red", lw=0, zorder=3, label="cut-out beams")
-    est = np.asarray([c.pose_est[:2] for c in cyc])
-    ax.plot(est[:, 0], est[:, 1], color="tab:blue", lw=1.2, zorder=4, label="robot, estimated")
-    true = [c.pose_true[:2] for c in cyc if c.pose_true is not None]
+    _, ex, ey = with_gaps(np.asarray([c.stamp_s for c in cyc]), *np.asarray([c.pose_est[:2] for c in cyc]).T)
+    ax.plot(ex, ey, color="tab:blue", lw=1.2, zorder=4, label="robot, estimated")
+    true = [(c.stamp_s, *c.pose_true[:2]) for c in cyc if c.pose_true is not None]
     if true:
-        tp = np.asarray(true)
-        ax.plot(tp[:, 0], tp[:, 1], color="tab:green", lw=1.0, ls="--", zorder=4, label="robot, true")
+        _, tx, ty = with_gaps(*np.asarray(true).T)
+        ax.plot(tx, ty, color="tab:green", lw=1.0, ls="--", zorder=4, label="robot, true")
     _obstacles_now(ax, cyc[-1])
     ax.set_title(f"{_label(trace)}, t = {t_s:.1f} s", fontsize=9)
-    if legend:
-        ax.legend(loc="upper left", fontsize=6, markerscale=6)
 
 
 def _obstacles_now(ax, c: CycleTrace) -> None:  # type: ignore[no-untyped-def]
@@ -110,7 +111,7 @@ def view_limits(traces: Sequence[RunTrace], margin_m: float = 0.8) -> tuple[floa
 
 
 def _metres(ax) -> None:  # type: ignore[no-untyped-def]
-    ax.set_aspect("equal", adjustable="box")
+    ax.set_aspect("equal", adjustable="datalim")  # the panel fills its place; the limits widen to keep 1:1
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.grid(True, lw=0.3, color="0.85")
@@ -119,18 +120,28 @@ def _metres(ax) -> None:  # type: ignore[no-untyped-def]
 def fig8(traces: Sequence[RunTrace], name: str, paper: bool) -> object:
     plt = _plt()
     times = snapshot_times(traces[0], paper)
-    fig, axes = plt.subplots(len(traces), len(times), figsize=(4.2 * len(times), 3.6 * len(traces)),
-                             sharex=True, sharey=True, squeeze=False)
     x0, x1, y0, y1 = view_limits(traces)
+    fig, axes = plt.subplots(len(traces), len(times), figsize=(4.2 * len(times), 3.6 * len(traces)),
+                             squeeze=False, layout="constrained")  # same limits set on each; not shared (datalim)
     for row, trace in enumerate(traces):
         for col, t_s in enumerate(times):
-            _map_panel(axes[row][col], trace, t_s, legend=(row == 0 and col == len(times) - 1))
+            _map_panel(axes[row][col], trace, t_s)
             _metres(axes[row][col])
             axes[row][col].set_xlim(x0, x1)
             axes[row][col].set_ylim(y0, y1)
+            axes[row][col].label_outer()
+    _figure_legend(fig, axes.ravel(), markerscale=6)
     fig.suptitle(f"{name}: the map built along time with each method's pose (cf. the paper's Fig. 8)")
-    fig.tight_layout()
     return fig
+
+
+def _figure_legend(fig, axes, **kw) -> None:  # type: ignore[no-untyped-def]
+    """One legend below all panels (no panel's content hidden under it), each label once."""
+    seen: dict[str, object] = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(lab, h)
+    fig.legend(list(seen.values()), list(seen), loc="outside lower center", ncol=min(len(seen), 7), fontsize=8, **kw)
 
 
 def _paths_panel(ax, trace: RunTrace) -> None:  # type: ignore[no-untyped-def]
@@ -143,27 +154,28 @@ def _paths_panel(ax, trace: RunTrace) -> None:  # type: ignore[no-untyped-def]
     for c in trace.cycles:
         for o in c.obstacles_est:
             by_track.setdefault(o.id, []).append((o.x_m, o.y_m))
-    for j, (tid, pts) in enumerate(sorted(by_track.items())):
+    for j, (_tid, pts) in enumerate(sorted(by_track.items())):
         a = np.asarray(pts)
-        ax.plot(a[:, 0], a[:, 1], ".", ms=2.5, label=f"track {tid}" if j < 6 else None)
-    est = np.asarray([c.pose_est[:2] for c in trace.cycles])
-    ax.plot(est[:, 0], est[:, 1], color="k", lw=1.0, label="robot, estimated")
+        ax.plot(a[:, 0], a[:, 1], ".", ms=2.5, label="obstacle, estimated (a colour per track)" if j == 0 else None)
+    _, ex, ey = with_gaps(np.asarray([c.stamp_s for c in trace.cycles]),
+                          *np.asarray([c.pose_est[:2] for c in trace.cycles]).T)
+    ax.plot(ex, ey, color="k", lw=1.0, label="robot, estimated")
     ax.set_title(f"{_label(trace)}: {len(by_track)} track(s)", fontsize=10)
-    ax.legend(loc="best", fontsize=7)
     _metres(ax)
 
 
 def fig9(traces: Sequence[RunTrace], name: str) -> object:
     plt = _plt()
-    fig, axes = plt.subplots(1, len(traces), figsize=(6.5 * len(traces), 5.0), sharex=True, sharey=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(1, len(traces), figsize=(6.5 * len(traces), 5.0), squeeze=False,
+                             layout="constrained")
     x0, x1, y0, y1 = view_limits(traces)
     for ax, trace in zip(axes[0], traces):
         _paths_panel(ax, trace)
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)
+        ax.label_outer()
+    _figure_legend(fig, axes.ravel(), markerscale=3)
     fig.suptitle(f"{name}: true and estimated obstacle paths (cf. the paper's Fig. 9)")
-    fig.tight_layout()
     return fig
 
 
@@ -196,14 +208,15 @@ def pose_errors(trace: RunTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def fig_errors(traces: Sequence[RunTrace], name: str) -> object:
     plt = _plt()
-    fig, (ax_o, ax_p, ax_h) = plt.subplots(3, 1, figsize=(8.0, 7.5), sharex=True)
+    fig, (ax_o, ax_p, ax_h) = plt.subplots(3, 1, figsize=(8.0, 7.5), sharex=True, layout="constrained")
     has_truth = any(c.pose_true is not None for tr in traces for c in tr.cycles)
+    scored = _shade_scored(ax_o, traces[0]) if traces else False
     for trace in traces:
         t, e = obstacle_errors(trace)
-        ax_o.plot(t, e, lw=1.2, label=_label(trace))
+        ax_o.plot(*with_gaps(t, e), lw=1.2, label=_label(trace))
         t, ep, eh = pose_errors(trace)
-        ax_p.plot(t, ep, lw=1.2, label=_label(trace))
-        ax_h.plot(t, eh, lw=1.2, label=_label(trace))
+        ax_p.plot(*with_gaps(t, ep), lw=1.2, label=_label(trace))
+        ax_h.plot(*with_gaps(t, eh), lw=1.2, label=_label(trace))
     for ax, unit in ((ax_o, "obstacle error (m)"), (ax_p, "pose error (m)"), (ax_h, "heading error (deg)")):
         ax.set_ylabel(unit)
         ax.grid(True, lw=0.3, color="0.85")
@@ -213,22 +226,107 @@ def fig_errors(traces: Sequence[RunTrace], name: str) -> object:
     if not has_truth:
         ax_o.text(0.5, 0.5, "no ground truth in this log (a real run): errors cannot be computed",
                   transform=ax_o.transAxes, ha="center", va="center")
-    fig.suptitle(f"{name}: errors against the truth over time (gaps: no estimate within {MATCH_GATE_M:g} m)")
-    fig.tight_layout()
+    lines = [f"{name}: errors against the truth over time",
+             f"gaps: no estimate within {MATCH_GATE_M:g} m of the obstacle, or cycles missing"]
+    if scored:
+        lines.append("shaded: the cycles the table scores (obstacle moving, in the camera's view, hit by the laser)")
+    fig.suptitle("\n".join(lines), fontsize=10)
     return fig
+
+
+def _shade_scored(ax, trace: RunTrace) -> bool:  # type: ignore[no-untyped-def]
+    """Shades the intervals in which the first true obstacle (the one whose error is drawn) is scored by
+    the evaluation's table; False when the trace does not say."""
+    t = np.asarray([c.stamp_s for c in trace.cycles])
+    known = [bool(c.in_view) for c in trace.cycles]
+    if not any(known):
+        return False
+    half = 0.5 * _step(t)
+    t, scored = with_gaps(t, np.asarray([bool(c.in_view) and c.in_view[0] for c in trace.cycles], float))
+    for j, (i0, i1) in enumerate(runs(scored == 1.0)):  # NaN (cycles missing) ends a run
+        ax.axvspan(t[i0] - half, t[i1 - 1] + half, color="tab:green", alpha=0.12, lw=0,
+                   label="scored in the table" if j == 0 else None)
+    return True
+
+
+def _step(t: np.ndarray) -> float:
+    """The usual time between cycles (the median step; 0 for fewer than two cycles)."""
+    return float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+
+
+#: consecutive cycles farther apart than this many usual steps have cycles missing between them
+GAP_STEPS = 1.5
+
+
+def with_gaps(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``t`` and each ``ys`` with NaN inserted wherever cycles are missing (a step longer than
+    ``GAP_STEPS`` usual steps), so that a line is broken there instead of drawn across the gap."""
+    t = np.asarray(t, dtype=float)
+    step = _step(t)
+    cut = np.flatnonzero(np.diff(t) > GAP_STEPS * step) + 1 if step > 0 else np.zeros(0, int)
+    return tuple(np.insert(np.asarray(a, dtype=float), cut, np.nan) for a in (t, *ys))
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the True runs of ``mask``."""
+    m = np.concatenate(([False], np.asarray(mask, bool), [False])).astype(np.int8)
+    edges = np.flatnonzero(np.diff(m))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
 def write_figures(traces: Sequence[RunTrace], out_dir: Path, name: str, *, paper: bool = False,
                   svg: bool = False) -> list[Path]:
-    """Fig. 8, Fig. 9 and the error plot of a run into ``out_dir``; returns the files written."""
+    """Fig. 8, Fig. 9 and the error plot of a run into ``out_dir``; returns the files written. Each file
+    is written under a temporary name beside it and renamed when complete (:func:`save_atomic`)."""
     plt = _plt()
     out_dir.mkdir(parents=True, exist_ok=True)
+    remove_stale_partials(out_dir)
     written: list[Path] = []
-    for stem, fig in ((f"fig8_map_{name}", fig8(traces, name, paper)), (f"fig9_paths_{name}", fig9(traces, name)),
-                      (f"errors_{name}", fig_errors(traces, name))):
+    for stem, make in ((f"fig8_map_{name}", lambda: fig8(traces, name, paper)),
+                       (f"fig9_paths_{name}", lambda: fig9(traces, name)),
+                       (f"errors_{name}", lambda: fig_errors(traces, name))):
+        fig = make()
         for ext in ("png", "svg") if svg else ("png",):
             path = out_dir / f"{stem}.{ext}"
-            fig.savefig(path, dpi=DPI)  # type: ignore[attr-defined]
+            save_atomic(fig, path)
             written.append(path)
         plt.close(fig)
     return written
+
+
+#: a figure being written: ``.<name>.<pid>.partial`` beside its final name
+_PARTIAL = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.partial$")
+
+
+def save_atomic(fig: object, path: Path) -> None:
+    """``fig`` saved to ``path`` so that ``path`` is either the old file or the whole new one, never a
+    part: written and fsynced under a temporary name in the same folder, then renamed over it."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    try:
+        with open(tmp, "wb") as f, warnings.catch_warnings():
+            # the maps keep 1:1 by widening the view limits to fill their panel (adjustable="datalim"): wanted
+            warnings.filterwarnings("ignore", message=r"Ignoring fixed [xy] limits to fulfill fixed data aspect")
+            fig.savefig(f, format=path.suffix.lstrip("."), dpi=DPI)  # type: ignore[attr-defined]
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def remove_stale_partials(out_dir: Path) -> None:
+    """Removes the temporary files of a killed figure writer (its process is gone)."""
+    for p in out_dir.glob(".*.partial"):
+        m = _PARTIAL.match(p.name)
+        if m is not None and not _alive(int(m["pid"])):
+            p.unlink(missing_ok=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

@@ -277,10 +277,11 @@ def replay_trace(results: list[tuple[ReplayCycle, Estimate]], mount: EstimatorCo
         pose = (est.pose.x_m, est.pose.y_m, est.pose.theta_rad)
         kept, cut = split_cut(cyc.scan.ranges_m, est.restored_indices)
         true_pose, true_obs = _truth_in_odom(cyc.truth)
+        views = () if cyc.truth is None else tuple(len(o) > 6 and bool(o[6]) for o in cyc.truth["obstacles"] if o[5])
         cycles.append(CycleTrace(
             cyc.scan.stamp_s - t0, pose, true_pose, scan_endpoints_xy(kept, cyc.scan.bearings_rad, pose, mount),
             tuple(track_point(o) for o in est.obstacles), true_obs,
-            scan_endpoints_xy(cut, cyc.scan.bearings_rad, pose, mount)))
+            scan_endpoints_xy(cut, cyc.scan.bearings_rad, pose, mount), views))
     return RunTrace(label, tuple(cycles), ())
 
 

@@ -23,7 +23,7 @@ RULES: dict[str, tuple[set[str], set[str] | None]] = {
     "vipsm": ({"vipsm", "numpy", "cv2", "numba"}, VIPSM_STDLIB),
     "hil_fakes": ({"hil_fakes", "numpy", "cv2"}, None),
     "app": ({"app", "drivers", "vipsm", "hil_fakes", "numpy", "cv2", "serial", "usb", "pymodbus", "mcap", "foxglove",
-             "google", "rosbags", "matplotlib", "cyclonedds"}, None),
+             "google", "rosbags", "matplotlib", "cyclonedds", "zstandard", "lz4"}, None),
 }
 
 

@@ -40,6 +40,9 @@ class CycleTrace:
     obstacles_true: tuple[tuple[float, float, float], ...]  # (x_m, y_m, radius_m)
     #: (M, 2) endpoints of the beams the method cut out (restored), world frame
     cut_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    #: per true obstacle: scored this cycle by the evaluation's table (moving, in the camera's view, hit
+    #: by the laser); empty when unknown
+    in_view: tuple[bool, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -91,8 +94,9 @@ def method_trace(log: Any, name: str) -> RunTrace:
             scan = scan_endpoints_xy(kept, log.bearings_rad, m.poses[k], log.mount)
             cut = scan_endpoints_xy(removed, log.bearings_rad, m.poses[k], log.mount)
         true_obs = tuple((float(x), float(y), float(radii[i])) for i, (x, y) in enumerate(log.true_obstacles[k]))
+        views = tuple(bool(v) for v in log.in_view[k]) if k < len(log.in_view) else ()
         cycles.append(CycleTrace(float(stamp_s), m.poses[k], log.true_poses[k], scan, tuple(m.tracks[k]), true_obs,
-                                 cut))
+                                 cut, views))
     return RunTrace(name, tuple(cycles), _walls(log.scenario))
 
 
