@@ -602,7 +602,7 @@ class ControlLoop:
         assert res is not None
         if stopped and not was:
             self.stats.protective_stops += 1
-            self.say("warning", f"protective field: object {res.nearest_m:.2f} m ahead of the robot's origin "
+            self.say("info", f"protective field: object {res.nearest_m:.2f} m ahead of the robot's origin "
                      f"(field {res.length_m:.2f} m at {v:.2f} m/s)", now_s)
         elif was and not stopped:
             self.say("info", f"protective field: clear for {self.field.resume_after_clear_s:g} s", now_s)
