@@ -69,12 +69,15 @@ class PsmConfig:
     stop_translation_m: float = 0.001
     stop_rotation_rad: float = math.radians(0.01)
     stop_count: int = 3  # consecutive small iterations to stop
-    #: refuse below this many beams compared in a translation step; 0: ``min_valid_share`` of the scan's
-    #: beams (:meth:`for_scan`), so a scanner with fewer or coarser beams is not refused on every scan
+    #: refuse below this many beams compared in a translation step; 0: derived per pair from what the two
+    #: scans offer (:meth:`required_beams`): a range-limited or narrow scanner sees fewer beams, not worse ones
     min_valid_beams: int = 0
-    #: 300 of the UTM-30LX's 1081 beams (0.25 deg over 270 deg), where the count was tuned: 213 of a
-    #: 768-beam 0.35 deg scanner's, 143 of a 512-beam 180 deg URG-04LX-class scan
-    min_valid_share: float = 0.2775
+    #: the match must compare this share of the beams both scans offer (the smaller of the two scans' usable
+    #: beam counts): the overlap the evidence needs, whatever the scanner's beam count or range (on the
+    #: UTM-30LX in a room, ~300 of ~1000 usable, the count this was tuned at)
+    min_valid_share: float = 0.30
+    #: ... and never fewer than this many: a 3-parameter fit on a handful of beams measures their noise
+    min_valid_floor_beams: int = 20
     max_pair_gap_rad: float = 0.25  # do not interpolate a projected pair across a wider bearing gap
     line_interpolation: bool = True  # True: ray/chord intersection; False: range linear in bearing (original)
     degenerate_eig: float = 1e-3  # refuse if min eig of H'WH / sum(w) is below this
@@ -101,15 +104,23 @@ class PsmConfig:
             raise ValueError("search windows must be >= 1 beam")
         if self.max_iterations < 1 or self.stop_count < 1 or self.min_segment_beams < 1:
             raise ValueError("max_iterations, stop_count and min_segment_beams must be >= 1")
-        if self.min_valid_beams < 0 or not 0.0 < self.min_valid_share <= 1.0:
-            raise ValueError("need min_valid_beams >= 0 and 0 < min_valid_share <= 1")
+        if self.min_valid_beams < 0 or self.min_valid_floor_beams < 3 or not 0.0 < self.min_valid_share <= 1.0:
+            raise ValueError("need min_valid_beams >= 0, min_valid_floor_beams >= 3 and 0 < min_valid_share <= 1")
         if self.search_window_first_rad < 0.0 or self.search_window_rad < 0.0:
             raise ValueError("search window angles must be >= 0 (0: the beam counts)")
 
     def for_scan(self, n_beams: int, dphi_rad: float) -> PsmConfig:
         """The configuration with its per-sensor counts resolved for a scan of ``n_beams`` beams
-        ``dphi_rad`` apart: the minimum valid beams from the share, the search windows from the angles."""
+        ``dphi_rad`` apart: the search windows from the angles."""
         return _for_scan(self, int(n_beams), round(abs(float(dphi_rad)), 12))
+
+    def required_beams(self, n_available: int) -> int:
+        """Beams a match must compare when the two scans offer ``n_available`` usable beams (the smaller
+        scan's count): ``min_valid_beams`` when set, else ``min_valid_share`` of them and at least
+        ``min_valid_floor_beams``."""
+        if self.min_valid_beams > 0:
+            return self.min_valid_beams
+        return max(self.min_valid_floor_beams, math.ceil(self.min_valid_share * max(n_available, 0) - 1e-9))
 
     @classmethod
     def diosi_v03_utm(cls) -> PsmConfig:
@@ -146,8 +157,6 @@ class PsmConfig:
 @functools.lru_cache(maxsize=64)
 def _for_scan(c: PsmConfig, n_beams: int, dphi_rad: float) -> PsmConfig:
     changes: dict[str, int] = {}
-    if c.min_valid_beams == 0:
-        changes["min_valid_beams"] = max(3, math.ceil(c.min_valid_share * n_beams - 1e-9))
     if dphi_rad > 0.0 and c.search_window_first_rad > 0.0:
         changes["search_window_first_beams"] = max(1, round(c.search_window_first_rad / dphi_rad))
     if dphi_rad > 0.0 and c.search_window_rad > 0.0:
@@ -158,7 +167,7 @@ def _for_scan(c: PsmConfig, n_beams: int, dphi_rad: float) -> PsmConfig:
 class PsmRefusal(enum.Enum):
     NONE = "none"
     EMPTY_SCAN = "empty_scan"  # a scan with no usable beam after preprocessing
-    TOO_FEW_BEAMS = "too_few_beams"  # fewer than min_valid_beams compared in a translation step
+    TOO_FEW_BEAMS = "too_few_beams"  # fewer compared in a translation step than required_beams()
     NO_VALID_SHIFT = "no_valid_shift"  # the orientation search found no shift with enough overlap
     DEGENERATE = "degenerate"  # the translation normal equations are (nearly) singular
     BAD_INPUT = "bad_input"  # shapes/bearings unusable (e.g. mismatched lengths, non-ascending)
@@ -220,6 +229,11 @@ class PreparedScan:
     @property
     def n_good(self) -> int:
         return int(np.count_nonzero(self.good))
+
+    @functools.cached_property
+    def n_usable(self) -> int:
+        """Beams a match can compare: good and with a weight above 0."""
+        return int(np.count_nonzero(self.good & (self.weights > 0.0)))
 
 
 def median_filter_valid(ranges_m: np.ndarray, valid: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -412,7 +426,7 @@ def _kernel_params(c: PsmConfig) -> tuple[tuple[float, ...], tuple[int, ...], tu
               c.max_range_m, c.min_overlap_frac, c.orientation_gain, c.stop_translation_m, c.stop_rotation_rad,
               c.degenerate_eig, c.damping)
     ints = (c.change_weight_iter, c.max_iterations, c.stop_count, c.search_window_first_beams,
-            c.search_window_beams, c.min_valid_beams)
+            c.search_window_beams)
     return tuple(float(v) for v in floats), tuple(int(v) for v in ints), (bool(c.line_interpolation),)
 
 
@@ -426,10 +440,12 @@ def match_prepared(
     from .psm_kernel import DEGENERATE, NO_VALID_SHIFT, TOO_FEW_BEAMS, iterate, match_statistics
 
     cos_b, sin_b = cur_cos_sin(ref.bearings_rad)
+    min_valid = config.required_beams(min(ref.n_usable, cur.n_usable))
+    fc, ic, bc = _kernel_params(config)
     x, y, th, it, converged, code, beams, curv_th, c_m2 = iterate(
         ref.ranges_m, ref.good, ref.weights, ref.bearings_rad, cos_b, sin_b, _uniform(ref.bearings_rad),
         ref.dphi_rad, cur.x_m, cur.y_m, cur.pair_ok, cur.pair_w, initial_guess.x_m, initial_guess.y_m,
-        initial_guess.theta_rad, *_kernel_params(config))
+        initial_guess.theta_rad, fc, ic + (min_valid,), bc)
     if code:
         reason = {NO_VALID_SHIFT: PsmRefusal.NO_VALID_SHIFT, TOO_FEW_BEAMS: PsmRefusal.TOO_FEW_BEAMS,
                   DEGENERATE: PsmRefusal.DEGENERATE}[code]
@@ -439,7 +455,7 @@ def match_prepared(
     n_used, residual, sw, sigma2, i11, i12, i22 = match_statistics(
         ref.ranges_m, ref.good & (ref.weights > 0.0), ref.weights, cos_b, sin_b, ref.normal_x, ref.normal_y,
         proj.ranges_m, proj.good, proj.weights, c_m2, config.max_error_m)
-    if n_used < config.min_valid_beams:
+    if n_used < min_valid:
         return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it, n_used, config)
     info = (i11, i12, i22)
     var_th = _orientation_variance(curv_th, sigma2, n_used, ref.dphi_rad)
