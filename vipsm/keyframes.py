@@ -57,6 +57,8 @@ class KeyframeMatcher:
         #: a refused match is retried against
         self.previous: Keyframe | None = None
         self.last: Keyframe | None = None
+        #: matches accepted only by a retry (diagnostics: a prediction that keeps missing shows here)
+        self.recoveries = 0
         psm = cfg.psm  # type: ignore[attr-defined]
         self._recovery_psm = dataclasses.replace(
             psm, search_window_first_rad=max(cfg.recovery_window_rad, psm.search_window_first_rad),  # type: ignore[attr-defined]
@@ -99,6 +101,7 @@ class KeyframeMatcher:
             rec = self._recover(cur, predicted)
             if rec is not None:
                 res, cand, kf = rec
+                self.recoveries += 1
                 if kf is not self.keyframe:
                     self._set_keyframe(kf)  # re-anchored: the reference that matched is the keyframe now
         if cand is None:
