@@ -185,8 +185,8 @@ def _preset(name: str) -> PsmConfig:
     """Scan-to-scan settings per scanner class, PSM then point-to-line refinement. Fine Hokuyo scans
     (0.25-0.35 deg): the defaults with the search windows as angles (+-20 deg first, +-5 deg later) and
     5 refinement steps. Coarse SICK scans (0.5 and 1 deg): the original's SICK block (segments broken at
-    2 r dphi, C = 0.1^2, +-20 / +-10 deg windows), a 3-beam median (5 beams of 1 deg round a corner off by
-    2 deg), 10 refinement steps, and a pair PSM refuses refined from the guess."""
+    2 r dphi, C = 0.1^2, +-20 / +-10 deg windows), a 3-beam median at 0.5 deg (5 beams of 1 deg round a
+    corner off by 2 deg), 10 refinement steps, and a pair PSM refuses refined from the guess."""
     fine = dict(search_window_first_rad=math.radians(20.0), search_window_rad=math.radians(5.0), refine_iterations=5)
     coarse = dict(max_range_m=10.0, min_valid_beams=20, search_window_first_rad=math.radians(20.0),
                   search_window_rad=math.radians(10.0), max_error_m=0.5, weight_c_m2=0.10**2,
@@ -196,7 +196,9 @@ def _preset(name: str) -> PsmConfig:
         "hokuyo_0.35deg": fine,
         "urg04lx": {**fine, "max_range_m": 5.6},  # its range limit: nothing beyond is a return
         "half_degree": coarse,
-        "one_degree": coarse,
+        # at 1 deg even a 3-beam median rounds corners: the refinement reads the raw points, with a wider
+        # Cauchy scale (chosen on the Intel pairs, so that figure is not an independent test of it)
+        "one_degree": {**coarse, "median_window": 1, "refine_robust_scale": 5.0},
     }
     if name not in table:
         raise ValueError(f"unknown scanner preset {name!r}; known: {', '.join(SCANNER_PRESETS)}")
