@@ -60,9 +60,15 @@ class KeyframeMatcher:
         #: matches accepted only by a retry (diagnostics: a prediction that keeps missing shows here)
         self.recoveries = 0
         psm = cfg.psm  # type: ignore[attr-defined]
-        self._recovery_psm = dataclasses.replace(
+        recovery = dataclasses.replace(
             psm, search_window_first_rad=max(cfg.recovery_window_rad, psm.search_window_first_rad),  # type: ignore[attr-defined]
             max_error_first_m=max(cfg.recovery_max_error_m, psm.max_error_m))  # type: ignore[attr-defined]
+        steps = cfg.no_odometry_refine_iterations  # type: ignore[attr-defined]
+        #: (normal, retry) matcher settings with odometry (False) and without (True)
+        self._configs = {False: (psm, recovery),
+                         True: (dataclasses.replace(psm, refine_iterations=steps),
+                                dataclasses.replace(recovery, refine_iterations=steps))}
+        self._no_odometry = False
 
     def _set_keyframe(self, kf: Keyframe) -> None:
         if self.keyframe is not None and self.keyframe is not kf:
@@ -70,10 +76,13 @@ class KeyframeMatcher:
         self.keyframe = kf
 
     def match(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D | None,
-              last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None = None) -> MatchOutcome:
+              last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None = None,
+              no_odometry: bool = False) -> MatchOutcome:
         """``usable``: the scan can become a keyframe; ``refuse``: do not match (restoration too large,
-        bad bearings); ``seen_m``: the measured ranges of ``cur`` before restoration (kept with it)."""
+        bad bearings); ``seen_m``: the measured ranges of ``cur`` before restoration (kept with it);
+        ``no_odometry``: the prediction is constant velocity (``no_odometry_refine_iterations`` apply)."""
         cfg = self.cfg
+        self._no_odometry = no_odometry
         if last_pose is None or self.keyframe is None:
             first = last_pose is None
             flags = EstimateFlag.FIRST_SCAN if first else EstimateFlag.ODOMETRY_FALLBACK
@@ -140,7 +149,7 @@ class KeyframeMatcher:
         assert kf is not None
         mount = cfg.laser_mount  # type: ignore[attr-defined]
         guess = compose(compose(inverse(mount), between(kf.pose, predicted)), mount)
-        res = match_prepared(kf.prep, cur, guess, self._recovery_psm if recovery else cfg.psm)  # type: ignore[attr-defined]
+        res = match_prepared(kf.prep, cur, guess, self._configs[self._no_odometry][1 if recovery else 0])
         if res.refused:
             return res, None
         matched = self._constrain_weak_directions(res, guess)

@@ -550,10 +550,10 @@ def _refine(ref: PreparedScan, cur: PreparedScan, x: float, y: float, th: float,
     from .plicp import OK, refine
 
     window = max(1, math.ceil(c.refine_window_rad / max(abs(ref.dphi_rad), 1e-9)))
+    r_ok, c_ok = ref.good & (ref.weights > 0.0), cur.good & (cur.weights > 0.0)
     rx, ry, th2, code, _pairs, _rms, _it = refine(
-        ref.x_m, ref.y_m, ref.bearings_rad, _uniform(ref.bearings_rad), ref.good & (ref.weights > 0.0), ref.segments,
-        cur.x_m, cur.y_m,
-        cur.good & (cur.weights > 0.0), cur.weights, x, y, th, c.refine_iterations, window, c.refine_max_dist_m,
+        ref.x_m, ref.y_m, ref.bearings_rad, _uniform(ref.bearings_rad), r_ok, ref.segments, cur.x_m, cur.y_m,
+        c_ok, cur.weights, x, y, th, c.refine_iterations, window, c.refine_max_dist_m,
         c.refine_robust_scale, c.refine_min_scale_m, min_pairs, c.refine_damping, c.degenerate_eig,
         c.stop_translation_m * 0.1, c.stop_rotation_rad * 0.1)
     if code != OK:

@@ -125,3 +125,25 @@ def test_constant_velocity_predicts_an_arc_and_not_across_a_gap() -> None:
     assert cv.twist.vx_mps == 0.0 and cv.predict(1.1) == Pose2D(0.0, 0.0, 0.0)
     with pytest.raises(ValueError):
         ConstantVelocity(max_gap_s=0.0)
+
+
+def test_refinement_steps_apply_only_without_odometry() -> None:
+    cfg = EstimatorConfig()
+    assert cfg.psm.refine_iterations == 0 and cfg.no_odometry_refine_iterations == 5
+    seq = _drive(12)
+    with_odo, without = Estimator(cfg), Estimator(cfg)
+    used = {}
+    for est, odometry in ((with_odo, True), (without, False)):
+        calls = []
+        orig = est._matcher._psm  # noqa: SLF001
+
+        def spy(*a, _orig=orig, _calls=calls, _est=est, **k):  # the settings each match ran with
+            _calls.append(_est._matcher._configs[_est._matcher._no_odometry][0].refine_iterations)  # noqa: SLF001
+            return _orig(*a, **k)
+
+        est._matcher._psm = spy  # noqa: SLF001
+        _errors(est, seq, odometry=odometry)
+        used[odometry] = set(calls)
+    assert used == {True: {0}, False: {5}}
+    with pytest.raises(ValueError, match="no_odometry_refine_iterations"):
+        EstimatorConfig(no_odometry_refine_iterations=-1)
