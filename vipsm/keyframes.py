@@ -7,9 +7,11 @@ the current scan when the robot has moved more than ``keyframe_dist_m`` or turne
 the keyframe offers, or after a refused match once the keyframe is ``keyframe_stale_dist_m`` behind.
 A keyframe is never taken from a scan whose restoration was refused (obstacle too large).
 
-A match is refused (the pose is dead-reckoned from odometry, flag ``ODOMETRY_FALLBACK``) when PSM
-refuses, when the restoration covered most of the view, or when the match corrects the odometry's
-prediction by more than ``max_correction_m`` / ``max_correction_rad``. Along directions the scene does
+A refused match (PSM refuses, or the match corrects the prediction by more than ``max_correction_m`` /
+``max_correction_rad``) is retried against the keyframe with a widened search, then against the previous
+keyframe and the last scan (``recovery_*``); the first accepted retry re-anchors the keyframe. When all
+are refused, or the restoration covered most of the view, the pose is the prediction (odometry, or
+constant velocity without it), flag ``ODOMETRY_FALLBACK``. Along directions the scene does
 not constrain (a corridor, or the only cross wall hidden by a masked body) the odometry's translation
 is kept: there PSM's range residuals creep instead of measuring.
 """
