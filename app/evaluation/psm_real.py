@@ -332,8 +332,9 @@ def _timed(pairs: list[tuple[Scan, Scan, Pose2D]], cfg: PsmConfig, repetitions: 
 
 def bench_real(data: Path, repetitions: int = 20) -> dict[str, Any]:
     """PSM speed on the real scans: the 24 consecutive Diosi UTM-30LX pairs from a zero guess at
-    the original v0.3 parameters and at this project's defaults, and the 909 Intel pairs seeded with
-    odometry at ``PsmConfig.sick_1deg()`` (Intel: ``repetitions // 10`` passes). Missing data: a reason."""
+    the original v0.3 parameters and at this project's defaults, the 909 Intel pairs seeded with
+    odometry at ``PsmConfig.sick_1deg()`` and at the ``one_degree`` preset (PSM + refinement), and the
+    405 CSAIL pairs at ``half_degree`` (Freiburg sets: ``repetitions // 10`` passes). Missing data: a reason."""
     out: dict[str, Any] = {}
     diosi = data / DIOSI_FILE
     if diosi.exists():
@@ -350,7 +351,18 @@ def bench_real(data: Path, repetitions: int = 20) -> dict[str, Any]:
         pairs = [(a.scan, b.scan, between(a.pose, b.pose)) for a, b in zip(logged, logged[1:])]
         timed = _timed(pairs, PsmConfig.sick_1deg(), max(1, repetitions // 10))
         out.update({f"psm_real_intel_{k}": v for k, v in timed.items()})
+        timed = _timed(pairs, PsmConfig.preset("one_degree"), max(1, repetitions // 10))
+        out.update({f"psm_real_intel_preset_{k}": v for k, v in timed.items()})
         out["psm_real_intel_pairs"] = len(pairs)
     else:
         out["psm_real_intel_skipped"] = f"{raw} not found"
+    raw = data / CSAIL_RAW
+    if raw.exists():
+        logged = read_freiburg_json(raw, CSAIL_BEAMS, CSAIL_BEARINGS, CSAIL_NO_RETURN_M)
+        pairs = [(a.scan, b.scan, between(a.pose, b.pose)) for a, b in zip(logged, logged[1:])]
+        timed = _timed(pairs, PsmConfig.preset("half_degree"), max(1, repetitions // 10))
+        out.update({f"psm_real_csail_preset_{k}": v for k, v in timed.items()})
+        out["psm_real_csail_pairs"] = len(pairs)
+    else:
+        out["psm_real_csail_skipped"] = f"{raw} not found"
     return out
