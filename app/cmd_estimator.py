@@ -9,7 +9,17 @@ from pathlib import Path
 from typing import Any
 
 from .cli import emit
-from .evaluation.psm_real import DIOSI_FILE, INTEL_CORRECTED, INTEL_RAW, DataFormatError, eval_diosi, eval_intel
+from .evaluation.psm_real import (
+    CSAIL_CORRECTED,
+    CSAIL_RAW,
+    DIOSI_FILE,
+    INTEL_CORRECTED,
+    INTEL_RAW,
+    DataFormatError,
+    eval_csail,
+    eval_diosi,
+    eval_intel,
+)
 
 
 def cmd_eval_psm(args: argparse.Namespace) -> int:
@@ -23,6 +33,8 @@ def cmd_eval_psm(args: argparse.Namespace) -> int:
         result["diosi_utm30lx"] = eval_diosi(diosi, args.per_pair)
     if intel_raw.exists() or intel_cor.exists():
         result["intel"] = eval_intel(intel_raw, intel_cor, args.per_pair)
+    if (data / CSAIL_RAW).exists() or (data / CSAIL_CORRECTED).exists():
+        result["csail"] = eval_csail(data / CSAIL_RAW, data / CSAIL_CORRECTED, args.per_pair)
     if not result:
         raise DataFormatError(f"--data {data}: neither {DIOSI_FILE} nor {INTEL_RAW} found")
     emit(result, args.json)
@@ -32,7 +44,7 @@ def cmd_eval_psm(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser(
         "eval-psm",
-        help="run the polar scan matcher on the real recorded scans (Diosi UTM-30LX, Intel Research Lab)",
+        help="run the polar scan matcher on the real recorded scans (Diosi UTM-30LX, Intel Research Lab, MIT CSAIL)",
     )
     p.add_argument("--data", required=True, metavar="DIR", help="the shared data folder, e.g. ../shared/data")
     p.add_argument("--json", action="store_true", help="print one JSON object")

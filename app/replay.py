@@ -329,17 +329,20 @@ def add_bag_arguments(p: Any) -> None:
 
 
 def bag_estimator_config(config: EstimatorConfig, args: Any) -> EstimatorConfig:
-    """The estimator configuration with the laser mount flags applied."""
+    """The estimator configuration with the laser mount flags applied; without ``--odom`` the matcher is
+    seeded by constant velocity (``motion_prior``; recorded in the field log, so its replay agrees)."""
     import dataclasses
 
-    changes: dict[str, float] = {}
+    changes: dict[str, float | str] = {}
+    if not getattr(args, "odom", None):
+        changes["motion_prior"] = "constant_velocity"
     if args.laser_x is not None:
         changes["laser_x_m"] = args.laser_x
     if args.laser_y is not None:
         changes["laser_y_m"] = args.laser_y
     if args.laser_yaw_deg is not None:
         changes["laser_theta_rad"] = math.radians(args.laser_yaw_deg)
-    bad = [k for k, v in changes.items() if not math.isfinite(v)]
+    bad = [k for k, v in changes.items() if isinstance(v, float) and not math.isfinite(v)]
     if bad:
         from .errors import AppError
 

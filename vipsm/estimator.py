@@ -28,6 +28,7 @@ tracks are reported in ``Estimate.obstacles`` (and so can stop the robot).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -38,6 +39,7 @@ from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
+from .motion import ConstantVelocity
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
@@ -60,6 +62,9 @@ def _estimator_psm() -> PsmConfig:
     # the same angle.
     return PsmConfig(search_window_first_rad=math.radians(7.5), search_window_rad=math.radians(2.5), stop_count=2,
                      median_window=3)
+
+
+MOTION_PRIORS = ("odometry", "constant_velocity")
 
 
 @dataclass(frozen=True)
@@ -92,9 +97,33 @@ class EstimatorConfig:
     weak_info_min: float = 0.03  # ... and below which the odometry's translation is kept entirely
     odom_sigma_per_m: float = 0.05  # covariance growth on odometry fallback
     odom_sigma_rad_per_rad: float = 0.05
+    #: what seeds each match: "odometry" (the wheels' motion since the last scan) or "constant_velocity"
+    #: (the last estimated motion again: for a robot without odometry; ``step(scan, None)`` does the same)
+    motion_prior: str = "odometry"
+    #: a refused match is retried against the keyframe with the orientation search widened to this and the
+    #: first iterations' residual gate to ``recovery_max_error_m``, then against the previous keyframe and
+    #: the last scan; a retry may correct the prediction by up to ``recovery_max_correction_*``
+    recovery_window_rad: float = math.radians(30.0)
+    recovery_max_error_m: float = 1.0
+    recovery_max_correction_m: float = 1.0
+    recovery_max_correction_rad: float = math.radians(45.0)
+    #: the constant-velocity prediction does not extrapolate across a longer gap between scans
+    max_prediction_gap_s: float = 1.0
+    #: without odometry, point-to-line steps finish each match (``psm.refine_iterations`` with odometry):
+    #: there every match error stays in the path (no odometry to blend with), and on the leg_tracker drive
+    #: these steps halve the distance to an independent registration on two of its three lasers; with
+    #: odometry the simulated suite's obstacle errors grow with them (paper2 0.008 -> 0.013 m), so they
+    #: are off there by default
+    no_odometry_refine_iterations: int = 5
     #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
     #: this length); scans in between publish the tracks predicted to their stamp
     obstacle_period_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.no_odometry_refine_iterations < 0:
+            raise ValueError(f"no_odometry_refine_iterations must be >= 0, got {self.no_odometry_refine_iterations}")
+        if self.motion_prior not in MOTION_PRIORS:
+            raise ValueError(f"motion_prior must be one of {', '.join(MOTION_PRIORS)}, got {self.motion_prior!r}")
 
     @property
     def laser_mount(self) -> Pose2D:
@@ -139,24 +168,29 @@ class Estimator:
         self._last_pose: Pose2D | None = None
         self._last_obstacle_s: float | None = None
         self._last_odo: Pose2D | None = None
+        self._motion = ConstantVelocity(self.config.max_prediction_gap_s)
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
 
     # ------------------------------------------------------------------ the pipeline
-    def step(self, scan: Scan, odometry: Odometry, frame: Frame | None = None) -> Estimate:
+    def step(self, scan: Scan, odometry: Odometry | None, frame: Frame | None = None) -> Estimate:
+        """One cycle. ``odometry`` None (or ``motion_prior`` "constant_velocity"): no odometry, each match
+        is seeded by the last estimated motion (:mod:`vipsm.motion`)."""
         flags = EstimateFlag.PLAIN_PSM if self.plain_psm else EstimateFlag.NONE
         scan, scan_ok = _checked(scan)
         scan, lone_m, dropped = self._prefilter(scan)
-        predicted = self._predict(odometry.pose)
+        odometry, predicted, given = self._prior(scan.stamp_s, odometry)
         camera, flags = self._visual_bearings(scan, odometry, frame, flags)
         masks = camera + self._track_masks(scan.stamp_s, predicted)
         rest = restore(scan.ranges_m, scan.bearings_rad, masks, self.config.restore, self.config.psm.min_range_m)
-        match = self._match(scan, rest, predicted, scan_ok)
+        match = self._match(scan, rest, predicted, scan_ok, not given)
+        if not given and match.flags & EstimateFlag.ODOMETRY_FALLBACK:
+            flags |= EstimateFlag.POSE_UNCERTAIN
         laser = compose(match.pose, self.config.laser_mount)
         bodies, tracked = self._obstacles(scan, lone_m, dropped, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
-        return self._estimate(scan, odometry, match, rest, flags | match.flags | _rest_flags(rest, self.plain_psm),
-                              tracked, laser)
+        return self._estimate(scan, odometry if given else None, match, rest,
+                              flags | match.flags | _rest_flags(rest, self.plain_psm), tracked, laser)
 
     # ------------------------------------------------------------------ stages
     def _obstacles(self, scan: Scan, lone_m: np.ndarray, dropped: np.ndarray, laser: Pose2D,
@@ -185,9 +219,23 @@ class Estimator:
         scan = Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities)
         return scan, lone_m, mixed | lone
 
+    def _prior(self, stamp_s: float, odometry: Odometry | None) -> tuple[Odometry, Pose2D, bool]:
+        """(the odometry the stages use, the predicted pose, whether odometry was given). Without odometry
+        the prediction is the constant-velocity model's, and the stages get it as a stand-in odometry (its
+        pose and twist), so the camera's motion compensation works the same."""
+        if odometry is not None and self.config.motion_prior == "odometry":
+            return odometry, self._predict(odometry.pose), True
+        pose = self._motion.predict(stamp_s)
+        if pose is None:  # the first scan: the odometry frame is its pose (the origin without odometry)
+            pose = odometry.pose if odometry is not None else Pose2D(0.0, 0.0, 0.0)
+        tw = self._motion.twist
+        return Odometry(pose.x_m, pose.y_m, pose.theta_rad, tw.vx_mps, tw.w_radps, stamp_s), pose, False
+
     def _predict(self, odo: Pose2D) -> Pose2D:
-        if self._last_pose is None or self._last_odo is None:
+        if self._last_pose is None:
             return odo
+        if self._last_odo is None:  # odometry again after cycles without: its motion from here on
+            return self._last_pose
         return compose(self._last_pose, between(self._last_odo, odo))
 
     def _visual_bearings(self, scan: Scan, odometry: Odometry, frame: Frame | None, flags: EstimateFlag
@@ -234,7 +282,8 @@ class Estimator:
             out.append(BearingInterval(b - half, b + half, 0.0, 0.0, "track", t.track_id, d - half_w, d + half_w))
         return out
 
-    def _match(self, scan: Scan, rest: Restoration, predicted: Pose2D, scan_ok: bool) -> MatchOutcome:
+    def _match(self, scan: Scan, rest: Restoration, predicted: Pose2D, scan_ok: bool, no_odometry: bool
+               ) -> MatchOutcome:
         cfg = self.config
         if self.plain_psm:
             cur = prepare_scan(scan.ranges_m, scan.bearings_rad, cfg.psm)
@@ -243,7 +292,7 @@ class Estimator:
         n_good_w = int(np.count_nonzero(cur.good & (cur.weights > 0)))
         too_large = rest.too_large and not self.plain_psm
         return self._matcher.match(cur, n_good_w, predicted, self._last_pose, self._last_cov, not too_large,
-                                   too_large or not scan_ok, scan.ranges_m.copy())
+                                   too_large or not scan_ok, scan.ranges_m.copy(), no_odometry)
 
     def _update_static(self, scan: Scan, lone_m: np.ndarray, laser: Pose2D, bodies: list[Body]) -> None:
         """Add the scan to the free/occupied grid (the moving-body candidates add no occupancy, so a body
@@ -263,10 +312,11 @@ class Estimator:
         if any(t.missed for t in self._tracker.tracks):  # only a coasting track can be dropped
             self._tracker.drop_seen_free(self._static.seen_free_now, scan_points(laser, ranges, scan.bearings_rad))
 
-    def _estimate(self, scan: Scan, odometry: Odometry, match: MatchOutcome, rest: Restoration,
+    def _estimate(self, scan: Scan, odometry: Odometry | None, match: MatchOutcome, rest: Restoration,
                   flags: EstimateFlag, tracked: list[tuple[Track, Detection | None]], laser: Pose2D) -> Estimate:
         self._last_pose = Pose2D(match.pose.x_m, match.pose.y_m, wrap_angle(match.pose.theta_rad))
-        self._last_odo = odometry.pose
+        self._last_odo = odometry.pose if odometry is not None else None
+        self._motion.update(self._last_pose, scan.stamp_s)
         self._last_cov = match.cov
         alive = {id(t) for t in self._tracker.tracks}
         at = self._tracker.predict_position
@@ -398,7 +448,8 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     from .tracker import refine_fixed_radius
 
     cfg = config or EstimatorConfig()
-    psm_warm_up(cfg.psm)
+    psm_warm_up(dataclasses.replace(cfg.psm, refine_iterations=max(cfg.psm.refine_iterations,
+                                                                    cfg.no_odometry_refine_iterations)))
     b = np.linspace(-2.0, 2.0, 181)
     FreeSpaceGrid(cfg.static_map).integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)

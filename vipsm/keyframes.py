@@ -7,15 +7,18 @@ the current scan when the robot has moved more than ``keyframe_dist_m`` or turne
 the keyframe offers, or after a refused match once the keyframe is ``keyframe_stale_dist_m`` behind.
 A keyframe is never taken from a scan whose restoration was refused (obstacle too large).
 
-A match is refused (the pose is dead-reckoned from odometry, flag ``ODOMETRY_FALLBACK``) when PSM
-refuses, when the restoration covered most of the view, or when the match corrects the odometry's
-prediction by more than ``max_correction_m`` / ``max_correction_rad``. Along directions the scene does
+A refused match (PSM refuses, or the match corrects the prediction by more than ``max_correction_m`` /
+``max_correction_rad``) is retried against the keyframe with a widened search, then against the previous
+keyframe and the last scan (``recovery_*``); the first accepted retry re-anchors the keyframe. When all
+are refused, or the restoration covered most of the view, the pose is the prediction (odometry, or
+constant velocity without it), flag ``ODOMETRY_FALLBACK``. Along directions the scene does
 not constrain (a corridor, or the only cross wall hidden by a masked body) the odometry's translation
 is kept: there PSM's range residuals creep instead of measuring.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -52,25 +55,78 @@ class KeyframeMatcher:
     def __init__(self, cfg: object) -> None:
         self.cfg = cfg
         self.keyframe: Keyframe | None = None
+        #: the keyframe before the current one, and the last scan (with its estimated pose): the references
+        #: a refused match is retried against
+        self.previous: Keyframe | None = None
+        self.last: Keyframe | None = None
+        #: matches accepted only by a retry (diagnostics: a prediction that keeps missing shows here)
+        self.recoveries = 0
+        psm = cfg.psm  # type: ignore[attr-defined]
+        recovery = dataclasses.replace(
+            psm, search_window_first_rad=max(cfg.recovery_window_rad, psm.search_window_first_rad),  # type: ignore[attr-defined]
+            max_error_first_m=max(cfg.recovery_max_error_m, psm.max_error_m))  # type: ignore[attr-defined]
+        steps = cfg.no_odometry_refine_iterations  # type: ignore[attr-defined]
+        #: (normal, retry) matcher settings with odometry (False) and without (True)
+        self._configs = {False: (psm, recovery),
+                         True: (dataclasses.replace(psm, refine_iterations=steps),
+                                dataclasses.replace(recovery, refine_iterations=steps))}
+        self._no_odometry = False
+
+    def _set_keyframe(self, kf: Keyframe) -> None:
+        if self.keyframe is not None and self.keyframe is not kf:
+            self.previous = self.keyframe
+        self.keyframe = kf
 
     def match(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D | None,
-              last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None = None) -> MatchOutcome:
+              last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None = None,
+              no_odometry: bool = False) -> MatchOutcome:
         """``usable``: the scan can become a keyframe; ``refuse``: do not match (restoration too large,
-        bad bearings); ``seen_m``: the measured ranges of ``cur`` before restoration (kept with it)."""
+        bad bearings); ``seen_m``: the measured ranges of ``cur`` before restoration (kept with it);
+        ``no_odometry``: the prediction is constant velocity (``no_odometry_refine_iterations`` apply)."""
         cfg = self.cfg
+        self._no_odometry = no_odometry
         if last_pose is None or self.keyframe is None:
             first = last_pose is None
             flags = EstimateFlag.FIRST_SCAN if first else EstimateFlag.ODOMETRY_FALLBACK
             cov = np.zeros((3, 3)) if first else last_cov.copy()
-            psm = cfg.psm.for_scan(cur.ranges_m.size, cur.dphi_rad)  # type: ignore[attr-defined]
-            replaced = usable and n_good_w >= psm.min_valid_beams
+            replaced = usable and n_good_w >= cfg.psm.required_beams(0)  # type: ignore[attr-defined]
             if replaced:
-                self.keyframe = Keyframe(cur, predicted, cov, n_good_w, seen_m)
+                self._set_keyframe(Keyframe(cur, predicted, cov, n_good_w, seen_m))
+            self._remember(cur, predicted, cov, n_good_w, seen_m, usable)
             return MatchOutcome(predicted, cov, MatchQuality(0, 0, float("nan"), False), flags, None, replaced)
+        out = self._match_or_recover(cur, n_good_w, predicted, last_pose, last_cov, usable, refuse, seen_m)
+        self._remember(cur, out.pose, out.cov, n_good_w, seen_m, usable)
+        return out
+
+    def _remember(self, cur: PreparedScan, pose: Pose2D, cov: np.ndarray, n_good_w: int, seen_m: np.ndarray | None,
+                  usable: bool) -> None:
+        self.last = Keyframe(cur, pose, cov, n_good_w, seen_m) if usable else None
+
+    def _match_or_recover(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D,
+                          last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None
+                          ) -> MatchOutcome:
+        """The match against the keyframe; refused, the retries (:meth:`_recover`); all refused, the
+        prediction (:meth:`_fallback`)."""
         res, cand = (None, None) if refuse else self._psm(cur, predicted)
+        if cand is None and not refuse:
+            rec = self._recover(cur, predicted)
+            if rec is not None:
+                res, cand, kf = rec
+                self.recoveries += 1
+                if kf is not self.keyframe:
+                    self._set_keyframe(kf)  # re-anchored: the reference that matched is the keyframe now
         if cand is None:
             return self._fallback(cur, n_good_w, predicted, last_pose, last_cov, usable, res, seen_m)
+        assert res is not None
+        return self._accept(cur, n_good_w, res, cand, seen_m)
+
+    def _accept(self, cur: PreparedScan, n_good_w: int, res: PsmResult, cand: Pose2D, seen_m: np.ndarray | None
+                ) -> MatchOutcome:
+        """An accepted match against the keyframe: its covariance, and the keyframe replaced when the robot
+        has moved on or the overlap has shrunk."""
+        cfg = self.cfg
         kf = self.keyframe
+        assert kf is not None
         th = kf.pose.theta_rad + cfg.laser_theta_rad  # type: ignore[attr-defined]
         c, s = math.cos(th), math.sin(th)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -83,25 +139,41 @@ class KeyframeMatcher:
             or res.beams_used < cfg.keyframe_min_overlap * max(kf.n_good_weighted, 1)  # type: ignore[attr-defined]
         )
         if replaced:
-            self.keyframe = Keyframe(cur, cand, cov, n_good_w, seen_m)
+            self._set_keyframe(Keyframe(cur, cand, cov, n_good_w, seen_m))
         return MatchOutcome(cand, cov, quality, EstimateFlag.NONE, res, replaced)
 
-    def _psm(self, cur: PreparedScan, predicted: Pose2D) -> tuple[PsmResult | None, Pose2D | None]:
+    def _psm(self, cur: PreparedScan, predicted: Pose2D, kf: Keyframe | None = None, recovery: bool = False
+             ) -> tuple[PsmResult | None, Pose2D | None]:
+        """Match against ``kf`` (default: the keyframe) from the prediction; ``recovery``: with the widened
+        search and correction limits. (result, pose) or (result, None) when refused."""
         cfg = self.cfg
-        kf = self.keyframe
+        kf = kf or self.keyframe
         assert kf is not None
         mount = cfg.laser_mount  # type: ignore[attr-defined]
         guess = compose(compose(inverse(mount), between(kf.pose, predicted)), mount)
-        res = match_prepared(kf.prep, cur, guess, cfg.psm)  # type: ignore[attr-defined]
+        res = match_prepared(kf.prep, cur, guess, self._configs[self._no_odometry][1 if recovery else 0])
         if res.refused:
             return res, None
         matched = self._constrain_weak_directions(res, guess)
         cand = compose(kf.pose, compose(compose(mount, matched), inverse(mount)))
         corr = between(predicted, cand)
-        if (math.hypot(corr.x_m, corr.y_m) > cfg.max_correction_m  # type: ignore[attr-defined]
-                or abs(corr.theta_rad) > cfg.max_correction_rad):  # type: ignore[attr-defined]
+        lim_m = cfg.recovery_max_correction_m if recovery else cfg.max_correction_m  # type: ignore[attr-defined]
+        lim_rad = cfg.recovery_max_correction_rad if recovery else cfg.max_correction_rad  # type: ignore[attr-defined]
+        if math.hypot(corr.x_m, corr.y_m) > lim_m or abs(corr.theta_rad) > lim_rad:
             return res, None
         return res, cand
+
+    def _recover(self, cur: PreparedScan, predicted: Pose2D) -> tuple[PsmResult, Pose2D, Keyframe] | None:
+        """After a refusal: the keyframe again with the search widened (a prediction off by more than the
+        normal window), then the previous keyframe and the last scan (the keyframe's view may no longer
+        overlap, the last scan's always does unless the scanner was blinded). The first accepted wins."""
+        for kf in (self.keyframe, self.previous, self.last):
+            if kf is None or (kf is not self.keyframe and kf.prep is self.keyframe.prep):  # type: ignore[union-attr]
+                continue
+            res, cand = self._psm(cur, predicted, kf, recovery=True)
+            if cand is not None and res is not None:
+                return res, cand, kf
+        return None
 
     def _fallback(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D,
                   last_cov: np.ndarray, usable: bool, res: PsmResult | None,
@@ -117,7 +189,7 @@ class KeyframeMatcher:
         since = between(self.keyframe.pose, predicted)
         replaced = math.hypot(since.x_m, since.y_m) > cfg.keyframe_stale_dist_m and usable  # type: ignore[attr-defined]
         if replaced:
-            self.keyframe = Keyframe(cur, predicted, cov, n_good_w, seen_m)
+            self._set_keyframe(Keyframe(cur, predicted, cov, n_good_w, seen_m))
         return MatchOutcome(predicted, cov, quality, EstimateFlag.ODOMETRY_FALLBACK, res, replaced)
 
     def _constrain_weak_directions(self, res: PsmResult, guess: Pose2D) -> Pose2D:

@@ -69,12 +69,15 @@ class PsmConfig:
     stop_translation_m: float = 0.001
     stop_rotation_rad: float = math.radians(0.01)
     stop_count: int = 3  # consecutive small iterations to stop
-    #: refuse below this many beams compared in a translation step; 0: ``min_valid_share`` of the scan's
-    #: beams (:meth:`for_scan`), so a scanner with fewer or coarser beams is not refused on every scan
+    #: refuse below this many beams compared in a translation step; 0: derived per pair from what the two
+    #: scans offer (:meth:`required_beams`): a range-limited or narrow scanner sees fewer beams, not worse ones
     min_valid_beams: int = 0
-    #: 300 of the UTM-30LX's 1081 beams (0.25 deg over 270 deg), where the count was tuned: 213 of a
-    #: 768-beam 0.35 deg scanner's, 143 of a 512-beam 180 deg URG-04LX-class scan
-    min_valid_share: float = 0.2775
+    #: the match must compare this share of the beams both scans offer (the smaller of the two scans' usable
+    #: beam counts): the overlap the evidence needs, whatever the scanner's beam count or range (on the
+    #: UTM-30LX in a room, ~300 of ~1000 usable, the count this was tuned at)
+    min_valid_share: float = 0.30
+    #: ... and never fewer than this many: a 3-parameter fit on a handful of beams measures their noise
+    min_valid_floor_beams: int = 20
     max_pair_gap_rad: float = 0.25  # do not interpolate a projected pair across a wider bearing gap
     line_interpolation: bool = True  # True: ray/chord intersection; False: range linear in bearing (original)
     degenerate_eig: float = 1e-3  # refuse if min eig of H'WH / sum(w) is below this
@@ -89,6 +92,15 @@ class PsmConfig:
     corridor_sigma_along_m: float = 4.0
     corridor_sigma_across_m: float = 0.30
     use_cov_floor: bool = True
+    #: point-to-line iterations that finish PSM's pose (:mod:`vipsm.plicp`); 0: PSM alone
+    refine_iterations: int = 0
+    refine_window_rad: float = math.radians(1.5)  # nearest reference point searched this far in bearing
+    refine_max_dist_m: float = 0.30  # pairs further from their line are left out
+    refine_robust_scale: float = 3.0  # Cauchy scale: this times the median |residual| ...
+    refine_min_scale_m: float = 0.01  # ... and at least this (the range noise)
+    refine_damping: float = 1e-4  # towards no change, relative to the information (unconstrained directions)
+    #: a pair PSM refuses is refined from the initial guess instead (accepted when the refinement is)
+    refine_refused: bool = False
 
     def __post_init__(self) -> None:
         if self.median_window < 1 or self.median_window % 2 == 0:
@@ -101,15 +113,27 @@ class PsmConfig:
             raise ValueError("search windows must be >= 1 beam")
         if self.max_iterations < 1 or self.stop_count < 1 or self.min_segment_beams < 1:
             raise ValueError("max_iterations, stop_count and min_segment_beams must be >= 1")
-        if self.min_valid_beams < 0 or not 0.0 < self.min_valid_share <= 1.0:
-            raise ValueError("need min_valid_beams >= 0 and 0 < min_valid_share <= 1")
+        if self.min_valid_beams < 0 or self.min_valid_floor_beams < 3 or not 0.0 < self.min_valid_share <= 1.0:
+            raise ValueError("need min_valid_beams >= 0, min_valid_floor_beams >= 3 and 0 < min_valid_share <= 1")
         if self.search_window_first_rad < 0.0 or self.search_window_rad < 0.0:
             raise ValueError("search window angles must be >= 0 (0: the beam counts)")
+        if self.refine_iterations < 0 or not (self.refine_window_rad > 0.0 and self.refine_max_dist_m > 0.0
+                                              and self.refine_robust_scale > 0.0 and self.refine_min_scale_m > 0.0
+                                              and self.refine_damping >= 0.0):
+            raise ValueError("need refine_iterations >= 0, positive refine_* lengths and scales, refine_damping >= 0")
 
     def for_scan(self, n_beams: int, dphi_rad: float) -> PsmConfig:
         """The configuration with its per-sensor counts resolved for a scan of ``n_beams`` beams
-        ``dphi_rad`` apart: the minimum valid beams from the share, the search windows from the angles."""
+        ``dphi_rad`` apart: the search windows from the angles."""
         return _for_scan(self, int(n_beams), round(abs(float(dphi_rad)), 12))
+
+    def required_beams(self, n_available: int) -> int:
+        """Beams a match must compare when the two scans offer ``n_available`` usable beams (the smaller
+        scan's count): ``min_valid_beams`` when set, else ``min_valid_share`` of them and at least
+        ``min_valid_floor_beams``."""
+        if self.min_valid_beams > 0:
+            return self.min_valid_beams
+        return max(self.min_valid_floor_beams, math.ceil(self.min_valid_share * max(n_available, 0) - 1e-9))
 
     @classmethod
     def diosi_v03_utm(cls) -> PsmConfig:
@@ -129,6 +153,16 @@ class PsmConfig:
         )
 
     @classmethod
+    def preset(cls, name: str) -> PsmConfig:
+        """The settings of one scanner class of :data:`SCANNER_PRESETS` (ValueError for another name)."""
+        return _preset(name)
+
+    @classmethod
+    def for_geometry(cls, step_rad: float, max_range_m: float = math.inf) -> PsmConfig:
+        """The preset of the scanner class a scan's geometry belongs to (:func:`preset_name_for`)."""
+        return _preset(preset_name_for(step_rad, max_range_m))
+
+    @classmethod
     def sick_1deg(cls) -> PsmConfig:
         """A 180-beam, 1-degree scanner (the Intel Research Lab log): the original's SICK LMS200 block
         (min 40 valid beams, +-20 beam window) with scan-to-scan settings."""
@@ -143,11 +177,53 @@ class PsmConfig:
         )
 
 
+#: the scanner classes of the shared data (``docs/psm.md``, "Presets"); :meth:`PsmConfig.for_geometry` picks one
+SCANNER_PRESETS = ("utm30lx", "hokuyo_0.35deg", "urg04lx", "half_degree", "one_degree")
+
+
+def _preset(name: str) -> PsmConfig:
+    """Scan-to-scan settings per scanner class, PSM then point-to-line refinement. Fine Hokuyo scans
+    (0.25-0.35 deg): the defaults with the search windows as angles (+-20 deg first, +-5 deg later) and
+    5 refinement steps. Coarse SICK scans (0.5 and 1 deg): the original's SICK block (segments broken at
+    2 r dphi, C = 0.1^2, +-20 / +-10 deg windows), a 3-beam median at 0.5 deg (5 beams of 1 deg round a
+    corner off by 2 deg), 10 refinement steps, and a pair PSM refuses refined from the guess."""
+    fine = dict(search_window_first_rad=math.radians(20.0), search_window_rad=math.radians(5.0), refine_iterations=5)
+    coarse = dict(max_range_m=10.0, min_valid_beams=20, search_window_first_rad=math.radians(20.0),
+                  search_window_rad=math.radians(10.0), max_error_m=0.5, weight_c_m2=0.10**2,
+                  seg_jump_range_factor=2.0, median_window=3, refine_iterations=10, refine_refused=True)
+    table: dict[str, dict[str, object]] = {
+        "utm30lx": fine,
+        "hokuyo_0.35deg": fine,
+        "urg04lx": {**fine, "max_range_m": 5.6},  # its range limit: nothing beyond is a return
+        "half_degree": coarse,
+        # at 1 deg even a 3-beam median rounds corners: the refinement reads the raw points, with a wider
+        # Cauchy scale (chosen on the Intel pairs, so that figure is not an independent test of it)
+        "one_degree": {**coarse, "median_window": 1, "refine_robust_scale": 5.0},
+    }
+    if name not in table:
+        raise ValueError(f"unknown scanner preset {name!r}; known: {', '.join(SCANNER_PRESETS)}")
+    return PsmConfig(**table[name])  # type: ignore[arg-type]
+
+
+def preset_name_for(step_rad: float, max_range_m: float = math.inf) -> str:
+    """The scanner class of a scan with bearing step ``step_rad`` whose returns end at ``max_range_m``
+    (a LaserScan's ``range_max``): 0.25 deg UTM-30LX; 0.35 deg Hokuyo (the URG-04LX when its range ends
+    by 6 m); 0.5 deg and 1 deg SICK-class scans. The class boundaries lie midway between the steps."""
+    deg = math.degrees(abs(step_rad))
+    if not deg > 0.0:
+        raise ValueError(f"the bearing step must be > 0, got {step_rad}")
+    if deg < 0.30:
+        return "utm30lx"
+    if deg < 0.425:
+        return "urg04lx" if max_range_m <= 6.0 else "hokuyo_0.35deg"
+    if deg < 0.75:
+        return "half_degree"
+    return "one_degree"
+
+
 @functools.lru_cache(maxsize=64)
 def _for_scan(c: PsmConfig, n_beams: int, dphi_rad: float) -> PsmConfig:
     changes: dict[str, int] = {}
-    if c.min_valid_beams == 0:
-        changes["min_valid_beams"] = max(3, math.ceil(c.min_valid_share * n_beams - 1e-9))
     if dphi_rad > 0.0 and c.search_window_first_rad > 0.0:
         changes["search_window_first_beams"] = max(1, round(c.search_window_first_rad / dphi_rad))
     if dphi_rad > 0.0 and c.search_window_rad > 0.0:
@@ -158,7 +234,7 @@ def _for_scan(c: PsmConfig, n_beams: int, dphi_rad: float) -> PsmConfig:
 class PsmRefusal(enum.Enum):
     NONE = "none"
     EMPTY_SCAN = "empty_scan"  # a scan with no usable beam after preprocessing
-    TOO_FEW_BEAMS = "too_few_beams"  # fewer than min_valid_beams compared in a translation step
+    TOO_FEW_BEAMS = "too_few_beams"  # fewer compared in a translation step than required_beams()
     NO_VALID_SHIFT = "no_valid_shift"  # the orientation search found no shift with enough overlap
     DEGENERATE = "degenerate"  # the translation normal equations are (nearly) singular
     BAD_INPUT = "bad_input"  # shapes/bearings unusable (e.g. mismatched lengths, non-ascending)
@@ -220,6 +296,11 @@ class PreparedScan:
     @property
     def n_good(self) -> int:
         return int(np.count_nonzero(self.good))
+
+    @functools.cached_property
+    def n_usable(self) -> int:
+        """Beams a match can compare: good and with a weight above 0."""
+        return int(np.count_nonzero(self.good & (self.weights > 0.0)))
 
 
 def median_filter_valid(ranges_m: np.ndarray, valid: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -412,7 +493,7 @@ def _kernel_params(c: PsmConfig) -> tuple[tuple[float, ...], tuple[int, ...], tu
               c.max_range_m, c.min_overlap_frac, c.orientation_gain, c.stop_translation_m, c.stop_rotation_rad,
               c.degenerate_eig, c.damping)
     ints = (c.change_weight_iter, c.max_iterations, c.stop_count, c.search_window_first_beams,
-            c.search_window_beams, c.min_valid_beams)
+            c.search_window_beams)
     return tuple(float(v) for v in floats), tuple(int(v) for v in ints), (bool(c.line_interpolation),)
 
 
@@ -426,20 +507,32 @@ def match_prepared(
     from .psm_kernel import DEGENERATE, NO_VALID_SHIFT, TOO_FEW_BEAMS, iterate, match_statistics
 
     cos_b, sin_b = cur_cos_sin(ref.bearings_rad)
+    min_valid = config.required_beams(min(ref.n_usable, cur.n_usable))
+    fc, ic, bc = _kernel_params(config)
     x, y, th, it, converged, code, beams, curv_th, c_m2 = iterate(
         ref.ranges_m, ref.good, ref.weights, ref.bearings_rad, cos_b, sin_b, _uniform(ref.bearings_rad),
         ref.dphi_rad, cur.x_m, cur.y_m, cur.pair_ok, cur.pair_w, initial_guess.x_m, initial_guess.y_m,
-        initial_guess.theta_rad, *_kernel_params(config))
-    if code:
+        initial_guess.theta_rad, fc, ic + (min_valid,), bc)
+    if code and not (config.refine_refused and config.refine_iterations > 0):
         reason = {NO_VALID_SHIFT: PsmRefusal.NO_VALID_SHIFT, TOO_FEW_BEAMS: PsmRefusal.TOO_FEW_BEAMS,
                   DEGENERATE: PsmRefusal.DEGENERATE}[code]
         return _refused(initial_guess, reason, it, beams, config)
+    if code:  # refused by PSM: refined from the guess instead, accepted if the refinement is
+        x, y, th = initial_guess.x_m, initial_guess.y_m, initial_guess.theta_rad
+        converged = False
+    if config.refine_iterations > 0:
+        ok, x, y, th = _refine(ref, cur, x, y, th, min_valid, config)
+        if code and not ok:
+            return _refused(initial_guess, PsmRefusal.NO_VALID_SHIFT if code == NO_VALID_SHIFT else
+                            PsmRefusal.TOO_FEW_BEAMS if code == TOO_FEW_BEAMS else PsmRefusal.DEGENERATE,
+                            it, beams, config)
+        converged = converged or (ok and bool(code))
     pose = Pose2D(x, y, th)
     proj = project(cur, ref.bearings_rad, pose, config)
     n_used, residual, sw, sigma2, i11, i12, i22 = match_statistics(
         ref.ranges_m, ref.good & (ref.weights > 0.0), ref.weights, cos_b, sin_b, ref.normal_x, ref.normal_y,
         proj.ranges_m, proj.good, proj.weights, c_m2, config.max_error_m)
-    if n_used < config.min_valid_beams:
+    if n_used < min_valid:
         return _refused(initial_guess, PsmRefusal.TOO_FEW_BEAMS, it, n_used, config)
     info = (i11, i12, i22)
     var_th = _orientation_variance(curv_th, sigma2, n_used, ref.dphi_rad)
@@ -449,6 +542,23 @@ def match_prepared(
     cov = _covariance(info, sw, sigma2, var_th, residual, corridor, corr_angle, config)
     return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor,
                      np.array([[i11, i12], [i12, i22]]))
+
+
+def _refine(ref: PreparedScan, cur: PreparedScan, x: float, y: float, th: float, min_pairs: int, c: PsmConfig
+            ) -> tuple[bool, float, float, float]:
+    """(accepted, pose) of the point-to-line refinement from (x, y, th); not accepted: the pose given."""
+    from .plicp import OK, refine
+
+    window = max(1, math.ceil(c.refine_window_rad / max(abs(ref.dphi_rad), 1e-9)))
+    r_ok, c_ok = ref.good & (ref.weights > 0.0), cur.good & (cur.weights > 0.0)
+    rx, ry, th2, code, _pairs, _rms, _it = refine(
+        ref.x_m, ref.y_m, ref.bearings_rad, _uniform(ref.bearings_rad), r_ok, ref.segments, cur.x_m, cur.y_m,
+        c_ok, cur.weights, x, y, th, c.refine_iterations, window, c.refine_max_dist_m,
+        c.refine_robust_scale, c.refine_min_scale_m, min_pairs, c.refine_damping, c.degenerate_eig,
+        c.stop_translation_m * 0.1, c.stop_rotation_rad * 0.1)
+    if code != OK:
+        return False, x, y, th
+    return True, rx, ry, th2
 
 
 def _orientation_variance(curv_th: float, sigma2: float, n_used: int, dphi_rad: float) -> float:
@@ -577,6 +687,8 @@ def warm_up(config: PsmConfig | None = None) -> None:
 
 
 __all__ = [
+    "SCANNER_PRESETS",
+    "preset_name_for",
     "PsmConfig",
     "PsmRefusal",
     "PsmResult",

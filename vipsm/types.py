@@ -141,6 +141,8 @@ class EstimateFlag(enum.Flag):
     BRIDGE_INVALID = enum.auto()  # a cut segment spanned two surfaces and was invalidated, not bridged
     STALE_FRAME = enum.auto()  # the frame was too old for the scan and was not used
     FRAME_ERROR = enum.auto()  # the frame could not be processed (bad image) and was not used
+    #: no odometry and no accepted match this cycle: the pose is the constant-velocity prediction alone
+    POSE_UNCERTAIN = enum.auto()
 
 
 @dataclass(frozen=True)

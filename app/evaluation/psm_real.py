@@ -10,6 +10,12 @@ Data sets (read in place from ``--data DIR``, normally ``../shared/data``):
   scans (180 ranges at 1 deg, 81.83 = no return) with raw odometry and gmapping-corrected poses.
   Consecutive pairs are seeded with the odometry difference and compared with the corrected relative
   pose. A refused pair is scored with its odometry guess (as psm.md §7 does for the originals).
+* ``freiburg_slam_benchmark/csail_gfs.json`` + ``csail_corrected_log.json``: 406 MIT CSAIL scans (361
+  ranges at 0.5 deg, 81.91 = no return), scored the same way.
+
+Both Freiburg sets are matched with the preset their geometry selects (``PsmConfig.for_geometry``: 1 deg
+``one_degree``, 0.5 deg ``half_degree``: PSM, then point-to-line refinement); ``psm_alone`` repeats the
+match without the refinement.
 
 Errors are ``est (-) truth``: the translation norm (m) and the absolute rotation (deg) of the
 relative pose of the estimate expressed in the reference's frame.
@@ -17,6 +23,7 @@ relative pose of the estimate expressed in the reference's frame.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import statistics
@@ -28,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from vipsm.geometry import between
-from vipsm.psm import PsmConfig, PsmResult, match
+from vipsm.psm import PsmConfig, PsmResult, match, preset_name_for
 from vipsm.types import Pose2D, Scan
 
 from ..errors import AppError
@@ -43,6 +50,11 @@ DIOSI_INVALID_M = 9999.0  # the file writes 10000 for "no valid return"
 INTEL_BEAMS = 180
 INTEL_BEARINGS = np.radians(-90.0 + np.arange(INTEL_BEAMS, dtype=float))
 INTEL_NO_RETURN_M = 81.8  # the log writes 81.83 for "no return"
+CSAIL_RAW = Path("freiburg_slam_benchmark") / "csail_gfs.json"
+CSAIL_CORRECTED = Path("freiburg_slam_benchmark") / "csail_corrected_log.json"
+CSAIL_BEAMS = 361
+CSAIL_BEARINGS = np.radians(-90.0 + 0.5 * np.arange(CSAIL_BEAMS, dtype=float))
+CSAIL_NO_RETURN_M = 81.0  # the log writes 81.91 for "no return"; its farthest returns are ~32 m
 OVER_M = 0.20
 
 # The original v0.3's results on the Diosi sequence (psm.md §8.3): pair -> (dx cm right, dy cm forward, dtheta deg)
@@ -219,16 +231,31 @@ def eval_diosi(path: Path, per_pair: bool) -> dict[str, Any]:
 
 
 def eval_intel(raw_path: Path, corrected_path: Path, per_pair: bool) -> dict[str, Any]:
-    raw = read_freiburg_json(raw_path, INTEL_BEAMS, INTEL_BEARINGS, INTEL_NO_RETURN_M)
-    cor = read_freiburg_json(corrected_path, INTEL_BEAMS, INTEL_BEARINGS, INTEL_NO_RETURN_M)
+    return eval_freiburg(raw_path, corrected_path, INTEL_BEAMS, INTEL_BEARINGS, INTEL_NO_RETURN_M, per_pair)
+
+
+def eval_csail(raw_path: Path, corrected_path: Path, per_pair: bool) -> dict[str, Any]:
+    return eval_freiburg(raw_path, corrected_path, CSAIL_BEAMS, CSAIL_BEARINGS, CSAIL_NO_RETURN_M, per_pair)
+
+
+def eval_freiburg(raw_path: Path, corrected_path: Path, n_beams: int, bearings: np.ndarray, no_return_m: float,
+                  per_pair: bool) -> dict[str, Any]:
+    """Consecutive pairs seeded with odometry, matched with the preset the scans' geometry selects
+    (:meth:`PsmConfig.for_geometry`), scored against the corrected poses; ``psm_alone``: the same preset
+    without the point-to-line refinement (and a pair PSM refuses scored as its odometry guess)."""
+    raw = read_freiburg_json(raw_path, n_beams, bearings, no_return_m)
+    cor = read_freiburg_json(corrected_path, n_beams, bearings, no_return_m)
     cor_by_stamp = {s.stamp_s: s.pose for s in cor}
     missing = [s.stamp_s for s in raw if s.stamp_s not in cor_by_stamp]
     if missing:
         raise DataFormatError(f"{corrected_path}: {len(missing)} scans of {raw_path.name} have no corrected pose")
-    cfg = PsmConfig.sick_1deg()
+    step = float(bearings[1] - bearings[0])
+    preset = preset_name_for(step, no_return_m)
+    cfg = PsmConfig.preset(preset)
+    alone = dataclasses.replace(cfg, refine_iterations=0, refine_refused=False)
     rows, trans, rot, times = [], [], [], []
-    odo_trans, odo_rot = [], []
-    refused = 0
+    odo_trans, odo_rot, alone_trans, alone_rot = [], [], [], []
+    refused = alone_refused = 0
     for i in range(len(raw) - 1):
         a, b = raw[i], raw[i + 1]
         guess = between(a.pose, b.pose)
@@ -244,6 +271,11 @@ def eval_intel(raw_path: Path, corrected_path: Path, per_pair: bool) -> dict[str
         ot, orr = _err(truth, guess)
         odo_trans.append(ot)
         odo_rot.append(orr)
+        res0 = match(a.scan, b.scan, guess, alone)
+        alone_refused += int(res0.refused)
+        e0 = _err(truth, res0.pose)
+        alone_trans.append(e0[0])
+        alone_rot.append(e0[1])
         if per_pair:
             row = _pair_row(i, i + 1, res, ms)
             row.update({"err_m": round(et, 5), "err_deg": round(er, 4)})
@@ -252,12 +284,18 @@ def eval_intel(raw_path: Path, corrected_path: Path, per_pair: bool) -> dict[str
         "files": [str(raw_path), str(corrected_path)],
         "pairs": len(raw) - 1,
         "initial_guess": "odometry",
-        "config": "PsmConfig.sick_1deg()",
+        "config": f'PsmConfig.preset("{preset}")',
         "compared_with": "gmapping-corrected poses (an estimate, not ground truth)",
         **_summary(trans, rot, refused, times),
         "refused_scored_as": "odometry guess",
         "odometry_median_trans_err_m": round(float(np.median(odo_trans)), 5),
         "odometry_median_rot_err_deg": round(float(np.median(odo_rot)), 4),
+        "psm_alone": {
+            "median_trans_err_m": round(float(np.median(alone_trans)), 5),
+            "median_rot_err_deg": round(float(np.median(alone_rot)), 4),
+            "p90_trans_err_m": round(float(np.percentile(alone_trans, 90)), 5),
+            "refused": alone_refused,
+        },
     }
     if per_pair:
         out["per_pair"] = rows
@@ -294,8 +332,9 @@ def _timed(pairs: list[tuple[Scan, Scan, Pose2D]], cfg: PsmConfig, repetitions: 
 
 def bench_real(data: Path, repetitions: int = 20) -> dict[str, Any]:
     """PSM speed on the real scans: the 24 consecutive Diosi UTM-30LX pairs from a zero guess at
-    the original v0.3 parameters and at this project's defaults, and the 909 Intel pairs seeded with
-    odometry at ``PsmConfig.sick_1deg()`` (Intel: ``repetitions // 10`` passes). Missing data: a reason."""
+    the original v0.3 parameters and at this project's defaults, the 909 Intel pairs seeded with
+    odometry at ``PsmConfig.sick_1deg()`` and at the ``one_degree`` preset (PSM + refinement), and the
+    405 CSAIL pairs at ``half_degree`` (Freiburg sets: ``repetitions // 10`` passes). Missing data: a reason."""
     out: dict[str, Any] = {}
     diosi = data / DIOSI_FILE
     if diosi.exists():
@@ -312,7 +351,18 @@ def bench_real(data: Path, repetitions: int = 20) -> dict[str, Any]:
         pairs = [(a.scan, b.scan, between(a.pose, b.pose)) for a, b in zip(logged, logged[1:])]
         timed = _timed(pairs, PsmConfig.sick_1deg(), max(1, repetitions // 10))
         out.update({f"psm_real_intel_{k}": v for k, v in timed.items()})
+        timed = _timed(pairs, PsmConfig.preset("one_degree"), max(1, repetitions // 10))
+        out.update({f"psm_real_intel_preset_{k}": v for k, v in timed.items()})
         out["psm_real_intel_pairs"] = len(pairs)
     else:
         out["psm_real_intel_skipped"] = f"{raw} not found"
+    raw = data / CSAIL_RAW
+    if raw.exists():
+        logged = read_freiburg_json(raw, CSAIL_BEAMS, CSAIL_BEARINGS, CSAIL_NO_RETURN_M)
+        pairs = [(a.scan, b.scan, between(a.pose, b.pose)) for a, b in zip(logged, logged[1:])]
+        timed = _timed(pairs, PsmConfig.preset("half_degree"), max(1, repetitions // 10))
+        out.update({f"psm_real_csail_preset_{k}": v for k, v in timed.items()})
+        out["psm_real_csail_pairs"] = len(pairs)
+    else:
+        out["psm_real_csail_skipped"] = f"{raw} not found"
     return out

@@ -129,7 +129,7 @@ def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
     read = BagReadResult()
     t0 = time.perf_counter()
     for bc in read_bag(bag, BagTopics(topic), read=read, max_scans=max_scans):
-        e = est.step(bc.scan, bc.odometry, None)
+        e = est.step(bc.scan, bc.odometry if bc.odometry_given else None, None)  # no --odom: no odometry
         run.cycles.append(Cycle(bc.scan.stamp_s, (e.pose.x_m, e.pose.y_m, e.pose.theta_rad),
                                 [(o.track_id, o.x_m, o.y_m) for o in e.obstacles],
                                 bool(e.flags & EstimateFlag.ODOMETRY_FALLBACK), refusal_reason(est)))

@@ -178,13 +178,30 @@ def test_degenerate_scans_are_refused_not_raised(ranges: np.ndarray) -> None:
 
 
 def test_too_few_beams_refused() -> None:
+    """Below the floor: a 3-parameter fit on a handful of beams is refused, whatever the share."""
+    world = box_room(6.0, 6.0)
+    s = world.scan(Pose2D(0, 0, 0))
+    r = s.ranges_m.copy()
+    r[15:] = np.nan
+    few = Scan(r, s.bearings_rad, 0.0)
+    res = match(few, few, Pose2D(0, 0, 0))
+    assert res.refused and res.reason in (PsmRefusal.TOO_FEW_BEAMS, PsmRefusal.NO_VALID_SHIFT)
+
+
+def test_little_overlap_refused_but_a_range_limited_scan_matched() -> None:
+    """The acceptance counts the beams both scans offer: 200 valid beams matched against themselves
+    (a range-limited scanner) pass; a scan that shows none of what the reference saw does not."""
     world = box_room(6.0, 6.0)
     s = world.scan(Pose2D(0, 0, 0))
     r = s.ranges_m.copy()
     r[200:] = np.nan
-    few = Scan(r, s.bearings_rad, 0.0)
-    res = match(few, few, Pose2D(0, 0, 0))
-    assert res.refused and res.reason in (PsmRefusal.TOO_FEW_BEAMS, PsmRefusal.NO_VALID_SHIFT)
+    limited = Scan(r, s.bearings_rad, 0.0)
+    res = match(limited, limited, Pose2D(0.02, 0.0, 0.0))
+    assert not res.refused and math.hypot(res.dx_m, res.dy_m) < 0.005
+    r2 = s.ranges_m.copy()
+    r2[:300] = np.nan
+    res = match(limited, Scan(r2, s.bearings_rad, 0.0), Pose2D(0.0, 0.0, 0.0))
+    assert res.refused
 
 
 def test_bad_bearings_refused() -> None:
