@@ -36,7 +36,7 @@ from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
 from .errors import AppError
 from .fieldlog import FieldLog
-from .liveview import LiveView, check_exposure, layout_path, parse_listen
+from .liveview import LiveLimits, LiveView, check_exposure, layout_path, parse_listen
 from .replay import deterministic_opencv
 from .sdnotify import SystemdNotifier
 from .status import StatusServer
@@ -410,12 +410,13 @@ def _live_address(config: Config) -> tuple[str, int] | None:
     return host, port
 
 
-def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None) -> LiveView | None:
+def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None,
+                     limits: LiveLimits) -> LiveView | None:
     if address is None:
         return None
     assert field_log is not None
     try:
-        live = LiveView(field_log.context, *address).start()
+        live = LiveView(field_log.context, *address, limits=limits).start()
     except AppError:
         field_log.close()
         raise
@@ -453,7 +454,7 @@ def build_loop(
     try:
         live_at = _live_address(config)  # a refused address leaves no log file behind
         field_log = _open_field_log(config, path)
-        live = _start_live_view(live_at, field_log)
+        live = _start_live_view(live_at, field_log, LiveLimits.from_config(config.live))
     except (AppError, OSError):
         for dev in (scanner, base, camera):
             if dev is not None:

@@ -81,6 +81,7 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "log_disk_errors": loop.log.stats.disk_errors if loop.log is not None else 0,
             "log_last_disk_error": loop.log.stats.last_disk_error if loop.log is not None else None,
             "live_url": loop.live_view.url if loop.live_view is not None else None,
+            "live_view": loop.live_view.summary() if loop.live_view is not None else None,
             "status_server": None if loop.status is None else {
                 "restarts": loop.status.restarts, "last_failure": loop.status.last_failure,
                 "refused_writes": loop.status.refused_writes, **loop.status.connection_counts()},
