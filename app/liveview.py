@@ -1,7 +1,13 @@
-"""The live view: the field log's channels served over the Foxglove SDK's WebSocket server, so
-Foxglove or Lichtblick (``ws://HOST:PORT``) shows scans, pose, transforms, obstacles, the camera and
-the loop's health while the robot runs. Loopback only unless ``live.allow_remote`` is set (the
-camera image and the robot's position would be readable by anyone on the network)."""
+"""The live view: the field log's channels served to Foxglove or Lichtblick (``ws://HOST:PORT``):
+scans, pose, transforms, obstacles, the camera and the loop's health while the robot runs.
+
+The Foxglove SDK's WebSocket server encodes and serves the channels on a private loopback port;
+viewers reach only the front (:mod:`app.livefront`), which caps clients, times out handshakes,
+bounds each client's send queue, serves the protocol's older name ``foxglove.websocket.v1``, latches
+topics (``/vipsm/config``) and stops within its timeout whatever the clients do. Lines about clients
+are rate-limited (:class:`LineBudget`); the counters are in the run summary (``live_view``).
+Loopback only unless ``live.allow_remote`` is set (the camera image and the robot's position would
+be readable by anyone on the network)."""
 
 from __future__ import annotations
 
