@@ -76,15 +76,32 @@ def test_each_channel_reaches_a_subscribed_websocket_client() -> None:
 
 
 @pytest.mark.parametrize(("spec", "want"), [("8765", ("127.0.0.1", 8765)), ("0.0.0.0:9", ("0.0.0.0", 9)),
-                                            ("[::1]:8765", ("::1", 8765)), ("localhost:1", ("localhost", 1))])
+                                            ("[::1]:8765", ("::1", 8765)), ("localhost:1", ("localhost", 1)),
+                                            (" 0 ", ("127.0.0.1", 0)), ("robot-1.lan:65535", ("robot-1.lan", 65535))])
 def test_listen_addresses(spec: str, want: tuple[str, int]) -> None:
     assert parse_listen(spec) == want
 
 
-@pytest.mark.parametrize("spec", ["", "abc", "1:99999", ":80x", "-1"])
+@pytest.mark.parametrize("spec", ["", "abc", "1:99999", ":80x", "-1", "8_765", "\uff18\uff17\uff16\uff15", "+80",
+                                  "1:", "[::1]", "[nothost]:80", "a b:80", "-bad-:80"])
 def test_bad_listen_addresses_are_config_errors(spec: str) -> None:
     with pytest.raises(ConfigError, match="live.listen"):
         parse_listen(spec)
+
+
+@pytest.mark.parametrize("spec", ["::1", "::1:8765", "fe80::1"])
+def test_an_ipv6_host_without_brackets_is_refused_saying_brackets_are_needed(spec: str) -> None:
+    with pytest.raises(ConfigError, match=r"IPv6 host needs brackets.*\[::1\]:8765"):
+        parse_listen(spec)
+
+
+@pytest.mark.parametrize(("value", "message"), [('"8_765"', "ASCII digits"), ('"::1"', "needs brackets"),
+                                                ('"0.0.0.0:80"', "live.allow_remote")])
+def test_dump_config_validates_live_listen(value: str, message: str) -> None:
+    proc = subprocess.run([sys.executable, "-m", "app", "dump-config", "--set", f"live.listen={value}"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and "live.listen" in proc.stderr and message in proc.stderr
+    assert proc.stdout == "" and "Traceback" not in proc.stderr
 
 
 def test_remote_live_view_is_refused_unless_allowed_then_warned() -> None:
