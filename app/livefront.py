@@ -314,6 +314,9 @@ class LiveFront:
                 return
 
     def _send(self, conn: _Conn, raw: bytes, droppable: bool) -> None:
+        if conn.writer.transport.is_closing():  # the viewer left: writing on would log a line per write
+            self._abort(conn)
+            return
         queued = conn.queued()
         limit = self.limits.send_queue_bytes
         if droppable and queued >= limit:

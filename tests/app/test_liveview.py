@@ -8,6 +8,7 @@ import json
 import os
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -481,3 +482,30 @@ def test_sim_exits_within_2_s_of_sigterm_with_five_viewers_that_stopped_reading(
     assert took < 2.0, f"exit took {took:.1f} s after SIGTERM"
     summary = json.loads(out)
     assert summary["live_url"] == f"ws://127.0.0.1:{port}" and summary["live_view"]["served"] == 6
+
+
+def test_viewers_that_vanish_mid_stream_cost_no_line_per_message(caplog: pytest.LogCaptureFixture) -> None:
+    ctx = foxglove.Context()
+    big = _big_channel(ctx)
+    lines: list[str] = []
+    live = LiveView(ctx, "127.0.0.1", 0, on_event=lambda level, msg: lines.append(msg)).start()
+    try:
+        big.log(b'"warm"')
+        clients = []
+        for _ in range(6):
+            s, rest = _raw_upgrade(live.port, rcvbuf=4096)
+            _subscribe_raw(s, rest, "/big")
+            clients.append(s)
+        blob = json.dumps("v" * 5000).encode()
+        for i in range(400):
+            big.log(blob)
+            if i == 100:
+                for s in clients:  # reset, not closed: the front's writes to them fail
+                    s.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+                    s.close()
+            time.sleep(0.002)
+        assert _wait(lambda: live.summary()["clients"] == 0)
+    finally:
+        live.stop()
+    assert not [r for r in caplog.records if r.name == "asyncio"]
+    assert len(lines) <= LineBudget(print).lines["client"] + 1
