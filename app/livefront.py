@@ -50,7 +50,8 @@ class FrontLimits:
 @dataclass
 class FrontStats:
     #: "ok", "degraded" (accepting fails, e.g. out of file descriptors; retried every second),
-    #: "failed" (the SDK server could not be restarted; retried at the next connection), "stopped"
+    #: "failed" (the SDK server could not be restarted; retried at the next connection); after
+    #: ``stop`` the last state while running
     state: str = "ok"
     clients: int = 0
     served: int = 0
@@ -76,6 +77,8 @@ class _Conn:
     topics: dict[int, str] = field(default_factory=dict)
     full_since: float | None = None
     closed: bool = False
+    #: the SDK server's restarts counted when this connection reached for it
+    generation: int = 0
 
     def queued(self) -> int:
         return 0 if self.writer.transport.is_closing() else self.writer.transport.get_write_buffer_size()
@@ -161,7 +164,6 @@ class LiveFront:
         loop, thread = self._loop, self._thread
         if loop is None or thread is None or loop.is_closed():
             return
-        self.stats.state = "stopped"
         try:
             loop.call_soon_threadsafe(self._shutdown_now)
         except RuntimeError:  # the loop closed meanwhile
@@ -244,7 +246,7 @@ class LiveFront:
         try:
             resp, extra = await asyncio.wait_for(_read_head(b_reader), max(0.5, deadline - time.monotonic()))
         except (TimeoutError, asyncio.IncompleteReadError) as exc:
-            await self._backend_failed(conn, f"no handshake answer ({_why(exc)})")
+            await self._backend_failed(conn, f"no handshake answer ({_why(exc)})", conn.generation)
             return False
         conn.writer.write(wf.rename_response_subprotocol(resp, answer))
         if wf.response_status(resp) != 101:
@@ -256,11 +258,13 @@ class LiveFront:
         return True
 
     async def _connect_backend(self, conn: _Conn, timeout_s: float) -> asyncio.StreamReader | None:
+        async with self._restart_lock:  # not while the SDK server is being restarted
+            conn.generation = self.stats.backend_restarts
         try:
             b_reader, conn.backend = await asyncio.wait_for(
                 asyncio.open_connection("127.0.0.1", self.backend.port(), limit=READ_BYTES), timeout_s)
         except ConnectionRefusedError:
-            await self._backend_failed(conn, "connection refused")
+            await self._backend_failed(conn, "connection refused", conn.generation)
             return None
         except (OSError, TimeoutError) as exc:  # EMFILE here: out of file descriptors
             self.stats.backend_errors += 1
@@ -271,12 +275,15 @@ class LiveFront:
             return None
         return b_reader
 
-    async def _backend_failed(self, conn: _Conn, why: str) -> None:
-        """The SDK server refused or did not answer: started anew (its listener may be gone)."""
+    async def _backend_failed(self, conn: _Conn, why: str, generation: int) -> None:
+        """The SDK server refused or did not answer: started anew (its listener may be gone), once
+        for all the connections that found the same server failing (``generation``)."""
         self.stats.backend_errors += 1
         self.stats.last_failure = f"SDK server: {why}"
         conn.writer.write(wf.http_error(503, "live view restarting, try again"))
         async with self._restart_lock:
+            if self.stats.backend_restarts != generation:
+                return  # restarted meanwhile
             self.report("state", "error", f"live view: the SDK server failed ({why}); restarting it")
             assert self._loop is not None
             try:

@@ -251,7 +251,7 @@ class LiveView:
 
     def summary(self) -> dict[str, Any]:
         """The counters for the run summary (JSON field ``live_view``)."""
-        stats = self._front.stats if self._front is not None else FrontStats(state="stopped")
+        stats = self._front.stats if self._front is not None else FrontStats(state="off")
         return {"url": self.url, **dataclasses.asdict(stats), "lines_not_shown": self.budget.suppressed}
 
     def stop(self, timeout_s: float = 1.5) -> None:

@@ -509,3 +509,21 @@ def test_viewers_that_vanish_mid_stream_cost_no_line_per_message(caplog: pytest.
         live.stop()
     assert not [r for r in caplog.records if r.name == "asyncio"]
     assert len(lines) <= LineBudget(print).lines["client"] + 1
+
+
+def test_a_gone_sdk_server_is_restarted_and_said_so() -> None:
+    """The SDK's listener can end (as it did after file descriptors ran out): the next viewer finds
+    it refused, the front starts a new one and says so; later viewers are served."""
+    lines: list[str] = []
+    live = LiveView(foxglove.Context(), "127.0.0.1", 0, on_event=lambda level, msg: lines.append(msg)).start()
+    try:
+        live._backend._server.stop()  # the listener gone, its port refusing
+        with pytest.raises(InvalidStatus) as info:
+            connect(live.url, subprotocols=[SDK], open_timeout=10)
+        assert info.value.response.status_code == 503
+        assert _wait(lambda: _serves(live.port), 20.0)
+        s = live.summary()
+        assert s["backend_restarts"] == 1 and s["state"] == "ok" and "refused" in s["last_failure"]
+        assert any("SDK server failed (connection refused); restarting it" in m for m in lines)
+    finally:
+        live.stop()
