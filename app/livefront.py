@@ -111,6 +111,7 @@ class LiveFront:
         self._thread: threading.Thread | None = None
         self._bound_port = port
         self._restart_lock = asyncio.Lock()
+        self._stopping = False
 
     @property
     def port(self) -> int:
@@ -173,6 +174,7 @@ class LiveFront:
 
     def _shutdown_now(self) -> None:
         assert self._loop is not None
+        self._stopping = True
         if self._server is not None:
             self._server.close()
         for conn in list(self._conns):
@@ -184,6 +186,8 @@ class LiveFront:
     def _loop_error(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
         exc = context.get("exception")
         message = str(context.get("message", "error"))
+        if self._stopping:  # tasks cancelled by stop: nothing went wrong
+            return
         if "accept" in message:  # asyncio stops accepting for 1 s, then retries by itself
             self.stats.accept_errors += 1
             self.stats.last_failure = f"accept failed: {exc}"

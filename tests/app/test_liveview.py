@@ -295,7 +295,7 @@ def test_a_viewer_that_stops_reading_costs_a_bounded_queue_then_is_disconnected_
     ctx = foxglove.Context()
     big = _big_channel(ctx)
     limit = 64 * 1024
-    live = LiveView(ctx, "127.0.0.1", 0, limits=FrontLimits(send_queue_bytes=limit, stall_timeout_s=1.0)).start()
+    live = LiveView(ctx, "127.0.0.1", 0, limits=FrontLimits(send_queue_bytes=limit, stall_timeout_s=2.0)).start()
     try:
         stalled, rest = _raw_upgrade(live.port, rcvbuf=4096)
         big.log(b'"warm"')  # advertised once it exists
@@ -306,12 +306,19 @@ def test_a_viewer_that_stops_reading_costs_a_bounded_queue_then_is_disconnected_
             time.sleep(0.3)
             blob = json.dumps("x" * 20_000).encode()
             peak = 0
-            for i in range(300):
-                big.log(blob if i < 299 else b'"last"')
+            for _ in range(300):
+                big.log(blob)
                 peak = max(peak, live._front.queued_bytes())  # type: ignore[union-attr]
                 time.sleep(0.005)
-            while (m := ws.recv(timeout=10)) and m[13:] != b'"last"':  # the reading viewer gets to the end
-                pass
+            done = threading.Event()
+            ender = threading.Thread(target=lambda: [big.log(b'"last"') for _ in iter(lambda: done.wait(0.1), True)])
+            ender.start()  # repeated: the reader may miss one if it lags (its queue is bounded too)
+            try:
+                while (m := ws.recv(timeout=20)) and m[13:] != b'"last"':  # the reading viewer gets to the end
+                    pass
+            finally:
+                done.set()
+                ender.join()
         assert _wait(lambda: live.summary()["slow_disconnects"] == 1)
         s = live.summary()
         assert s["dropped_messages"] > 0 and peak <= 2 * (limit + len(blob) + 64)  # each: a limit and a message
@@ -346,6 +353,7 @@ def test_stop_returns_within_its_bound_with_five_clients_that_stopped_reading() 
 def test_connect_floods_give_a_bounded_number_of_lines_then_a_count() -> None:
     lines: list[str] = []
     live = LiveView(foxglove.Context(), "127.0.0.1", 0, on_event=lambda level, msg: lines.append(msg)).start()
+    t0 = time.monotonic()
     try:
         for _ in range(200):  # junk requests and resets: each would have been one stderr line
             s = socket.create_connection(("127.0.0.1", live.port), timeout=10)
@@ -355,8 +363,11 @@ def test_connect_floods_give_a_bounded_number_of_lines_then_a_count() -> None:
         assert _wait(lambda: live.summary()["handshake_failures"] == 200)
     finally:
         live.stop()
-    assert len(lines) <= LineBudget(print).lines["client"] + 1
-    assert "195 more lines not shown" in lines[-1] and live.summary()["lines_not_shown"] == 195
+    intervals = 1 + int((time.monotonic() - t0) // 60)
+    shown = [m for m in lines if "more lines not shown" not in m]
+    held = sum(int(m.split(": ")[1].split()[0]) for m in lines if "more lines not shown" in m)
+    assert len(shown) <= LineBudget(print).lines["client"] * intervals
+    assert held == live.summary()["lines_not_shown"] == 200 - len(shown) > 0
 
 
 def test_the_line_budget_summarises_per_interval() -> None:
