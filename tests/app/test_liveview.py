@@ -456,7 +456,8 @@ def test_sim_exits_within_2_s_of_sigterm_with_five_viewers_that_stopped_reading(
     """The daemon's exit used to wait ~65 s for them (the SDK's stop); systemd would kill it."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     proc = subprocess.Popen([sys.executable, "-m", "app", "sim", "--duration", "300", "--no-progress", "--json",
-                             "--live", "127.0.0.1:0", "--log", str(tmp_path / "s.mcap"), "--set", "status.port=0"],
+                             "--live", "127.0.0.1:0", "--log", str(tmp_path / "s.mcap"), "--set", "status.port=0",
+                             "--set", "live.stall_timeout_s=600"],  # still connected at SIGTERM
                             env=env, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     clients = []
     try:
@@ -493,6 +494,7 @@ def test_sim_exits_within_2_s_of_sigterm_with_five_viewers_that_stopped_reading(
     assert took < 2.0, f"exit took {took:.1f} s after SIGTERM"
     summary = json.loads(out)
     assert summary["live_url"] == f"ws://127.0.0.1:{port}" and summary["live_view"]["served"] == 6
+    assert summary["live_view"]["slow_disconnects"] == 0 and summary["live_view"]["dropped_messages"] > 0
 
 
 def test_viewers_that_vanish_mid_stream_cost_no_line_per_message(caplog: pytest.LogCaptureFixture) -> None:
