@@ -112,6 +112,8 @@ class LiveFront:
         self._bound_port = port
         self._restart_lock = asyncio.Lock()
         self._stopping = False
+        #: SDK handshakes in a row that got no answer
+        self._no_answer = 0
 
     @property
     def port(self) -> int:
@@ -249,9 +251,15 @@ class LiveFront:
         conn.backend.write(wf.backend_request(req, ask) + rest)
         try:
             resp, extra = await asyncio.wait_for(_read_head(b_reader), max(0.5, deadline - time.monotonic()))
-        except (TimeoutError, asyncio.IncompleteReadError) as exc:
-            await self._backend_failed(conn, f"no handshake answer ({_why(exc)})", conn.generation)
+        except (TimeoutError, asyncio.IncompleteReadError, wf.HandshakeError) as exc:
+            self._no_answer += 1  # a busy machine may be slow once; three in a row: the server is stuck
+            if self._no_answer >= 3:
+                await self._backend_failed(conn, f"no handshake answer ({_why(exc)})", conn.generation)
+            else:
+                self.stats.backend_errors += 1
+                conn.writer.write(wf.http_error(503, "live view busy, try again"))
             return False
+        self._no_answer = 0
         conn.writer.write(wf.rename_response_subprotocol(resp, answer))
         if wf.response_status(resp) != 101:
             self.stats.handshake_failures += 1
@@ -293,6 +301,7 @@ class LiveFront:
             try:
                 await asyncio.wait_for(self._loop.run_in_executor(None, self.backend.restart), 5.0)
                 self.stats.backend_restarts += 1
+                self._no_answer = 0
                 if self.stats.state == "failed":
                     self.stats.state = "ok"
             except Exception as exc:  # noqa: BLE001 - any failure of the SDK is reported, the front stays

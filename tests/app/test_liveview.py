@@ -25,8 +25,8 @@ from websockets.sync.client import connect
 from app import logmessages as lm
 from app.errors import AppError, ConfigError
 from app.fieldlog import FieldLog
-from app.livefront import FrontLimits
-from app.liveview import LineBudget, LiveView, check_exposure, layout_path, parse_listen
+from app.livefront import Backend, FrontLimits, LiveFront
+from app.liveview import LineBudget, LiveView, _SdkServer, check_exposure, layout_path, parse_listen
 from app.wsframes import FrameReader
 from vipsm.types import Obstacle
 
@@ -540,3 +540,40 @@ def test_a_gone_sdk_server_is_restarted_and_said_so() -> None:
         assert any("SDK server failed (connection refused); restarting it" in m for m in lines)
     finally:
         live.stop()
+
+
+class _StuckThenServing(Backend):
+    """An SDK server that accepts but never answers, until it is restarted."""
+
+    def __init__(self, real: _SdkServer) -> None:
+        self.real, self.stuck = real, True
+        self.silent = socket.create_server(("127.0.0.1", 0))
+
+    def port(self) -> int:
+        return self.silent.getsockname()[1] if self.stuck else self.real.port()
+
+    def restart(self) -> None:
+        self.stuck = False
+
+
+def test_an_sdk_server_that_stops_answering_is_restarted_after_three_viewers_found_it_so() -> None:
+    real = _SdkServer(foxglove.Context())
+    real.start()
+    backend = _StuckThenServing(real)
+    reports: list[tuple[str, str]] = []
+    front = LiveFront("127.0.0.1", 0, backend, FrontLimits(handshake_timeout_s=0.5),
+                      lambda kind, level, msg: reports.append((kind, msg)), lambda topic: None).start()
+    try:
+        url = f"ws://127.0.0.1:{front.port}"
+        for _ in range(3):  # once or twice may be a busy machine: no restart
+            with pytest.raises(InvalidStatus) as info:
+                connect(url, subprotocols=[SDK], open_timeout=10)
+            assert info.value.response.status_code == 503
+        assert _wait(lambda: front.stats.backend_restarts == 1) and front.stats.backend_errors == 3
+        assert [m for k, m in reports if k == "state"] == [
+            "live view: the SDK server failed (no handshake answer (timed out)); restarting it"]
+        assert _serves(front.port)
+    finally:
+        front.stop()
+        real.stop(1.0)
+        backend.silent.close()
