@@ -120,7 +120,7 @@ class LiveConfig:
     send_queue_bytes: int = _f(1 << 20, "bytes queued for one viewer: past this its messages are dropped, past twice "
                                "this it is disconnected", min=64 * 1024, max=256 << 20)
     stall_timeout_s: float = _f(10.0, "a viewer whose queue stays full this long (it stopped reading) is disconnected",
-                                min=1.0, max=600.0)
+                                min=1.0, max=3600.0)
 
     def __post_init__(self) -> None:
         if self.listen:  # checked here, so dump-config, run and sim refuse the same values
