@@ -152,6 +152,19 @@ class StatusConfig:
 class LiveConfig:
     listen: str = _f("", "live view (Foxglove WebSocket) as [HOST:]PORT, e.g. 8765; empty = off; --live sets it")
     allow_remote: bool = _f(False, "allow a live view on a non-loopback address (anyone reaching it sees the robot)")
+    max_clients: int = _f(8, "viewers served at once (a handshake under way counts); more get HTTP 503", min=1, max=256)
+    handshake_timeout_s: float = _f(5.0, "a connection whose WebSocket upgrade is not complete this long is closed",
+                                    min=0.5, max=60.0)
+    send_queue_bytes: int = _f(1 << 20, "bytes queued for one viewer: past this its messages are dropped, past twice "
+                               "this it is disconnected", min=64 * 1024, max=256 << 20)
+    stall_timeout_s: float = _f(10.0, "a viewer whose queue stays full this long (it stopped reading) is disconnected",
+                                min=1.0, max=3600.0)
+
+    def __post_init__(self) -> None:
+        if self.listen:  # checked here, so dump-config, run and sim refuse the same values
+            from .liveview import check_exposure, parse_listen
+
+            check_exposure(parse_listen(self.listen)[0], self.allow_remote)
 
 
 @dataclass(frozen=True)

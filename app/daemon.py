@@ -323,7 +323,12 @@ class ControlLoop:
         self._last_pan_tilt = (0.0, 0.0)
         if field_log is not None:
             field_log.on_event = lambda level, message: self.say(level, message, self.clock())
-            field_log.log("/vipsm/config", wall_clock(), {"log_version": lm.LOG_VERSION, **redacted_config(config)})
+            config_msg = {"log_version": lm.LOG_VERSION, **redacted_config(config)}
+            field_log.log("/vipsm/config", wall_clock(), config_msg)
+            if live_view is not None:  # latched: a viewer that connects later gets it too
+                live_view.latch("/vipsm/config", wall_clock(), config_msg)
+        if live_view is not None:
+            live_view.on_event = lambda level, message: self.say(level, message, self.clock())
         if status is not None:
             status.on_event = lambda level, message: self.say(level, message, self.clock())
         #: device counters taken at shutdown (the clients are closed afterwards)

@@ -37,7 +37,7 @@ from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
 from .errors import AppError
 from .fieldlog import FieldLog
-from .liveview import LiveView, check_exposure, layout_path, parse_listen
+from .liveview import LiveLimits, LiveView, check_exposure, layout_path, parse_listen
 from .replay import deterministic_opencv
 from .sdnotify import SystemdNotifier
 from .status import StatusServer
@@ -424,12 +424,13 @@ def _live_address(config: Config) -> tuple[str, int] | None:
     return host, port
 
 
-def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None) -> LiveView | None:
+def _start_live_view(address: tuple[str, int] | None, field_log: FieldLog | None,
+                     limits: LiveLimits) -> LiveView | None:
     if address is None:
         return None
     assert field_log is not None
     try:
-        live = LiveView(field_log.context, *address).start()
+        live = LiveView(field_log.context, *address, limits=limits).start()
     except AppError as exc:  # name the usual cause (a second instance) and the fix
         raise AppError(f"{exc} (port in use by another instance? give another with --live [HOST:]PORT or "
                        "live.listen, port 0 = any free port)") from exc
@@ -484,7 +485,7 @@ def build_loop(
         # the ports first, the file last: a start that fails on a port in use leaves no empty log behind
         live_at = _live_address(config)
         field_log = _new_field_log(config, path)
-        live = _start_live_view(live_at, field_log)
+        live = _start_live_view(live_at, field_log, LiveLimits.from_config(config.live))
         status = _start_status_server(config)
         if field_log is not None:
             _start_field_log(field_log, path)

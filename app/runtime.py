@@ -82,6 +82,7 @@ def loop_summary(loop: Any) -> dict[str, Any]:
             "log_last_disk_error": loop.log.stats.last_disk_error if loop.log is not None else None,
             "live_url": loop.live_view.url if loop.live_view is not None else None,
             "ros2": loop.ros2.summary() if getattr(loop, "ros2", None) is not None else None,
+            "live_view": loop.live_view.summary() if loop.live_view is not None else None,
             "status_server": None if loop.status is None else {
                 "host": loop.status.host, "port": loop.status.port, "restarts": loop.status.restarts,
                 "last_failure": loop.status.last_failure,
