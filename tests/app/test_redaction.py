@@ -53,9 +53,23 @@ def test_the_field_log_records_the_config_without_the_password(tmp_path: Path,
     from app.runtime import loop_summary
     from vipsm.estimator import Estimator
 
+    class _Live:  # what the live view is handed to latch for viewers that connect later
+        url, on_event = None, None
+
+        def __init__(self) -> None:
+            self.latched: list[tuple[str, dict]] = []
+
+        def latch(self, topic: str, t_wall_s: float, payload: dict) -> None:
+            self.latched.append((topic, payload))
+
+        def summary(self) -> dict:
+            return {}
+
     config = load_config(None, [f'devices.camera_http_url="{CAMERA}"', f'devices.camera_url="{CAMERA}"'])
     log = FieldLog(str(tmp_path / "run.mcap"), flush_s=0.05).start()
-    loop = ControlLoop(config, scanner=None, base=None, camera=None, estimator=Estimator(), field_log=log)
+    live = _Live()
+    loop = ControlLoop(config, scanner=None, base=None, camera=None, estimator=Estimator(), field_log=log,
+                       live_view=live)
     loop.say("warning", f"camera: cannot open {CAMERA}/image: timed out", 0.0)
     summary = loop_summary(loop)
     log.close()
@@ -66,6 +80,7 @@ def test_the_field_log_records_the_config_without_the_password(tmp_path: Path,
     assert recorded["devices"]["scanner_url"] == config.devices.scanner_url
     assert PASSWORD not in capsys.readouterr().err and PASSWORD not in json.dumps(summary["events"])
     assert config.devices.camera_http_url == CAMERA
+    assert [t for t, _ in live.latched] == ["/vipsm/config"] and PASSWORD not in json.dumps(live.latched)
 
 
 def test_log_files_are_not_world_readable_whatever_the_umask(tmp_path: Path) -> None:
