@@ -694,6 +694,8 @@ class ControlLoop:
                 self.say(level, message, now_s)
             if self.ros2.state == "failed" or self.ros2.errors:
                 flags.add("ros2_error")
+        if self.live_view is not None and self.live_view.state in ("degraded", "failed"):
+            flags.add("live_view_error")
         if self.truth is not None:
             flags.add("simulated")
         last = self.last_estimate

@@ -249,6 +249,11 @@ class LiveView:
         data = payload if isinstance(payload, bytes) else encode_json(payload)
         self._latched[topic] = (max(0, int(t_wall_s * 1e9)), data)
 
+    @property
+    def state(self) -> str:
+        """``ok``, ``degraded`` (accepting fails, e.g. no file descriptors), ``failed``, or ``off``."""
+        return self._front.stats.state if self._front is not None else "off"
+
     def summary(self) -> dict[str, Any]:
         """The counters for the run summary (JSON field ``live_view``)."""
         stats = self._front.stats if self._front is not None else FrontStats(state="off")

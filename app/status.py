@@ -15,7 +15,8 @@ addr   name                  type    meaning (unit)
                                      bit8 simulated run, bit9 field-log error, bit10 protective
                                      field holds the robot, bit11 overloaded (the estimator cannot
                                      keep up with the scans: obstacles at a lower rate),
-                                     bit12 ROS 2 publisher failed or a write failed (``ros2.*``)
+                                     bit12 ROS 2 publisher failed or a write failed (``ros2.*``),
+                                     bit13 live view cannot accept viewers (``live.*``)
 1      mission_state         uint16  0 hold, 1 moving, 2 safety stop, 3 device stop, 4 coil stop,
                                      5 protective stop (something in the path)
 2-3    cycle                 uint32  control cycles run
@@ -106,6 +107,7 @@ STATUS_BITS = {
     "protective_stop": 10,
     "overloaded": 11,
     "ros2_error": 12,
+    "live_view_error": 13,
 }
 
 

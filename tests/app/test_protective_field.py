@@ -267,6 +267,20 @@ def test_the_field_is_reported_in_the_status_flags_and_registers() -> None:
     assert regs[52] == pytest.approx(583, abs=1) and regs[53] == pytest.approx(440, abs=10)
 
 
+def test_a_live_view_that_cannot_accept_viewers_sets_its_status_bit() -> None:
+    from app.status import STATUS_BITS, encode_registers
+
+    loop, clock, _, _ = _loop()
+    published = []
+    loop.status = type("S", (), {"publish": published.append, "stop_requested": False, "stop": lambda self: None})()
+    loop.live_view = type("L", (), {"state": "ok", "stop": lambda self: None})()
+    _run(loop, clock, 0.1)
+    assert not encode_registers(published[-1])[0] & (1 << STATUS_BITS["live_view_error"])
+    loop.live_view.state = "degraded"  # e.g. out of file descriptors: accepting fails, retried every second
+    _run(loop, clock, 0.1)
+    assert encode_registers(published[-1])[0] & (1 << STATUS_BITS["live_view_error"])
+
+
 def test_hold_and_a_disabled_field_never_stop_for_the_field() -> None:
     loop, clock, scanner, _ = _loop(mode="hold")
     scanner.ranges = cast(wall_x_m=0.4)
