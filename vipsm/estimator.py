@@ -38,6 +38,7 @@ from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
+from .people import PeopleConfig, PeopleTracker, detect_people
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
@@ -79,6 +80,7 @@ class EstimatorConfig:
     static_map: StaticMapConfig = field(default_factory=StaticMapConfig)
     seen_through: SeenThroughConfig = field(default_factory=SeenThroughConfig)
     bodies: BodiesConfig = field(default_factory=BodiesConfig)
+    people: PeopleConfig = field(default_factory=PeopleConfig)
     keyframe_dist_m: float = 0.30
     keyframe_angle_rad: float = math.radians(10.0)
     keyframe_min_overlap: float = 0.60
@@ -133,6 +135,7 @@ class Estimator:
         cfg = self.config
         self._flow = FlowDetector(cfg.flow, cfg.camera_mount)
         self._tracker = Tracker(cfg.tracker)
+        self._people = PeopleTracker(cfg.people)
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._memory = ScanMemory(cfg.seen_through)
@@ -173,6 +176,9 @@ class Estimator:
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
+        people = detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model, self.config.people,
+                               self.config.bodies, dropped)
+        self._people.step(scan.stamp_s, people, _visibility(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -280,6 +286,7 @@ class Estimator:
             quality=match.quality,
             flags=flags,
             restored_indices=() if self.plain_psm else rest.cut,
+            people=self._people.people(scan.stamp_s),
         )
 
     # ------------------------------------------------------------------ helpers
@@ -347,6 +354,23 @@ def _checked(scan: Scan) -> tuple[Scan, bool]:
     if ok:
         return scan, True
     return Scan(np.full(b.size, np.nan), np.linspace(-1.0, 1.0, b.size), scan.stamp_s, scan.seq), False
+
+
+def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
+    """``visible(x, y)``: the scan could have seen a body at that world point: inside the field of
+    view, and the beam towards it returned no nearer than ``margin_m`` in front of it (or not at all:
+    it went through)."""
+    b, r = scan.bearings_rad, scan.ranges_m
+
+    def visible(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+        if b.size < 2 or not b[0] <= bearing <= b[-1]:
+            return False
+        k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
+        return not (np.isfinite(r[k]) and r[k] < math.hypot(dx, dy) - margin_m)
+
+    return visible
 
 
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:

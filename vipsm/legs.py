@@ -19,6 +19,7 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 #: the features, in the model's order (the training script writes the same names into the model file)
 FEATURE_NAMES = (
@@ -112,52 +113,67 @@ def features(points: np.ndarray, front_left_m: float, front_right_m: float) -> n
     """The feature vector (``FEATURE_NAMES``) of a segment's returns ``points`` (k x 2, k >= 3, in scan
     order, in the laser frame: the range is the centroid's distance from the origin) and how far the
     nearest return beside it on each side lies behind its nearest point (``front_*_m``: negative when
-    in front, clipped to ``FRONT_CLIP_M``)."""
-    k = points.shape[0]
-    c = points.mean(axis=0)
-    d = points - c
-    std = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
-    med = np.median(points, axis=0)
-    mad = float(np.mean(np.hypot(*(points - med).T)))
-    width = float(np.hypot(*(points[-1] - points[0])))
-    _, sv, _ = np.linalg.svd(d, full_matrices=False)
-    linearity = float(sv[-1] / math.sqrt(k))  # rms distance from the best line
-    radius, circularity = _circle(points)
-    steps = np.hypot(*np.diff(points, axis=0).T)
-    curvature, ang_mean, ang_std = _angles(points)
-    return np.array([k, std, mad, width, linearity, circularity, radius, float(steps.sum()), float(steps.std()),
-                     curvature, ang_mean, ang_std, front_left_m, front_right_m, float(np.hypot(*c))])
+    in front, clipped to ``FRONT_CLIP_M``). Compiled: it runs for every leg-sized segment of every scan."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    return _features(pts[:, 0].copy(), pts[:, 1].copy(), float(front_left_m), float(front_right_m))
 
 
-def _circle(points: np.ndarray) -> tuple[float, float]:
-    """Radius (clipped to 1 m) and rms residual of the algebraic circle fit (a line: radius 1 m)."""
-    x, y = points[:, 0] - points[:, 0].mean(), points[:, 1] - points[:, 1].mean()
-    a = np.stack([x, y, np.ones_like(x)], axis=1)
-    sol, _, rank, _ = np.linalg.lstsq(a, -(x * x + y * y), rcond=None)
+@njit(cache=True, nogil=True, error_model="numpy")
+def _features(px, py, front_l, front_r):  # pragma: no cover - compiled
+    k = px.size
+    mx, my = px.mean(), py.mean()
+    dx, dy = px - mx, py - my
+    std = math.sqrt(np.mean(dx * dx + dy * dy))
+    medx, medy = np.median(px), np.median(py)
+    mad = np.mean(np.sqrt((px - medx) ** 2 + (py - medy) ** 2))
+    width = math.hypot(px[-1] - px[0], py[-1] - py[0])
+    # rms distance from the best line: the smaller eigenvalue of the scatter matrix
+    a, b, c = np.sum(dx * dx), np.sum(dx * dy), np.sum(dy * dy)
+    lam = max(0.5 * (a + c) - math.sqrt(0.25 * (a - c) ** 2 + b * b), 0.0)
+    linearity = math.sqrt(lam / k)
+    radius, circularity = _circle(dx, dy)
+    steps = np.sqrt(np.diff(px) ** 2 + np.diff(py) ** 2)
+    curv = 0.0
+    angles = np.empty(k - 2)
+    for i in range(1, k - 1):
+        ux, uy = px[i] - px[i - 1], py[i] - py[i - 1]
+        vx, vy = px[i + 1] - px[i - 1], py[i + 1] - py[i - 1]
+        sides = math.hypot(ux, uy) * math.hypot(px[i + 1] - px[i], py[i + 1] - py[i]) * math.hypot(vx, vy)
+        curv += 2.0 * abs(ux * vy - uy * vx) / max(sides, 1e-12)
+        # the angle this point makes with the segment's two ends (inscribed: constant on an arc, pi on a line)
+        ax, ay = px[0] - px[i], py[0] - py[i]
+        bx, by = px[-1] - px[i], py[-1] - py[i]
+        angles[i - 1] = abs(math.atan2(ax * by - ay * bx, ax * bx + ay * by))
+    out = np.empty(15)
+    out[0], out[1], out[2], out[3], out[4] = k, std, mad, width, linearity
+    out[5], out[6], out[7], out[8] = circularity, radius, steps.sum(), steps.std()
+    out[9], out[10], out[11] = min(curv / (k - 2), 100.0), angles.mean(), angles.std()
+    out[12], out[13], out[14] = front_l, front_r, math.hypot(mx, my)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle(x, y):  # pragma: no cover - compiled
+    """Radius (clipped to 1 m) and rms residual of the algebraic circle fit to centred points (normal
+    equations; a line or a degenerate fit: radius 1 m)."""
+    m = np.empty((3, 3))
+    rhs = np.empty(3)
+    cols = (x, y, np.ones(x.size))
+    z = -(x * x + y * y)
+    for i in range(3):
+        rhs[i] = np.sum(cols[i] * z)
+        for j in range(3):
+            m[i, j] = np.sum(cols[i] * cols[j])
+    if abs(np.linalg.det(m)) < 1e-18:
+        return 1.0, np.std(np.sqrt(x * x + y * y))
+    sol = np.linalg.solve(m, rhs)
     cx, cy = -sol[0] / 2.0, -sol[1] / 2.0
     r2 = cx * cx + cy * cy - sol[2]
-    if rank < 3 or not r2 > 0.0:
-        return 1.0, float(np.std(np.hypot(x, y)))
+    if not r2 > 0.0:
+        return 1.0, np.std(np.sqrt(x * x + y * y))
     r = math.sqrt(r2)
-    res = float(np.sqrt(np.mean((np.hypot(x - cx, y - cy) - r) ** 2)))
+    res = math.sqrt(np.mean((np.sqrt((x - cx) ** 2 + (y - cy) ** 2) - r) ** 2))
     return min(r, 1.0), res
-
-
-def _angles(points: np.ndarray) -> tuple[float, float, float]:
-    """Mean curvature of consecutive triples (4 area / product of sides) and the mean and spread of
-    the angles each interior point makes with the segment's two ends (inscribed angles: constant on an
-    arc, pi on a line)."""
-    p0, p1, p2 = points[:-2], points[1:-1], points[2:]
-    a = np.hypot(*(p1 - p0).T)
-    b = np.hypot(*(p2 - p1).T)
-    cc = np.hypot(*(p2 - p0).T)
-    cross = np.abs((p1 - p0)[:, 0] * (p2 - p0)[:, 1] - (p1 - p0)[:, 1] * (p2 - p0)[:, 0])
-    curvature = float(np.mean(2.0 * cross / np.maximum(a * b * cc, 1e-12)))
-    u = points[0] - p1
-    v = points[-1] - p1
-    ang = np.arctan2(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0], np.sum(u * v, axis=1))
-    ang = np.abs(ang)
-    return min(curvature, 100.0), float(ang.mean()), float(ang.std())
 
 
 def front_of(r: np.ndarray, a: int, z: int, beams: int = 4) -> tuple[float, float]:
