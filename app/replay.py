@@ -445,6 +445,8 @@ class BagFieldLog:
         self._put("/pose", w, lm.pose_in_frame(p.x_m, p.y_m, p.theta_rad, w))
         obstacles, life = est.obstacles, self._life_s
         self._put("/obstacles", w, lambda: lm.scene_update(obstacles, w, life))
+        people = est.people
+        self._put("/people", w, lambda: lm.people_scene_update(people, w, life))
         cycle, scan = self.cycle, bc.scan
         self._put("/vipsm/cycle", w, lambda: cycle_message(cycle, scan, od, frame, image_wall, est))
         pose = (p.x_m, p.y_m, p.theta_rad)

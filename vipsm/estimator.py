@@ -278,6 +278,8 @@ class Estimator:
         at = self._tracker.predict_position
         obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tracked
                           if id(t) in alive and self._tracker.reported(t))
+        people = self._people.people(scan.stamp_s)
+        obstacles += self._people.obstacles(people, obstacles, laser)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
@@ -286,7 +288,7 @@ class Estimator:
             quality=match.quality,
             flags=flags,
             restored_indices=() if self.plain_psm else rest.cut,
-            people=self._people.people(scan.stamp_s),
+            people=people,
         )
 
     # ------------------------------------------------------------------ helpers

@@ -5,11 +5,14 @@ Two motion models on the state (x, y, vx, vy), world frame, SI units:
 * **standing**: the velocity is zero (the model resets it each step); the position wanders by
   ``stand_sigma_mps`` per square root of a second (a standing person's leg-pair midpoint shuffles with
   the weight shifting from foot to foot);
-* **walking**: constant velocity with white acceleration noise ``walk_accel_mps2`` (a walker's speed
-  and heading change within about a second: starting, stopping, turning).
+* **walking**: constant velocity with white acceleration noise, one model per ``walk_accel_mps2``:
+  steady walking (0.3 m/s^2: the speed wanders by ~0.1 m/s over a few seconds, and the filter averages
+  the gait's wobble out) and manoeuvring (2 m/s^2: starting, stopping, turning, stepping aside take
+  about half a second).
 
-The models switch with rate ``switch_per_s`` (a Markov chain: the probability of a switch in one
-step of ``dt`` is ``1 - exp(-rate dt)``). The walking model's probability is P(moving); the combined
+The models switch with rate ``switch_per_s`` (a Markov chain: the probability of leaving a model in
+one step of ``dt`` is ``1 - exp(-rate dt)``, shared evenly among the others). The walking models'
+probability is P(moving); the combined
 state gives position, velocity and covariance. Standard IMM (Blom and Bar-Shalom): mixing, per-model
 Kalman prediction and update, model probabilities from the measurement likelihoods.
 """
@@ -21,13 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STANDING, WALKING = 0, 1
+STANDING = 0  # the first model; the others walk
 
 
 @dataclass(frozen=True)
 class ImmConfig:
     stand_sigma_mps: float = 0.05
-    walk_accel_mps2: float = 1.5
+    walk_accel_mps2: tuple[float, ...] = (0.3, 2.0)
     switch_per_s: float = 0.5
     #: speed uncertainty of a new track (a walker: up to ~1.5 m/s)
     init_speed_sigma_mps: float = 0.8
@@ -35,7 +38,8 @@ class ImmConfig:
     init_p_moving: float = 0.2
 
     def __post_init__(self) -> None:
-        if min(self.stand_sigma_mps, self.walk_accel_mps2, self.switch_per_s, self.init_speed_sigma_mps) <= 0.0:
+        if not self.walk_accel_mps2 or min(self.stand_sigma_mps, *self.walk_accel_mps2, self.switch_per_s,
+                                           self.init_speed_sigma_mps) <= 0.0:
             raise ValueError("the IMM's noise, switch rate and initial speed sigma must be positive")
         if not 0.0 < self.init_p_moving < 1.0:
             raise ValueError(f"init_p_moving must be in (0, 1), got {self.init_p_moving}")
@@ -45,22 +49,22 @@ _H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
 class Imm:
-    """One track's IMM state: per-model means (2 x 4) and covariances (2 x 4 x 4), model probabilities."""
+    """One track's IMM state: per-model means (m x 4) and covariances (m x 4 x 4), model probabilities."""
 
     def __init__(self, x_m: float, y_m: float, pos_sigma_m: float, cfg: ImmConfig) -> None:
         self.cfg = cfg
         p = np.diag([pos_sigma_m**2, pos_sigma_m**2, cfg.init_speed_sigma_mps**2, cfg.init_speed_sigma_mps**2])
-        self.means = np.tile(np.array([x_m, y_m, 0.0, 0.0]), (2, 1))
-        self.means[STANDING, 2:] = 0.0
+        n = 1 + len(cfg.walk_accel_mps2)
+        self.means = np.tile(np.array([x_m, y_m, 0.0, 0.0]), (n, 1))
         p_stand = p.copy()
         p_stand[2:, 2:] = np.eye(2) * 1e-6
-        self.covs = np.stack([p_stand, p])
-        self.probs = np.array([1.0 - cfg.init_p_moving, cfg.init_p_moving])
+        self.covs = np.stack([p_stand] + [p] * (n - 1))
+        self.probs = np.array([1.0 - cfg.init_p_moving] + [cfg.init_p_moving / (n - 1)] * (n - 1))
 
     # ---------------------------------------------------------------- combined estimate
     @property
     def p_moving(self) -> float:
-        return float(self.probs[WALKING])
+        return float(1.0 - self.probs[STANDING])
 
     @property
     def mean(self) -> np.ndarray:
@@ -78,27 +82,29 @@ class Imm:
         f_walk = np.eye(4)
         f_walk[0, 2] = f_walk[1, 3] = dt
         f_stand = np.diag([1.0, 1.0, 0.0, 0.0])
-        q = c.walk_accel_mps2**2
-        q_walk = q * np.array([[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
-                               [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]])
+        g = np.array([[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
+                      [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]])
         q_stand = np.diag([c.stand_sigma_mps**2 * dt] * 2 + [1e-6, 1e-6])
-        return [f_stand, f_walk], [q_stand, q_walk]
+        walks = c.walk_accel_mps2
+        return [f_stand] + [f_walk] * len(walks), [q_stand] + [a**2 * g for a in walks]
 
     def predict(self, dt: float) -> None:
         """Mix the models and predict each ``dt`` seconds ahead."""
         if dt <= 0.0:
             return
+        n = self.probs.size
         stay = math.exp(-self.cfg.switch_per_s * dt)
-        trans = np.array([[stay, 1.0 - stay], [1.0 - stay, stay]])
+        trans = np.full((n, n), (1.0 - stay) / (n - 1))
+        np.fill_diagonal(trans, stay)
         c = trans.T @ self.probs  # predicted model probabilities
         mix = trans * self.probs[:, None] / np.maximum(c[None, :], 1e-300)  # mix[i, j] = P(i | j)
         means = mix.T @ self.means
         covs = np.empty_like(self.covs)
-        for j in range(2):
+        for j in range(n):
             d = self.means - means[j]
             covs[j] = np.einsum("i,ijk->jk", mix[:, j], self.covs + np.einsum("ij,ik->ijk", d, d))
         fs, qs = self._models(dt)
-        for j in range(2):
+        for j in range(n):
             means[j] = fs[j] @ means[j]
             covs[j] = fs[j] @ covs[j] @ fs[j].T + qs[j]
         self.means, self.covs, self.probs = means, covs, c
@@ -109,8 +115,8 @@ class Imm:
 
     def update(self, z: np.ndarray, r: np.ndarray) -> None:
         """Fold in a position measurement ``z`` (2,) with covariance ``r`` (2 x 2)."""
-        like = np.empty(2)
-        for j in range(2):
+        like = np.empty(self.probs.size)
+        for j in range(self.probs.size):
             s = self.covs[j][:2, :2] + r
             y = z - self.means[j][:2]
             k = self.covs[j][:, :2] @ np.linalg.inv(s)

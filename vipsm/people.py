@@ -32,9 +32,10 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .bodies import BodiesConfig, segments
+from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import LegConfig, LegModel, load_model, segment_features
-from .types import Person, Pose2D
+from .types import Obstacle, Person, Pose2D
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,11 @@ class PeopleConfig:
     #: deviation, along its least certain direction): about a person's half-width. A walker who vanished
     #: coasts out of it in about half a second; a standing one hidden behind another keeps it for seconds
     max_position_sigma_m: float = 0.3
+    #: a moving person is a moving obstacle too (``Estimate.obstacles``, the safety stop's input) unless
+    #: the body tracker already reports one within a leg pair's reach of it
+    report_moving: bool = True
+    #: a person's radius as an obstacle (shoulders seen from above)
+    person_radius_m: float = 0.25
     #: bound on the number of tracks (the least likely to exist go first)
     max_tracks: int = 40
 
@@ -144,12 +150,16 @@ def _pair(legs: list[tuple[float, float, float, int, int]], cfg: PeopleConfig) -
     return out
 
 
+#: people's track ids start here, apart from the body tracker's (both appear in ``Estimate.obstacles``)
+FIRST_ID = 1 << 20
+
+
 class PeopleTracker:
     def __init__(self, config: PeopleConfig | None = None, model: LegModel | None = None) -> None:
         self.config = config or PeopleConfig()
         self.model = model or load_model()
         self.tracks: list[PersonTrack] = []
-        self._next_id = 1
+        self._next_id = FIRST_ID
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
 
     def step(self, stamp_s: float, detections: list[PersonDetection], visible=None) -> None:
@@ -219,6 +229,26 @@ class PeopleTracker:
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
+
+    def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
+                  ) -> tuple[Obstacle, ...]:
+        """The moving ``people`` as moving obstacles, but those within a leg pair's reach (plus its radius)
+        of one of ``others`` (the body tracker's): the same body, reported once. The bearing interval is
+        the person's radius seen from ``laser``; scan indices -1 (a track, not one scan's segment)."""
+        c = self.config
+        if not c.report_moving:
+            return ()
+        out = []
+        for p in people:
+            if not p.moving or any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m
+                                   for o in others):
+                continue
+            dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
+            b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+            half = math.asin(min(c.person_radius_m / max(math.hypot(dx, dy), 1e-6), 1.0))
+            out.append(Obstacle(p.track_id, p.x_m, p.y_m, p.vx_mps, p.vy_mps, c.person_radius_m, b - half, b + half,
+                                -1, -1))
+        return tuple(out)
 
     def people(self, stamp_s: float) -> tuple[Person, ...]:
         """The confirmed tracks at ``stamp_s`` (positions predicted at constant velocity)."""
