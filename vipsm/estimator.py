@@ -29,7 +29,7 @@ tracks are reported in ``Estimate.obstacles`` (and so can stop the robot).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -38,7 +38,7 @@ from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
-from .people import PeopleConfig, PeopleTracker, detect_people
+from .people import PeopleConfig, PeopleTracker, PersonDetection, detect_people
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
@@ -176,8 +176,8 @@ class Estimator:
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
-        people = detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model, self.config.people,
-                               self.config.bodies, dropped)
+        people = _with_evidence(detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
+                                              self.config.people, self.config.bodies, dropped), bodies)
         self._people.step(scan.stamp_s, people, _visibility(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
@@ -356,6 +356,13 @@ def _checked(scan: Scan) -> tuple[Scan, bool]:
     if ok:
         return scan, True
     return Scan(np.full(b.size, np.nan), np.linspace(-1.0, 1.0, b.size), scan.stamp_s, scan.seq), False
+
+
+def _with_evidence(people: list[PersonDetection], bodies: list[Body]) -> list[PersonDetection]:
+    """Each person detection marked with the motion evidence of a body on any of its beams."""
+    spans = [(b.scan_index_start, b.scan_index_stop) for b in bodies if b.evidence]
+    return [replace(p, evidence=any(a < p.scan_index_stop and p.scan_index_start < z for a, z in spans))
+            for p in people]
 
 
 def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):

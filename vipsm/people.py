@@ -67,9 +67,13 @@ class PeopleConfig:
     #: deviation, along its least certain direction): about a person's half-width. A walker who vanished
     #: coasts out of it in about half a second; a standing one hidden behind another keeps it for seconds
     max_position_sigma_m: float = 0.3
-    #: a moving person is a moving obstacle too (``Estimate.obstacles``, the safety stop's input) unless
-    #: the body tracker already reports one within a leg pair's reach of it
-    report_moving: bool = True
+    #: a moving person is a moving obstacle too (``Estimate.obstacles``, the safety stop's input) once one
+    #: of its detections since it started moving had motion evidence (it stood where the laser had seen
+    #: free space, or the camera saw it move: furniture legs whose centres drift as the robot drives by
+    #: never do), unless the body tracker already reports one within a leg pair's reach of it. Off by
+    #: default: on the real recordings it adds walkers the body tracker misses but also reports on the
+    #: static background (docs/estimator.md, stage 6b)
+    report_moving: bool = False
     #: a person's radius as an obstacle (shoulders seen from above)
     person_radius_m: float = 0.25
     #: bound on the number of tracks (the least likely to exist go first)
@@ -95,6 +99,9 @@ class PersonDetection:
     legs: tuple[tuple[float, float], ...]
     scan_index_start: int
     scan_index_stop: int
+    #: motion evidence of the body stage (:mod:`vipsm.bodies`: its returns lie where the laser saw free
+    #: space, or the camera saw it move) on these beams
+    evidence: bool = False
 
 
 @dataclass
@@ -108,6 +115,8 @@ class PersonTrack:
     confirmed: bool = False
     hits: int = 1
     missed: int = 0
+    #: a detection with motion evidence since the track last became moving
+    evidence: bool = False
 
 
 def detect_people(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, model: LegModel,
@@ -178,6 +187,7 @@ class PeopleTracker:
                 d = detections[got[ti]]
                 t.filt.update(np.array([d.x_m, d.y_m]), np.eye(2) * d.sigma_m**2)
                 t.legs, t.hits, t.missed = d.legs, t.hits + 1, 0
+                t.evidence = t.evidence or d.evidence
                 t.existence = _bayes(t.existence, c.p_detect * d.p_leg, c.p_clutter * (1.0 - d.p_leg))
             else:
                 t.missed += 1
@@ -187,7 +197,10 @@ class PeopleTracker:
                     t.existence = _bayes(t.existence, 1.0 - c.p_detect, 1.0 - c.p_clutter)
             t.confirmed = t.confirmed or t.existence >= c.exist_confirm
             p = t.filt.p_moving
+            was = t.moving
             t.moving = p >= c.moving_on or (t.moving and p >= c.moving_off)
+            if t.moving and not was:  # evidence counts from the start of this walk
+                t.evidence = ti in got and detections[got[ti]].evidence
         taken = set(got.values())
         for di, d in enumerate(detections):
             if di not in taken:
@@ -239,9 +252,10 @@ class PeopleTracker:
         if not c.report_moving:
             return ()
         out = []
+        evidence = {t.track_id for t in self.tracks if t.evidence}
         for p in people:
-            if not p.moving or any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m
-                                   for o in others):
+            near = any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m for o in others)
+            if not p.moving or p.track_id not in evidence or near:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)

@@ -128,8 +128,8 @@ def test_imm_config_rejects_nonsense() -> None:
 
 
 # ------------------------------------------------------------------------------------------ tracker
-def _pair(x: float, y: float, p: float = 0.9) -> PersonDetection:
-    return PersonDetection(x, y, 0.06, p, ((x, y - 0.1), (x, y + 0.1)), 0, 1)
+def _pair(x: float, y: float, p: float = 0.9, evidence: bool = False) -> PersonDetection:
+    return PersonDetection(x, y, 0.06, p, ((x, y - 0.1), (x, y + 0.1)), 0, 1, evidence)
 
 
 def test_a_walker_is_moving_and_a_standing_person_is_not() -> None:
@@ -167,13 +167,19 @@ def test_hidden_person_is_kept_while_its_position_is_known() -> None:
     assert len(tr.people(1.9)) == 1
 
 
-def test_moving_people_become_obstacles_unless_the_body_tracker_has_them() -> None:
-    tr = PeopleTracker()
+def test_moving_people_with_motion_evidence_become_obstacles_unless_the_body_tracker_has_them() -> None:
+    laser = Pose2D(0.0, 0.0, 0.0)
+    assert not PeopleConfig().report_moving  # off by default
+    on = PeopleConfig(report_moving=True)
+    drifting = PeopleTracker(on)  # e.g. a chair's legs whose centres drift as the robot drives by
     for k in range(20):
-        tr.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0)])
+        drifting.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0)])
+    assert drifting.people(1.9)[0].moving and drifting.obstacles(drifting.people(1.9), (), laser) == ()
+    tr = PeopleTracker(on)
+    for k in range(20):
+        tr.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0, evidence=k == 12)])
     people = tr.people(1.9)
     assert len(people) == 1 and people[0].moving
-    laser = Pose2D(0.0, 0.0, 0.0)
     (ob,) = tr.obstacles(people, (), laser)
     assert ob.track_id == people[0].track_id and ob.radius_m == tr.config.person_radius_m
     assert ob.bearing_min_rad < math.atan2(ob.y_m, ob.x_m) < ob.bearing_max_rad
