@@ -38,15 +38,15 @@ class LegConfig:
     max_width_m: float = 0.4
     #: a segment with fewer returns has no shape (a leg 0.1 m across is 3 beams at 7.6 m on a 0.25 deg scanner)
     min_points: int = 3
-    #: leg probability from which a segment is a leg (the operating point chosen on held-out data by the
-    #: training script, stored in the model file; NaN: that stored value)
-    threshold: float = math.nan
+    #: leg probability from which a segment is a leg; 0: the operating point the training script chose
+    #: out of fold and stored in the model file
+    threshold: float = 0.0
 
     def __post_init__(self) -> None:
         if self.max_width_m <= 0.0 or self.min_points < 3:
             raise ValueError(f"need max_width_m > 0 and min_points >= 3, got {self.max_width_m}, {self.min_points}")
-        if not (math.isnan(self.threshold) or 0.0 < self.threshold < 1.0):
-            raise ValueError(f"threshold must be in (0, 1) or NaN, got {self.threshold}")
+        if not 0.0 <= self.threshold < 1.0:
+            raise ValueError(f"threshold must be in [0, 1), got {self.threshold}")
 
 
 class ModelError(ValueError):

@@ -128,7 +128,7 @@ def detect_people(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D,
     if not kept:
         return []
     p = model.predict(x)
-    thr = model.threshold_p if math.isnan(cfg.legs.threshold) else cfg.legs.threshold
+    thr = cfg.legs.threshold or model.threshold_p
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     legs = []
     for (a, z, pts), q in zip(kept, p, strict=True):
