@@ -231,3 +231,20 @@ def test_people_channel_colours_standing_and_moving_people_apart(tmp_path) -> No
     meta = {kv["key"]: kv["value"] for kv in walk["metadata"]}
     assert meta["moving"] == "true" and float(meta["p_moving"]) == pytest.approx(0.97)
     assert meta["legs"] == "1.000,1.900;1.000,2.100"
+
+
+def test_real_recording_people_found_in_labelled_scans(shared_data) -> None:
+    """positive_2's first 120 scans: ``Estimate.people`` holds the labelled walker in nearly every
+    labelled scan (eval --data real's ``people`` figures), and people's moving flags are scored too."""
+    from app.evaluation.real_data import RECORDINGS, evaluate_recording
+
+    src = shared_data / "real_people_laser"
+    if not (src / "positive_2.bag").exists() or not (src / "positive_2_extracted.bag").exists():
+        pytest.skip(f"positive_2 not in {src}")
+    rec = next(r for r in RECORDINGS if r.name == "positive_2")
+    (res,) = evaluate_recording(rec, src, max_scans=120)
+    assert res["people"]["labelled_scans"]["all"] > 0
+    assert res["people"]["recall_0.5m"]["all"] >= 0.9
+    moving = res["moving_people"]
+    assert moving["recall_0.5m"]["all"] <= res["people"]["recall_0.5m"]["all"]
+    assert moving["background_reports_per_min"] is not None
