@@ -248,3 +248,16 @@ def test_real_recording_people_found_in_labelled_scans(shared_data) -> None:
     moving = res["moving_people"]
     assert moving["recall_0.5m"]["all"] <= res["people"]["recall_0.5m"]["all"]
     assert moving["background_reports_per_min"] is not None
+
+
+def test_people_in_the_simulated_world_are_located(capsys) -> None:
+    """The realistic world's walker (cross_60, its first 12 s: standing, then walking across) is a person
+    entry in most cycles it is in view (``python -m app.evaluation.people_sim``)."""
+    import json
+
+    from app.evaluation.people_sim import main
+
+    assert main(["cross_60", "--duration", "12", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["scenario"] == "cross_60" and res["cycles_in_view"] > 20
+    assert res["located"] >= 0.8 and res["error_median_m"] <= 0.15
