@@ -60,6 +60,8 @@ class Imm:
         p_stand[2:, 2:] = np.eye(2) * 1e-6
         self.covs = np.stack([p_stand] + [p] * (n - 1))
         self.probs = np.array([1.0 - cfg.init_p_moving] + [cfg.init_p_moving / (n - 1)] * (n - 1))
+        self._mean: np.ndarray | None = None
+        self._cov: np.ndarray | None = None
 
     # ---------------------------------------------------------------- combined estimate
     @property
@@ -68,13 +70,18 @@ class Imm:
 
     @property
     def mean(self) -> np.ndarray:
-        return self.probs @ self.means
+        """The combined state (computed once per filter step)."""
+        if self._mean is None:
+            self._mean = self.probs @ self.means
+        return self._mean
 
     @property
     def cov(self) -> np.ndarray:
-        m = self.mean
-        d = self.means - m
-        return np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
+        """The combined covariance (computed once per filter step)."""
+        if self._cov is None:
+            d = self.means - self.mean
+            self._cov = np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
+        return self._cov
 
     # ---------------------------------------------------------------- filter steps
     def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -108,6 +115,7 @@ class Imm:
             means[j] = fs[j] @ means[j]
             covs[j] = fs[j] @ covs[j] @ fs[j].T + qs[j]
         self.means, self.covs, self.probs = means, covs, c
+        self._mean = self._cov = None
 
     def innovation(self, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The combined prediction's innovation and its covariance for a position measurement."""
@@ -124,6 +132,7 @@ class Imm:
             self.covs[j] = (np.eye(4) - k @ _H) @ self.covs[j]
             self.covs[j] = 0.5 * (self.covs[j] + self.covs[j].T)
             like[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / (2 * math.pi * math.sqrt(np.linalg.det(s)))
+        self._mean = self._cov = None
         post = self.probs * like
         total = float(post.sum())
         if total > 0.0 and math.isfinite(total):

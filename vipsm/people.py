@@ -234,11 +234,13 @@ class PeopleTracker:
                  <= lost2]
         # a duplicate: a younger track within a leg pair's half-width of an older one
         keep: list[PersonTrack] = []
+        kept_xy = np.zeros((0, 2))
         for t in sorted(alive, key=lambda t: t.track_id):
             xy = t.filt.mean[:2]
-            if any(math.hypot(*(k.filt.mean[:2] - xy)) < 0.5 * c.leg_pair_max_m for k in keep):
+            if kept_xy.size and float(np.min(np.hypot(*(kept_xy - xy).T))) < 0.5 * c.leg_pair_max_m:
                 continue
             keep.append(t)
+            kept_xy = np.vstack([kept_xy, xy])
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
