@@ -38,6 +38,7 @@ from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
+from .legs import LegModel
 from .people import PeopleConfig, PeopleTracker, PersonDetection, detect_people
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
@@ -129,13 +130,16 @@ _SIGMA_ACROSS_M = {"person": 0.025}
 class Estimator:
     """VIPSM (``plain_psm=False``) or the plain-PSM baseline (``plain_psm=True``) on the same code."""
 
-    def __init__(self, config: EstimatorConfig | None = None, plain_psm: bool = False) -> None:
+    def __init__(self, config: EstimatorConfig | None = None, plain_psm: bool = False,
+                 leg_model: LegModel | None = None) -> None:
+        """``leg_model`` (``app.legmodel.default_leg_model()``): the people stage's leg detector; without
+        it the stage is off and ``Estimate.people`` stays empty (the estimator reads no files)."""
         self.config = config or EstimatorConfig()
         self.plain_psm = plain_psm
         cfg = self.config
         self._flow = FlowDetector(cfg.flow, cfg.camera_mount)
         self._tracker = Tracker(cfg.tracker)
-        self._people = PeopleTracker(cfg.people)
+        self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._memory = ScanMemory(cfg.seen_through)
@@ -176,9 +180,10 @@ class Estimator:
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
-        people = _with_evidence(detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
-                                              self.config.people, self.config.bodies, dropped), bodies)
-        self._people.step(scan.stamp_s, people, _visibility(scan, laser))
+        if self._people is not None:
+            people = _with_evidence(detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
+                                                  self.config.people, self.config.bodies, dropped), bodies)
+            self._people.step(scan.stamp_s, people, _visibility(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -278,8 +283,9 @@ class Estimator:
         at = self._tracker.predict_position
         obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tracked
                           if id(t) in alive and self._tracker.reported(t))
-        people = self._people.people(scan.stamp_s)
-        obstacles += self._people.obstacles(people, obstacles, laser)
+        people = self._people.people(scan.stamp_s) if self._people is not None else ()
+        if self._people is not None:
+            obstacles += self._people.obstacles(people, obstacles, laser)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
@@ -424,7 +430,8 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
 def warm_up(config: EstimatorConfig | None = None) -> None:
     """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
     machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
-    it: the scan matcher's, the static map's ray march and the body's circle refinement."""
+    it: the scan matcher's, the static map's ray march, the body's circle refinement and the leg features."""
+    from .legs import features
     from .psm import warm_up as psm_warm_up
     from .tracker import refine_fixed_radius
 
@@ -433,3 +440,4 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     b = np.linspace(-2.0, 2.0, 181)
     FreeSpaceGrid(cfg.static_map).integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)
+    features(np.array([[1.0, 0.0], [1.05, 0.05], [1.0, 0.1]]), 0.5, 0.5)

@@ -5,18 +5,17 @@ Each segment of a scan (:func:`vipsm.bodies.segments`: returns on one surface) t
 Leigh et al., ICRA 2015 — point count, spread, width, line and circle fit residuals, fitted radius,
 boundary length and regularity, curvature, inscribed-angle statistics — and how far it stands in front
 of the returns beside it) and a leg probability from a random forest trained on the recorded leg_tracker
-scans (``app/evaluation/train_legs.py``: labelled leg clusters as positives, the drive through empty rooms
-as negatives). The forest is shipped as plain arrays in ``vipsm/data/legs_model.npz`` (no pickle, no
+scans (``tools/train_legs.py``: labelled leg clusters as positives, the drive through empty rooms as
+negatives). The forest is shipped as plain arrays in ``vipsm/data/legs_model.npz`` (no pickle, no
 scikit-learn at run time): every tree's nodes as ``feature``, ``threshold``, ``left``, ``right`` and the
 leaf's share of legs in ``value``, all trees in one array with ``roots`` giving each tree's first node.
+The estimator does no I/O: ``app.legmodel`` reads the file and :func:`model_from_arrays` checks it.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from importlib import resources
-from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -81,32 +80,27 @@ class LegModel:
         return self.value[node].mean(axis=1)
 
 
-def default_model_path() -> Path:
-    return Path(str(resources.files("vipsm") / "data" / "legs_model.npz"))
-
-
-def load_model(path: Path | None = None) -> LegModel:
-    """The forest from ``path`` (default: the packaged model); :class:`ModelError` when unusable."""
-    path = path or default_model_path()
+def model_from_arrays(arrays: dict[str, np.ndarray], source: str = "the leg model") -> LegModel:
+    """The forest from its arrays (as stored by the training script); :class:`ModelError` when they are
+    missing, malformed, or for other features."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            names = tuple(str(n) for n in z["feature_names"])
-            arrays = {k: z[k] for k in ("feature", "threshold", "left", "right", "value", "roots")}
-            depth, thr = int(z["depth"]), float(z["threshold_p"])
-    except (OSError, KeyError, ValueError) as exc:
-        raise ModelError(f"cannot read the leg model {path}: {exc}") from exc
+        names = tuple(str(n) for n in arrays["feature_names"])
+        parts = {k: np.asarray(arrays[k]) for k in ("feature", "threshold", "left", "right", "value", "roots")}
+        depth, thr = int(arrays["depth"]), float(arrays["threshold_p"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{source} is malformed: {exc!r}") from exc
     if names != FEATURE_NAMES:
-        raise ModelError(f"the leg model {path} was trained on features {names}, not {FEATURE_NAMES}")
-    n = arrays["feature"].size
-    if any(arrays[k].size != n for k in ("threshold", "left", "right", "value")) or not 0.0 < thr < 1.0:
-        raise ModelError(f"the leg model {path} is malformed")
-    inner = arrays["feature"] >= 0
-    kids = np.concatenate([arrays["left"][inner], arrays["right"][inner], arrays["roots"]])
+        raise ModelError(f"{source} was trained on features {names}, not {FEATURE_NAMES}")
+    n = parts["feature"].size
+    if any(parts[k].size != n for k in ("threshold", "left", "right", "value")) or not 0.0 < thr < 1.0:
+        raise ModelError(f"{source} is malformed")
+    inner = parts["feature"] >= 0
+    kids = np.concatenate([parts["left"][inner], parts["right"][inner], parts["roots"]])
     if kids.size and (kids.min() < 0 or kids.max() >= n):
-        raise ModelError(f"the leg model {path} has node indices out of range")
-    return LegModel(arrays["feature"].astype(np.intp), arrays["threshold"].astype(np.float64),
-                    arrays["left"].astype(np.intp), arrays["right"].astype(np.intp),
-                    arrays["value"].astype(np.float64), arrays["roots"].astype(np.intp), depth, thr)
+        raise ModelError(f"{source} has node indices out of range")
+    return LegModel(parts["feature"].astype(np.intp), parts["threshold"].astype(np.float64),
+                    parts["left"].astype(np.intp), parts["right"].astype(np.intp),
+                    parts["value"].astype(np.float64), parts["roots"].astype(np.intp), depth, thr)
 
 
 def features(points: np.ndarray, front_left_m: float, front_right_m: float) -> np.ndarray:
@@ -186,16 +180,6 @@ def front_of(r: np.ndarray, a: int, z: int, beams: int = 4) -> tuple[float, floa
         out.append(FRONT_CLIP_M if not finite.size else float(np.clip(r[finite[0]] - near, -FRONT_CLIP_M,
                                                                       FRONT_CLIP_M)))
     return out[0], out[1]
-
-
-@dataclass(frozen=True)
-class LegCandidate:
-    start: int
-    stop: int  # exclusive
-    points: np.ndarray  # world frame, the segment's returns
-    x_m: float  # the leg's centre (world frame): the returns' centroid pushed back along the ray
-    y_m: float
-    p_leg: float
 
 
 def segment_features(r: np.ndarray, b: np.ndarray, spans: list[tuple[int, int]], cfg: LegConfig

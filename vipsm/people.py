@@ -8,7 +8,7 @@ Each obstacle cycle:
 2. **people detections**: legs paired greedily, nearest first, within ``leg_pair_max_m`` (a stride at
    the laser's height); a pair is a person at the legs' midpoint, an unpaired leg a person seen by one
    leg (the other hidden or merged with it) at that leg, with the larger noise of a hip's half-width;
-3. **association**: global nearest neighbour (``scipy.optimize.linear_sum_assignment``) on the
+3. **association**: global nearest neighbour (:func:`vipsm.assignment.assign`) on the
    Mahalanobis distance of each detection to each track's predicted position, gated at the chi-square
    ``gate_p`` quantile of two degrees of freedom;
 4. **motion state** (:mod:`vipsm.imm`): per track an IMM of a standing and a walking model gives the
@@ -29,12 +29,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
+from .assignment import assign
 from .bodies import BodiesConfig, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
-from .legs import LegConfig, LegModel, load_model, segment_features
+from .legs import LegConfig, LegModel, segment_features
 from .types import Obstacle, Person, Pose2D
 
 
@@ -164,9 +164,9 @@ FIRST_ID = 1 << 20
 
 
 class PeopleTracker:
-    def __init__(self, config: PeopleConfig | None = None, model: LegModel | None = None) -> None:
-        self.config = config or PeopleConfig()
-        self.model = model or load_model()
+    def __init__(self, config: PeopleConfig, model: LegModel) -> None:
+        self.config = config
+        self.model = model
         self.tracks: list[PersonTrack] = []
         self._next_id = FIRST_ID
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
@@ -222,7 +222,7 @@ class PeopleTracker:
                 m2 = float(y @ np.linalg.solve(s, y))
                 if m2 <= self._gate:
                     cost[ti, di] = m2 + math.log(np.linalg.det(s))  # the likelier of two equal distances
-        rows, cols = linear_sum_assignment(cost)
+        rows, cols = assign(cost)
         return {int(r): int(k) for r, k in zip(rows, cols, strict=True) if cost[r, k] < big}
 
     def _prune(self) -> None:

@@ -42,6 +42,7 @@ from vipsm.psm import PsmResult
 from vipsm.types import EstimateFlag
 
 from ..bagread import LASER_SCAN, BagTopics, bag_topics, open_reader, read_bag
+from ..legmodel import default_leg_model
 
 SPEED_WINDOW_S = 1.0  # the centroid fit spans +-half of this
 WALKING_MPS = 0.3
@@ -126,7 +127,7 @@ def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
     """The estimator (laser only, no odometry: each cycle predicted where the last ended) over a bag."""
     from ..bagread import BagReadResult
 
-    est = Estimator(config or EstimatorConfig())
+    est = Estimator(config or EstimatorConfig(), leg_model=default_leg_model())
     run = Run(topic)
     read = BagReadResult()
     t0 = time.perf_counter()

@@ -4,17 +4,21 @@ vipsm.people)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from app.legmodel import default_leg_model, default_model_path, load_leg_model
+from vipsm.assignment import assign
 from vipsm.bodies import BodiesConfig
 from vipsm.imm import Imm, ImmConfig
-from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, load_model, segment_features
+from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
 from vipsm.people import FIRST_ID, PeopleConfig, PeopleTracker, PersonDetection, detect_people
 from vipsm.types import Obstacle, Pose2D
 
 RNG_SEED = 29
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _arc(cx: float, cy: float, radius: float, n: int) -> np.ndarray:
@@ -27,7 +31,7 @@ def _arc(cx: float, cy: float, radius: float, n: int) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------ legs
 def test_packaged_model_loads_without_pickle_and_scores_in_range() -> None:
-    model = load_model()
+    model = default_leg_model()
     assert 0.0 < model.threshold_p < 1.0
     x = np.random.default_rng(RNG_SEED).normal(size=(20, len(FEATURE_NAMES)))
     p = model.predict(x)
@@ -38,7 +42,7 @@ def test_packaged_model_loads_without_pickle_and_scores_in_range() -> None:
 
 
 def test_a_leg_in_open_space_scores_above_a_wall_piece() -> None:
-    model = load_model()
+    model = default_leg_model()
     leg = features(_arc(2.0, 0.3, 0.06, 8), 1.0, 1.0)
     wall = features(np.stack([np.full(8, 2.0), np.linspace(0.2, 0.5, 8)], axis=1), 0.02, 0.02)
     p_leg, p_wall = model.predict(np.stack([leg, wall]))
@@ -56,28 +60,33 @@ def test_features_of_an_arc_measure_its_shape() -> None:
 
 def test_a_bad_model_file_is_a_typed_error(tmp_path) -> None:
     with pytest.raises(ModelError):
-        load_model(tmp_path / "absent.npz")
-    good = dict(np.load(load_model.__globals__["default_model_path"]()))
+        load_leg_model(tmp_path / "absent.npz")
+    good = dict(np.load(default_model_path()))
     np.savez(tmp_path / "names.npz", **{**good, "feature_names": np.array(["a", "b"])})
     with pytest.raises(ModelError, match="features"):
-        load_model(tmp_path / "names.npz")
+        load_leg_model(tmp_path / "names.npz")
     bad_left = good["left"].copy()
     bad_left[good["feature"] >= 0] = 10**7
     np.savez(tmp_path / "nodes.npz", **{**good, "left": bad_left})
     with pytest.raises(ModelError, match="out of range"):
-        load_model(tmp_path / "nodes.npz")
+        load_leg_model(tmp_path / "nodes.npz")
 
 
 def test_exported_forest_reproduces_scikit_learn(tmp_path) -> None:
     sklearn = pytest.importorskip("sklearn.ensemble")
-    from app.evaluation.train_legs import export_forest
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("train_legs", ROOT / "tools" / "train_legs.py")
+    train_legs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(train_legs)
+    export_forest = train_legs.export_forest
 
     rng = np.random.default_rng(RNG_SEED)
     x = rng.normal(size=(400, len(FEATURE_NAMES)))
     y = (x[:, 0] + 0.5 * x[:, 3] > 0).astype(float)
     forest = sklearn.RandomForestClassifier(n_estimators=5, max_depth=4, random_state=0).fit(x, y)
     np.savez(tmp_path / "m.npz", **export_forest(forest, 0.5))
-    model = load_model(tmp_path / "m.npz")
+    model = load_leg_model(tmp_path / "m.npz")
     xt = rng.normal(size=(100, len(FEATURE_NAMES)))
     np.testing.assert_allclose(model.predict(xt), forest.predict_proba(xt)[:, 1], atol=1e-12)
 
@@ -133,7 +142,7 @@ def _pair(x: float, y: float, p: float = 0.9, evidence: bool = False) -> PersonD
 
 
 def test_a_walker_is_moving_and_a_standing_person_is_not() -> None:
-    tr = PeopleTracker()
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
     rng = np.random.default_rng(RNG_SEED)
     for k in range(40):
         t = 0.1 * k
@@ -148,7 +157,7 @@ def test_a_walker_is_moving_and_a_standing_person_is_not() -> None:
 
 
 def test_tracks_are_confirmed_after_two_detections_and_dropped_when_seen_absent() -> None:
-    tr = PeopleTracker()
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
     tr.step(0.0, [_pair(2.0, 0.0)])
     assert tr.people(0.0) == ()  # one detection: not yet a person
     tr.step(0.1, [_pair(2.0, 0.0)])
@@ -159,7 +168,7 @@ def test_tracks_are_confirmed_after_two_detections_and_dropped_when_seen_absent(
 
 
 def test_hidden_person_is_kept_while_its_position_is_known() -> None:
-    tr = PeopleTracker()
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
     for k in range(10):
         tr.step(0.1 * k, [_pair(2.0, 0.0)])
     for k in range(10, 20):  # behind something nearer for a second: no evidence of absence
@@ -171,11 +180,11 @@ def test_moving_people_with_motion_evidence_become_obstacles_unless_the_body_tra
     laser = Pose2D(0.0, 0.0, 0.0)
     assert not PeopleConfig().report_moving  # off by default
     on = PeopleConfig(report_moving=True)
-    drifting = PeopleTracker(on)  # e.g. a chair's legs whose centres drift as the robot drives by
+    drifting = PeopleTracker(on, default_leg_model())  # e.g. a chair's legs whose centres drift as the robot drives by
     for k in range(20):
         drifting.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0)])
     assert drifting.people(1.9)[0].moving and drifting.obstacles(drifting.people(1.9), (), laser) == ()
-    tr = PeopleTracker(on)
+    tr = PeopleTracker(on, default_leg_model())
     for k in range(20):
         tr.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0, evidence=k == 12)])
     people = tr.people(1.9)
@@ -185,7 +194,7 @@ def test_moving_people_with_motion_evidence_become_obstacles_unless_the_body_tra
     assert ob.bearing_min_rad < math.atan2(ob.y_m, ob.x_m) < ob.bearing_max_rad
     other = Obstacle(1, people[0].x_m + 0.3, people[0].y_m, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5)
     assert tr.obstacles(people, (other,), laser) == ()
-    off = PeopleTracker(PeopleConfig(report_moving=False))
+    off = PeopleTracker(PeopleConfig(report_moving=False), default_leg_model())
     assert off.obstacles(people, (), laser) == ()
 
 
@@ -196,7 +205,7 @@ def test_detect_people_pairs_two_legs_into_one_person() -> None:
         ang = np.arctan2(centre, 2.0)
         near = np.abs(b - ang) < math.atan2(0.055, 2.0)
         r[near] = 2.0
-    model = load_model()
+    model = default_leg_model()
     dets = detect_people(r, b, Pose2D(1.0, 0.0, 0.0), model, PeopleConfig(LegConfig(threshold=0.05)),
                          BodiesConfig())
     pairs = [d for d in dets if len(d.legs) == 2]
@@ -261,3 +270,34 @@ def test_people_in_the_simulated_world_are_located(capsys) -> None:
     res = json.loads(capsys.readouterr().out)
     assert res["scenario"] == "cross_60" and res["cycles_in_view"] > 20
     assert res["located"] >= 0.8 and res["error_median_m"] <= 0.15
+
+
+def test_assignment_is_optimal_and_agrees_with_scipy() -> None:
+    optimize = pytest.importorskip("scipy.optimize")
+    rng = np.random.default_rng(RNG_SEED)
+    for trial in range(200):
+        n, m = (int(v) for v in rng.integers(1, 9, 2))
+        cost = rng.random((n, m)) * 10.0
+        if trial % 3 == 0:
+            cost = np.round(cost)  # ties
+        rows, cols = assign(cost)
+        r2, c2 = optimize.linear_sum_assignment(cost)
+        assert rows.size == min(n, m) and len(set(cols.tolist())) == cols.size and np.all(np.diff(rows) > 0)
+        assert cost[rows, cols].sum() == pytest.approx(cost[r2, c2].sum(), abs=1e-9)
+    with pytest.raises(ValueError):
+        assign(np.array([[1.0, np.inf]]))
+
+
+def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
+    from vipsm.estimator import Estimator
+    from vipsm.types import Odometry, Scan
+
+    b = np.linspace(-math.pi / 2, math.pi / 2, 361)
+    r = np.full(b.size, 4.0)
+    r[170:180] = 2.0
+    for est, expect in ((Estimator(), False), (Estimator(leg_model=default_leg_model()), True)):
+        for k in range(5):
+            e = est.step(Scan(r.copy(), b, 0.1 * k), Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.1 * k))
+        assert (est._people is not None) == expect  # noqa: SLF001
+        if not expect:
+            assert e.people == ()

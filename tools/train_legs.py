@@ -1,6 +1,8 @@
 """Train the leg detector (:mod:`vipsm.legs`) on the recorded leg_tracker scans and store it as arrays.
 
-    python -m app.evaluation.train_legs [--data-dir DIR] [--out vipsm/data/legs_model.npz] [--json]
+    PYTHONPATH=. python tools/train_legs.py [--data-dir DIR] [--out vipsm/data/legs_model.npz] [--json]
+
+(needs scikit-learn, which neither the estimator nor the app imports: the model is stored as arrays)
 
 Samples: every segment of a scan (pre-filtered and segmented as the estimator does) that
 :func:`vipsm.legs.segment_features` keeps. Positives: in the labelled scans of ``positive_N_extracted``,
@@ -28,13 +30,13 @@ from typing import Any
 
 import numpy as np
 
+from app.bagread import BagTopics, read_bag
+from app.cmd_eval import default_real_data_dir
+from app.evaluation.real_data import read_labels, scan_topics
+from app.legmodel import default_model_path, load_leg_model
 from vipsm.bodies import BodiesConfig, segments
-from vipsm.legs import FEATURE_NAMES, LegConfig, LegModel, default_model_path, load_model, segment_features
+from vipsm.legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
 from vipsm.prefilter import PrefilterConfig, veiling_masks
-
-from ..bagread import BagTopics, read_bag
-from ..cmd_eval import default_real_data_dir
-from .real_data import read_labels, scan_topics
 
 LABELLED = ("positive_1", "positive_2", "positive_3", "positive_6")
 HELD_OUT = "positive_6"
@@ -90,7 +92,7 @@ def drive_samples(data: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def export_forest(forest: Any, threshold_p: float) -> dict[str, np.ndarray]:
-    """A fitted ``RandomForestClassifier`` as the arrays :func:`vipsm.legs.load_model` reads."""
+    """A fitted ``RandomForestClassifier`` as the arrays :func:`vipsm.legs.model_from_arrays` takes."""
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("feature", "threshold", "left", "right", "value")}
     roots, offset, depth = [], 0, 0
     for est in forest.estimators_:
@@ -148,7 +150,7 @@ def train(data: Path, out: Path) -> dict[str, Any]:
     forest = _forest().fit(x, y)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **export_forest(forest, thr))
-    model: LegModel = load_model(out)
+    model: LegModel = load_leg_model(out)
     if not np.allclose(model.predict(x), forest.predict_proba(x)[:, 1], atol=1e-9):
         raise RuntimeError("the exported forest does not reproduce scikit-learn's probabilities")
     p_held, p_val = model.predict(pos[HELD_OUT]), model.predict(neg_val)
@@ -167,7 +169,7 @@ def train(data: Path, out: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m app.evaluation.train_legs", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="tools/train_legs.py", description=__doc__.split("\n")[0])
     ap.add_argument("--data-dir", type=Path, default=None)
     ap.add_argument("--out", type=Path, default=default_model_path())
     ap.add_argument("--json", action="store_true")
