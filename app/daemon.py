@@ -643,6 +643,7 @@ class ControlLoop:
         self.log.log("/pose", wall, lm.pose_in_frame(p.x_m, p.y_m, p.theta_rad, wall))
         life_s = max(3 * self.config.loop.period_s, 0.3)
         self.log.log("/obstacles", wall, lambda: lm.scene_update(est.obstacles, wall, life_s))
+        self.log.log("/people", wall, lambda: lm.people_scene_update(est.people, wall, life_s))
         cycle = self.cycle
         image_wall = self.wall(frame.stamp_s) if frame is not None else None
         self.log.log("/vipsm/cycle", wall, lambda: cycle_message(cycle, scan, odom, frame, image_wall, est))

@@ -37,6 +37,7 @@ from .config import Config
 from .daemon import ControlLoop, FrameSample, OdomSample, ScanSample, TruthFn, normalised_bearings
 from .errors import AppError
 from .fieldlog import FieldLog
+from .legmodel import default_leg_model
 from .liveview import LiveLimits, LiveView, check_exposure, layout_path, parse_listen
 from .replay import deterministic_opencv
 from .sdnotify import SystemdNotifier
@@ -505,7 +506,7 @@ def build_loop(
         scanner=scanner,
         base=base,
         camera=camera,
-        estimator=Estimator(config.estimator),
+        estimator=Estimator(config.estimator, leg_model=default_leg_model()),
         field_log=field_log,
         status=status,
         notifier=SystemdNotifier(),

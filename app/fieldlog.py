@@ -10,6 +10,7 @@ Channels (topic: schema, encoding):
 ``/tf``              ``foxglove.FrameTransforms``  odom -> base_link -> laser, camera (+ world, truth in sim)
 ``/camera/image``    ``foxglove.CompressedImage``  every frame used, JPEG as the camera sent it
 ``/obstacles``       ``foxglove.SceneUpdate`` pb   tracked obstacles: cylinder, velocity arrow, speed text
+``/people``          ``foxglove.SceneUpdate`` pb   every person: moving (obstacle colour, arrow) or standing (blue)
 ``/log``             ``foxglove.Log`` pb           daemon log lines (state changes, degraded modes, faults)
 ``/diagnostics``     ``vipsm.LoopDiagnostics``     loop health and device states, every cycle (JSON)
 ``/truth``           ``vipsm.GroundTruth``         simulated runs only: the world's true robot/obstacles (JSON)
@@ -65,6 +66,7 @@ FOXGLOVE_TOPICS: dict[str, str] = {
     "/tf": "FrameTransformsChannel",
     "/camera/image": "CompressedImageChannel",
     "/obstacles": "SceneUpdateChannel",
+    "/people": "SceneUpdateChannel",
     "/log": "LogChannel",
 }
 

@@ -38,7 +38,7 @@ from foxglove.messages import (
     Vector3,
 )
 
-from vipsm.types import Obstacle
+from vipsm.types import Obstacle, Person
 
 #: the field-log layout this version writes (recorded in ``/vipsm/config`` as ``log_version``);
 #: 1 = JSON everywhere (written before the Foxglove SDK), 2 = official protobuf schemas + ``/tf``
@@ -133,6 +133,46 @@ def _obstacle_entity(ob: Obstacle, ts: Timestamp, life: Duration) -> SceneEntity
         arrows=arrows,
         texts=[TextPrimitive(pose=planar_pose(ob.x_m, ob.y_m, 0.0, 1.2), billboard=True, font_size=14.0,
                              scale_invariant=True, color=ARROW_COLOR, text=f"#{ob.track_id} {speed:.2f} m/s")],
+    )
+
+
+#: a standing person (``/people``): blue; a moving one has the obstacles' colour
+STANDING_COLOR = Color(r=0.2, g=0.5, b=1.0, a=0.6)
+
+
+def people_scene_update(people: typing.Iterable[Person], wall_s: float, lifetime_s: float) -> SceneUpdate:
+    """``/people``: all previous entities deleted, then one per person: a cylinder of a person's size
+    (moving: the obstacles' colour with a velocity arrow; standing: ``STANDING_COLOR``), a text with its
+    id and P(moving), and every field of :class:`vipsm.types.Person` as metadata."""
+    ts = timestamp(wall_s)
+    life = Duration(sec=int(lifetime_s), nsec=int(round((lifetime_s % 1.0) * 1e9)))
+    return SceneUpdate(
+        deletions=[SceneEntityDeletion(timestamp=ts, type=SceneEntityDeletionType.All, id="")],
+        entities=[_person_entity(p, ts, life) for p in people],
+    )
+
+
+def _person_entity(p: Person, ts: Timestamp, life: Duration) -> SceneEntity:
+    speed = math.hypot(p.vx_mps, p.vy_mps)
+    arrows = []
+    if p.moving and speed > 1e-3:
+        arrows.append(ArrowPrimitive(pose=planar_pose(p.x_m, p.y_m, math.atan2(p.vy_mps, p.vx_mps), 1.0),
+                                     shaft_length=max(speed - 0.1, 0.01), shaft_diameter=0.04, head_length=0.1,
+                                     head_diameter=0.12, color=ARROW_COLOR))
+    meta = {"vx_mps": f"{p.vx_mps:.3f}", "vy_mps": f"{p.vy_mps:.3f}", "p_moving": f"{p.p_moving:.4f}",
+            "moving": str(p.moving).lower(), "existence": f"{p.existence:.4f}",
+            "covariance_m2": ",".join(f"{v:.6g}" for v in p.covariance),
+            "legs": ";".join(f"{x:.3f},{y:.3f}" for x, y in p.legs)}
+    return SceneEntity(
+        timestamp=ts, frame_id="odom", id=f"person-{p.track_id}", lifetime=life, frame_locked=False,
+        metadata=[KeyValuePair(key=k, value=v) for k, v in meta.items()],
+        cylinders=[CylinderPrimitive(pose=planar_pose(p.x_m, p.y_m, 0.0, 0.85), size=Vector3(x=0.5, y=0.5, z=1.7),
+                                     bottom_scale=1.0, top_scale=1.0,
+                                     color=OBSTACLE_COLOR if p.moving else STANDING_COLOR)],
+        arrows=arrows,
+        texts=[TextPrimitive(pose=planar_pose(p.x_m, p.y_m, 0.0, 1.9), billboard=True, font_size=14.0,
+                             scale_invariant=True, color=ARROW_COLOR,
+                             text=f"person {p.track_id} P(moving) {p.p_moving:.2f}")],
     )
 
 

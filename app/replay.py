@@ -24,6 +24,7 @@ from vipsm.types import Estimate, Frame, Intrinsics, Odometry, Scan
 
 from .errors import LogFormatError
 from .fieldlog import LogReadResult, read_log
+from .legmodel import default_leg_model
 
 
 def deterministic_opencv() -> None:
@@ -256,7 +257,7 @@ def run_replay(
     read = LogReadResult()
     deterministic_opencv()
     config = config or recorded_estimator_config(path) or EstimatorConfig()
-    est = Estimator(config, plain_psm=plain_psm)
+    est = Estimator(config, plain_psm=plain_psm, leg_model=default_leg_model())
     out: list[tuple[ReplayCycle, Estimate]] = []
     for i, cyc in enumerate(iter_cycles(path, read)):
         out.append((cyc, est.step(cyc.scan, cyc.odometry, cyc.frame)))
@@ -375,7 +376,7 @@ def run_bag_replay(path: str | Path, topics: Any, config: EstimatorConfig, plain
 
     read = BagReadResult()
     deterministic_opencv()
-    est = Estimator(config, plain_psm=plain_psm)
+    est = Estimator(config, plain_psm=plain_psm, leg_model=default_leg_model())
     out: list[tuple[ReplayCycle, Estimate]] = []
     for i, bc in enumerate(read_bag(path, topics, intrinsics, read, max_scans)):
         e = est.step(bc.scan, bc.odometry, bc.frame)
@@ -449,6 +450,8 @@ class BagFieldLog:
         self._put("/pose", w, lm.pose_in_frame(p.x_m, p.y_m, p.theta_rad, w))
         obstacles, life = est.obstacles, self._life_s
         self._put("/obstacles", w, lambda: lm.scene_update(obstacles, w, life))
+        people = est.people
+        self._put("/people", w, lambda: lm.people_scene_update(people, w, life))
         cycle, scan = self.cycle, bc.scan
         self._put("/vipsm/cycle", w, lambda: cycle_message(cycle, scan, od, frame, image_wall, est))
         pose = (p.x_m, p.y_m, p.theta_rad)

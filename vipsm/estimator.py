@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -39,7 +39,9 @@ from .bodies import BodiesConfig, Body, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
+from .legs import LegModel
 from .motion import ConstantVelocity
+from .people import PeopleConfig, PeopleTracker, PersonDetection, detect_people
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
@@ -84,6 +86,7 @@ class EstimatorConfig:
     static_map: StaticMapConfig = field(default_factory=StaticMapConfig)
     seen_through: SeenThroughConfig = field(default_factory=SeenThroughConfig)
     bodies: BodiesConfig = field(default_factory=BodiesConfig)
+    people: PeopleConfig = field(default_factory=PeopleConfig)
     keyframe_dist_m: float = 0.30
     keyframe_angle_rad: float = math.radians(10.0)
     keyframe_min_overlap: float = 0.60
@@ -156,12 +159,16 @@ _SIGMA_ACROSS_M = {"person": 0.025}
 class Estimator:
     """VIPSM (``plain_psm=False``) or the plain-PSM baseline (``plain_psm=True``) on the same code."""
 
-    def __init__(self, config: EstimatorConfig | None = None, plain_psm: bool = False) -> None:
+    def __init__(self, config: EstimatorConfig | None = None, plain_psm: bool = False,
+                 leg_model: LegModel | None = None) -> None:
+        """``leg_model`` (``app.legmodel.default_leg_model()``): the people stage's leg detector; without
+        it the stage is off and ``Estimate.people`` stays empty (the estimator reads no files)."""
         self.config = config or EstimatorConfig()
         self.plain_psm = plain_psm
         cfg = self.config
         self._flow = FlowDetector(cfg.flow, cfg.camera_mount)
         self._tracker = Tracker(cfg.tracker)
+        self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._memory = ScanMemory(cfg.seen_through)
@@ -207,6 +214,10 @@ class Estimator:
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
+        if self._people is not None:
+            people = _with_evidence(detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
+                                                  self.config.people, self.config.bodies, dropped), bodies)
+            self._people.step(scan.stamp_s, people, _visibility(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -322,6 +333,9 @@ class Estimator:
         at = self._tracker.predict_position
         obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tracked
                           if id(t) in alive and self._tracker.reported(t))
+        people = self._people.people(scan.stamp_s) if self._people is not None else ()
+        if self._people is not None:
+            obstacles += self._people.obstacles(people, obstacles, laser)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
@@ -330,6 +344,7 @@ class Estimator:
             quality=match.quality,
             flags=flags,
             restored_indices=() if self.plain_psm else rest.cut,
+            people=people,
         )
 
     # ------------------------------------------------------------------ helpers
@@ -399,6 +414,30 @@ def _checked(scan: Scan) -> tuple[Scan, bool]:
     return Scan(np.full(b.size, np.nan), np.linspace(-1.0, 1.0, b.size), scan.stamp_s, scan.seq), False
 
 
+def _with_evidence(people: list[PersonDetection], bodies: list[Body]) -> list[PersonDetection]:
+    """Each person detection marked with the motion evidence of a body on any of its beams."""
+    spans = [(b.scan_index_start, b.scan_index_stop) for b in bodies if b.evidence]
+    return [replace(p, evidence=any(a < p.scan_index_stop and p.scan_index_start < z for a, z in spans))
+            for p in people]
+
+
+def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
+    """``visible(x, y)``: the scan could have seen a body at that world point: inside the field of
+    view, and the beam towards it returned no nearer than ``margin_m`` in front of it (or not at all:
+    it went through)."""
+    b, r = scan.bearings_rad, scan.ranges_m
+
+    def visible(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+        if b.size < 2 or not b[0] <= bearing <= b[-1]:
+            return False
+        k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
+        return not (np.isfinite(r[k]) and r[k] < math.hypot(dx, dy) - margin_m)
+
+    return visible
+
+
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
     flags = EstimateFlag.OBSTACLE_TOO_LARGE if rest.too_large else EstimateFlag.NONE
     if rest.bridge_invalid and not plain_psm:
@@ -443,7 +482,8 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
 def warm_up(config: EstimatorConfig | None = None) -> None:
     """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
     machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
-    it: the scan matcher's, the static map's ray march and the body's circle refinement."""
+    it: the scan matcher's, the static map's ray march, the body's circle refinement and the leg features."""
+    from .legs import features
     from .psm import warm_up as psm_warm_up
     from .tracker import refine_fixed_radius
 
@@ -453,3 +493,4 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     b = np.linspace(-2.0, 2.0, 181)
     FreeSpaceGrid(cfg.static_map).integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)
+    features(np.array([[1.0, 0.0], [1.05, 0.05], [1.0, 0.1]]), 0.5, 0.5)

@@ -124,6 +124,27 @@ class Obstacle:
 
 
 @dataclass(frozen=True)
+class Person:
+    """A tracked person (walking or standing) in the world frame (:mod:`vipsm.people`)."""
+
+    track_id: int
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    #: position covariance (m^2), row-major 2 x 2: xx, xy, yx, yy
+    covariance: tuple[float, float, float, float]
+    #: the walking model's probability (the IMM's P(moving))
+    p_moving: float
+    #: moving with hysteresis: P(moving) reached ``PeopleConfig.moving_on`` and has not fallen below ``moving_off``
+    moving: bool
+    #: the track's existence probability
+    existence: float
+    #: the legs seen this cycle (world frame): two, one, or none while coasting
+    legs: tuple[tuple[float, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class MatchQuality:
     beams_used: int
     iterations: int
@@ -154,3 +175,5 @@ class Estimate:
     quality: MatchQuality
     flags: EstimateFlag = EstimateFlag.NONE
     restored_indices: tuple[tuple[int, int], ...] = field(default_factory=tuple)  # [start, stop) cut from the scan
+    #: every tracked person, walking or standing (``obstacles`` stays the paper's moving obstacles)
+    people: tuple[Person, ...] = field(default_factory=tuple)

@@ -26,6 +26,8 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
     from vipsm.psm import match_prepared, prepare
     from vipsm.types import Frame, Intrinsics, Odometry
 
+    from ..legmodel import default_leg_model
+
     scenario = build_scenario(paper_params("2", {"duration_s": 20.0}))
     mount = RobotMount()
     world = World(scenario, mount=mount)
@@ -72,7 +74,7 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         match_prepared(ref, cur, guess, psm_cfg)
         prepared_ms.append(1000.0 * (time.perf_counter() - t0))
     step_ms, step_cpu_ms = [], []
-    est = Estimator(ecfg)
+    est = Estimator(ecfg, leg_model=default_leg_model())
     for scan, odo, frame in inputs:
         t0 = time.perf_counter()
         c0 = time.process_time()
@@ -80,7 +82,7 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         step_cpu_ms.append(1000.0 * (time.process_time() - c0))
         step_ms.append(1000.0 * (time.perf_counter() - t0))
     plain_ms = []
-    est = Estimator(ecfg, plain_psm=True)
+    est = Estimator(ecfg, plain_psm=True, leg_model=default_leg_model())
     for scan, odo, frame in inputs:
         t0 = time.perf_counter()
         est.step(scan, odo, frame)

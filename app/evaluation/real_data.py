@@ -42,6 +42,7 @@ from vipsm.psm import PsmResult
 from vipsm.types import EstimateFlag
 
 from ..bagread import LASER_SCAN, BagTopics, bag_topics, open_reader, read_bag
+from ..legmodel import default_leg_model
 
 SPEED_WINDOW_S = 1.0  # the centroid fit spans +-half of this
 WALKING_MPS = 0.3
@@ -80,6 +81,8 @@ class Cycle:
     reports: list[tuple[int, float, float]]  # (track_id, x_m, y_m)
     fallback: bool
     reason: str | None
+    #: ``Estimate.people``: (track_id, x_m, y_m, moving)
+    people: list[tuple[int, float, float, bool]] = field(default_factory=list)
 
 
 @dataclass
@@ -124,7 +127,7 @@ def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
     """The estimator (laser only, no odometry: each cycle predicted where the last ended) over a bag."""
     from ..bagread import BagReadResult
 
-    est = Estimator(config or EstimatorConfig())
+    est = Estimator(config or EstimatorConfig(), leg_model=default_leg_model())
     run = Run(topic)
     read = BagReadResult()
     t0 = time.perf_counter()
@@ -132,7 +135,8 @@ def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
         e = est.step(bc.scan, bc.odometry if bc.odometry_given else None, None)  # no --odom: no odometry
         run.cycles.append(Cycle(bc.scan.stamp_s, (e.pose.x_m, e.pose.y_m, e.pose.theta_rad),
                                 [(o.track_id, o.x_m, o.y_m) for o in e.obstacles],
-                                bool(e.flags & EstimateFlag.ODOMETRY_FALLBACK), refusal_reason(est)))
+                                bool(e.flags & EstimateFlag.ODOMETRY_FALLBACK), refusal_reason(est),
+                                [(p.track_id, p.x_m, p.y_m, p.moving) for p in e.people]))
         run.ranges.append(bc.scan.ranges_m)
         if run.bearings is None:
             run.bearings = bc.scan.bearings_rad
@@ -362,11 +366,31 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
         if rec.labels is not None and (data_dir / rec.labels).exists():
             period = run.sensor["scan_period_s"] if run.sensor and run.sensor["scan_period_s"] > 0 else 0.1
             res.update(labelled_metrics(run, read_labels(bag, data_dir / rec.labels), period))
+        for key, moving in (("people", False), ("moving_people", True)):
+            res[key] = _scored_as_reports(_people_run(run, moving), rec, bag, data_dir)
         if rec.kind == "drive":
             res["kiss_icp"] = _kiss(run, headings)
         out.append(res)
     _heading_agreement(out, headings)
     return out
+
+
+def _people_run(run: Run, moving_only: bool) -> Run:
+    """The run with ``Estimate.people`` (every person, or the moving ones) in place of the reports."""
+    cycles = [Cycle(c.stamp_s, c.pose, [(i, x, y) for i, x, y, mv in c.people if mv or not moving_only], c.fallback,
+                    c.reason) for c in run.cycles]
+    return Run(run.topic, cycles, run.ranges, run.bearings, run.sensor, run.ms_per_cycle, run.truncation)
+
+
+def _scored_as_reports(run: Run, rec: Recording, bag: Path, data_dir: Path) -> dict[str, Any]:
+    """``people`` / ``moving_people`` in the JSON: the same figures with those as the reports."""
+    res = report_counts(run)
+    if rec.kind != "drive":
+        res.update(background_metrics(run))
+    if rec.labels is not None and (data_dir / rec.labels).exists():
+        period = run.sensor["scan_period_s"] if run.sensor and run.sensor["scan_period_s"] > 0 else 0.1
+        res.update(labelled_metrics(run, read_labels(bag, data_dir / rec.labels), period))
+    return res
 
 
 def _kiss(run: Run, headings: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:

@@ -73,10 +73,14 @@ def make_estimators(mount: RobotMount) -> tuple[Any, Any]:
     """(VIPSM, plain PSM) estimators configured with the world's sensor mount."""
     try:
         from vipsm.estimator import Estimator, EstimatorConfig
+
+        from ..legmodel import default_leg_model
     except ModuleNotFoundError as exc:  # the estimator is another area's work
         raise AppError(f"the estimator is not available: {exc}") from exc
     config = _replace_fields(EstimatorConfig(), mount_values(mount))
-    return Estimator(config, plain_psm=False), Estimator(config, plain_psm=True)
+    model = default_leg_model()
+    return (Estimator(config, plain_psm=False, leg_model=model),
+            Estimator(config, plain_psm=True, leg_model=model))
 
 
 def _score_reports(

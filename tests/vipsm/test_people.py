@@ -1,0 +1,303 @@
+"""The learned leg detector, the standing/walking IMM and the people tracker (vipsm.legs, vipsm.imm,
+vipsm.people)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.legmodel import default_leg_model, default_model_path, load_leg_model
+from vipsm.assignment import assign
+from vipsm.bodies import BodiesConfig
+from vipsm.imm import Imm, ImmConfig
+from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
+from vipsm.people import FIRST_ID, PeopleConfig, PeopleTracker, PersonDetection, detect_people
+from vipsm.types import Obstacle, Pose2D
+
+RNG_SEED = 29
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _arc(cx: float, cy: float, radius: float, n: int) -> np.ndarray:
+    """The front of a round body at (cx, cy) seen from the origin: n returns, in scan order."""
+    centre = math.atan2(cy, cx)
+    a = np.linspace(centre + math.pi - 1.0, centre + math.pi + 1.0, n)
+    pts = np.stack([cx + radius * np.cos(a), cy + radius * np.sin(a)], axis=1)
+    return pts[np.argsort(np.arctan2(pts[:, 1], pts[:, 0]))]
+
+
+# ------------------------------------------------------------------------------------------ legs
+def test_packaged_model_loads_without_pickle_and_scores_in_range() -> None:
+    model = default_leg_model()
+    assert 0.0 < model.threshold_p < 1.0
+    x = np.random.default_rng(RNG_SEED).normal(size=(20, len(FEATURE_NAMES)))
+    p = model.predict(x)
+    assert p.shape == (20,) and np.all((p >= 0.0) & (p <= 1.0))
+    assert model.predict(np.zeros((0, len(FEATURE_NAMES)))).shape == (0,)
+    with pytest.raises(ValueError):
+        model.predict(np.zeros((3, 4)))
+
+
+def test_a_leg_in_open_space_scores_above_a_wall_piece() -> None:
+    model = default_leg_model()
+    leg = features(_arc(2.0, 0.3, 0.06, 8), 1.0, 1.0)
+    wall = features(np.stack([np.full(8, 2.0), np.linspace(0.2, 0.5, 8)], axis=1), 0.02, 0.02)
+    p_leg, p_wall = model.predict(np.stack([leg, wall]))
+    assert p_leg >= model.threshold_p > p_wall
+
+
+def test_features_of_an_arc_measure_its_shape() -> None:
+    f = dict(zip(FEATURE_NAMES, features(_arc(2.0, 0.0, 0.06, 9), 0.5, -0.2), strict=True))
+    assert f["n_points"] == 9
+    assert f["radius_m"] == pytest.approx(0.06, abs=1e-6)
+    assert f["circularity_m"] < 1e-9
+    assert f["range_m"] == pytest.approx(2.0 - 0.06 * 0.8, abs=0.02)
+    assert (f["front_left_m"], f["front_right_m"]) == (0.5, -0.2)
+
+
+def test_a_bad_model_file_is_a_typed_error(tmp_path) -> None:
+    with pytest.raises(ModelError):
+        load_leg_model(tmp_path / "absent.npz")
+    good = dict(np.load(default_model_path()))
+    np.savez(tmp_path / "names.npz", **{**good, "feature_names": np.array(["a", "b"])})
+    with pytest.raises(ModelError, match="features"):
+        load_leg_model(tmp_path / "names.npz")
+    bad_left = good["left"].copy()
+    bad_left[good["feature"] >= 0] = 10**7
+    np.savez(tmp_path / "nodes.npz", **{**good, "left": bad_left})
+    with pytest.raises(ModelError, match="out of range"):
+        load_leg_model(tmp_path / "nodes.npz")
+
+
+def test_exported_forest_reproduces_scikit_learn(tmp_path) -> None:
+    sklearn = pytest.importorskip("sklearn.ensemble")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("train_legs", ROOT / "tools" / "train_legs.py")
+    train_legs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(train_legs)
+    export_forest = train_legs.export_forest
+
+    rng = np.random.default_rng(RNG_SEED)
+    x = rng.normal(size=(400, len(FEATURE_NAMES)))
+    y = (x[:, 0] + 0.5 * x[:, 3] > 0).astype(float)
+    forest = sklearn.RandomForestClassifier(n_estimators=5, max_depth=4, random_state=0).fit(x, y)
+    np.savez(tmp_path / "m.npz", **export_forest(forest, 0.5))
+    model = load_leg_model(tmp_path / "m.npz")
+    xt = rng.normal(size=(100, len(FEATURE_NAMES)))
+    np.testing.assert_allclose(model.predict(xt), forest.predict_proba(xt)[:, 1], atol=1e-12)
+
+
+def test_segment_features_keep_only_leg_sized_segments() -> None:
+    b = np.linspace(-1.0, 1.0, 401)
+    r = np.full(b.size, 5.0)
+    r[195:205] = 2.0  # ~0.1 m at 2 m: a leg
+    kept, x = segment_features(r, b, [(0, 195), (195, 205), (205, 401)], LegConfig())
+    assert [(a, z) for a, z, _ in kept] == [(195, 205)]
+    assert x.shape == (1, len(FEATURE_NAMES))
+
+
+# ------------------------------------------------------------------------------------------ IMM
+def _run(filt: Imm, speeds: list[float], dt: float = 0.1, seed: int = RNG_SEED) -> list[float]:
+    rng = np.random.default_rng(seed)
+    x, out = 0.0, []
+    for v in speeds:
+        x += v * dt
+        filt.predict(dt)
+        filt.update(np.array([x, 0.0]) + rng.normal(0.0, 0.05, 2), np.eye(2) * 0.05**2)
+        out.append(filt.p_moving)
+    return out
+
+
+def test_imm_tells_standing_from_walking_and_switches_within_half_a_second() -> None:
+    filt = Imm(0.0, 0.0, 0.05, ImmConfig())
+    p = _run(filt, [0.0] * 30 + [1.0] * 30 + [0.0] * 30)
+    assert max(p[5:30]) < 0.5  # standing: never judged moving
+    # walking: moving (with PeopleConfig's hysteresis) from 0.5 s after the start on
+    assert p[34] > 0.8 and min(p[35:60]) > PeopleConfig().moving_off and np.median(p[35:60]) > 0.9
+    assert filt.mean[2] == pytest.approx(0.0, abs=0.15)
+    assert max(p[65:90]) < 0.5  # stopped: standing again within 0.5 s
+
+
+def test_imm_velocity_of_a_steady_walker() -> None:
+    filt = Imm(0.0, 0.0, 0.05, ImmConfig())
+    _run(filt, [1.2] * 40)
+    assert filt.mean[2] == pytest.approx(1.2, abs=0.15) and abs(filt.mean[3]) < 0.15
+    assert np.all(np.linalg.eigvalsh(filt.cov) > 0.0)
+
+
+def test_imm_config_rejects_nonsense() -> None:
+    with pytest.raises(ValueError):
+        ImmConfig(switch_per_s=0.0)
+    with pytest.raises(ValueError):
+        ImmConfig(init_p_moving=1.0)
+
+
+# ------------------------------------------------------------------------------------------ tracker
+def _pair(x: float, y: float, p: float = 0.9, evidence: bool = False) -> PersonDetection:
+    return PersonDetection(x, y, 0.06, p, ((x, y - 0.1), (x, y + 0.1)), 0, 1, evidence)
+
+
+def test_a_walker_is_moving_and_a_standing_person_is_not() -> None:
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    rng = np.random.default_rng(RNG_SEED)
+    for k in range(40):
+        t = 0.1 * k
+        walker = _pair(1.0 + 1.0 * t + rng.normal(0, 0.03), 2.0 + rng.normal(0, 0.03))
+        stander = _pair(3.0 + rng.normal(0, 0.03), -1.0 + rng.normal(0, 0.03))
+        tr.step(t, [walker, stander])
+    people = {round(p.y_m): p for p in tr.people(3.9)}
+    assert set(people) == {2, -1}
+    assert people[2].moving and people[2].p_moving > 0.8 and people[2].vx_mps == pytest.approx(1.0, abs=0.15)
+    assert not people[-1].moving and people[-1].p_moving < 0.4
+    assert all(p.track_id >= FIRST_ID and p.existence > 0.9 and len(p.legs) == 2 for p in people.values())
+
+
+def test_tracks_are_confirmed_after_two_detections_and_dropped_when_seen_absent() -> None:
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    tr.step(0.0, [_pair(2.0, 0.0)])
+    assert tr.people(0.0) == ()  # one detection: not yet a person
+    tr.step(0.1, [_pair(2.0, 0.0)])
+    assert len(tr.people(0.1)) == 1
+    for k in range(2, 12):
+        tr.step(0.1 * k, [], visible=lambda x, y: True)
+    assert tr.tracks == []
+
+
+def test_hidden_person_is_kept_while_its_position_is_known() -> None:
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(10):
+        tr.step(0.1 * k, [_pair(2.0, 0.0)])
+    for k in range(10, 20):  # behind something nearer for a second: no evidence of absence
+        tr.step(0.1 * k, [], visible=lambda x, y: False)
+    assert len(tr.people(1.9)) == 1
+
+
+def test_moving_people_with_motion_evidence_become_obstacles_unless_the_body_tracker_has_them() -> None:
+    laser = Pose2D(0.0, 0.0, 0.0)
+    assert not PeopleConfig().report_moving  # off by default
+    on = PeopleConfig(report_moving=True)
+    drifting = PeopleTracker(on, default_leg_model())  # e.g. a chair's legs whose centres drift as the robot drives by
+    for k in range(20):
+        drifting.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0)])
+    assert drifting.people(1.9)[0].moving and drifting.obstacles(drifting.people(1.9), (), laser) == ()
+    tr = PeopleTracker(on, default_leg_model())
+    for k in range(20):
+        tr.step(0.1 * k, [_pair(1.0 + 0.1 * k, 2.0, evidence=k == 12)])
+    people = tr.people(1.9)
+    assert len(people) == 1 and people[0].moving
+    (ob,) = tr.obstacles(people, (), laser)
+    assert ob.track_id == people[0].track_id and ob.radius_m == tr.config.person_radius_m
+    assert ob.bearing_min_rad < math.atan2(ob.y_m, ob.x_m) < ob.bearing_max_rad
+    other = Obstacle(1, people[0].x_m + 0.3, people[0].y_m, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5)
+    assert tr.obstacles(people, (other,), laser) == ()
+    off = PeopleTracker(PeopleConfig(report_moving=False), default_leg_model())
+    assert off.obstacles(people, (), laser) == ()
+
+
+def test_detect_people_pairs_two_legs_into_one_person() -> None:
+    b = np.linspace(-math.pi / 2, math.pi / 2, 721)
+    r = np.full(b.size, 6.0)
+    for centre in (-0.12, 0.12):  # two legs 0.24 m apart at 2 m, open space behind
+        ang = np.arctan2(centre, 2.0)
+        near = np.abs(b - ang) < math.atan2(0.055, 2.0)
+        r[near] = 2.0
+    model = default_leg_model()
+    dets = detect_people(r, b, Pose2D(1.0, 0.0, 0.0), model, PeopleConfig(LegConfig(threshold=0.05)),
+                         BodiesConfig())
+    pairs = [d for d in dets if len(d.legs) == 2]
+    assert len(pairs) == 1
+    assert pairs[0].x_m == pytest.approx(3.0 + 0.06, abs=0.05) and abs(pairs[0].y_m) < 0.05
+
+
+def test_people_config_rejects_nonsense() -> None:
+    with pytest.raises(ValueError):
+        PeopleConfig(moving_on=0.3, moving_off=0.5)
+    with pytest.raises(ValueError):
+        PeopleConfig(p_detect=1.0)
+
+
+def test_people_channel_colours_standing_and_moving_people_apart(tmp_path) -> None:
+    from app import logmessages as lm
+    from app.fieldlog import FieldLog, read_log, schema_for
+    from vipsm.types import Person
+
+    walking = Person(FIRST_ID, 1.0, 2.0, 1.0, 0.0, (0.01, 0.0, 0.0, 0.01), 0.97, True, 0.99,
+                     ((1.0, 1.9), (1.0, 2.1)))
+    standing = Person(FIRST_ID + 1, 3.0, 0.0, 0.0, 0.0, (0.01, 0.0, 0.0, 0.01), 0.1, False, 0.95, ((3.0, 0.0),))
+    assert schema_for("/people") == "foxglove.SceneUpdate"
+    log = FieldLog(str(tmp_path / "people.mcap"), flush_s=0.05).start()
+    log.log("/people", 10.0, lm.people_scene_update([walking, standing], 10.0, 0.3))
+    log.close()
+    (msg,) = [m for m in read_log(log.path) if m.topic == "/people"]
+    ents = {e["id"]: e for e in msg.data["entities"]}
+    walk, stand = ents[f"person-{FIRST_ID}"], ents[f"person-{FIRST_ID + 1}"]
+    assert walk["cylinders"][0]["color"] != stand["cylinders"][0]["color"]
+    assert len(walk["arrows"]) == 1 and not stand.get("arrows")
+    meta = {kv["key"]: kv["value"] for kv in walk["metadata"]}
+    assert meta["moving"] == "true" and float(meta["p_moving"]) == pytest.approx(0.97)
+    assert meta["legs"] == "1.000,1.900;1.000,2.100"
+
+
+def test_real_recording_people_found_in_labelled_scans(shared_data) -> None:
+    """positive_2's first 120 scans: ``Estimate.people`` holds the labelled walker in nearly every
+    labelled scan (eval --data real's ``people`` figures), and people's moving flags are scored too."""
+    from app.evaluation.real_data import RECORDINGS, evaluate_recording
+
+    src = shared_data / "real_people_laser"
+    if not (src / "positive_2.bag").exists() or not (src / "positive_2_extracted.bag").exists():
+        pytest.skip(f"positive_2 not in {src}")
+    rec = next(r for r in RECORDINGS if r.name == "positive_2")
+    (res,) = evaluate_recording(rec, src, max_scans=120)
+    assert res["people"]["labelled_scans"]["all"] > 0
+    assert res["people"]["recall_0.5m"]["all"] >= 0.9
+    moving = res["moving_people"]
+    assert moving["recall_0.5m"]["all"] <= res["people"]["recall_0.5m"]["all"]
+    assert moving["background_reports_per_min"] is not None
+
+
+def test_people_in_the_simulated_world_are_located(capsys) -> None:
+    """The realistic world's walker (cross_60, its first 12 s: standing, then walking across) is a person
+    entry in most cycles it is in view (``python -m app.evaluation.people_sim``)."""
+    import json
+
+    from app.evaluation.people_sim import main
+
+    assert main(["cross_60", "--duration", "12", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["scenario"] == "cross_60" and res["cycles_in_view"] > 20
+    assert res["located"] >= 0.8 and res["error_median_m"] <= 0.15
+
+
+def test_assignment_is_optimal_and_agrees_with_scipy() -> None:
+    optimize = pytest.importorskip("scipy.optimize")
+    rng = np.random.default_rng(RNG_SEED)
+    for trial in range(200):
+        n, m = (int(v) for v in rng.integers(1, 9, 2))
+        cost = rng.random((n, m)) * 10.0
+        if trial % 3 == 0:
+            cost = np.round(cost)  # ties
+        rows, cols = assign(cost)
+        r2, c2 = optimize.linear_sum_assignment(cost)
+        assert rows.size == min(n, m) and len(set(cols.tolist())) == cols.size and np.all(np.diff(rows) > 0)
+        assert cost[rows, cols].sum() == pytest.approx(cost[r2, c2].sum(), abs=1e-9)
+    with pytest.raises(ValueError):
+        assign(np.array([[1.0, np.inf]]))
+
+
+def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
+    from vipsm.estimator import Estimator
+    from vipsm.types import Odometry, Scan
+
+    b = np.linspace(-math.pi / 2, math.pi / 2, 361)
+    r = np.full(b.size, 4.0)
+    r[170:180] = 2.0
+    for est, expect in ((Estimator(), False), (Estimator(leg_model=default_leg_model()), True)):
+        for k in range(5):
+            e = est.step(Scan(r.copy(), b, 0.1 * k), Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.1 * k))
+        assert (est._people is not None) == expect  # noqa: SLF001
+        if not expect:
+            assert e.people == ()

@@ -1,0 +1,57 @@
+"""Optimal assignment (minimum total cost), for global-nearest-neighbour association.
+
+The Hungarian method with potentials and shortest augmenting paths (Kuhn-Munkres as in Jonker and
+Volgenant), O(n^2 m) for n rows and m >= n columns: one row at a time is added, growing a
+shortest-path tree over the reduced costs until a free column is reached, then the matching is
+flipped along that path. Forbidden pairs are given a cost above every allowed one by the caller and
+dropped from the result by it (scipy's ``linear_sum_assignment`` gives the same matchings; it is not
+a dependency of the estimator).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def assign(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a minimum-cost assignment of ``cost`` (n x m, finite): min(n, m) pairs,
+    rows ascending."""
+    cost = np.asarray(cost, dtype=np.float64)
+    if cost.ndim != 2 or not np.all(np.isfinite(cost)):
+        raise ValueError(f"need a finite 2-D cost matrix, got shape {cost.shape}")
+    if cost.shape[0] > cost.shape[1]:
+        cols, rows = assign(cost.T)
+        order = np.argsort(rows)
+        return rows[order], cols[order]
+    n, m = cost.shape
+    u, v = np.zeros(n + 1), np.zeros(m + 1)
+    p = np.zeros(m + 1, np.intp)  # p[j]: the row (1-based) matched to column j; 0 free
+    way = np.zeros(m + 1, np.intp)
+    for i in range(1, n + 1):
+        p[0], j0 = i, 0
+        minv = np.full(m + 1, np.inf)
+        used = np.zeros(m + 1, bool)
+        while True:
+            used[j0] = True
+            i0 = p[j0]
+            free = ~used[1:]
+            cur = cost[i0 - 1] - u[i0] - v[1:]
+            better = free & (cur < minv[1:])
+            minv[1:][better] = cur[better]
+            way[1:][better] = j0
+            j1 = 1 + int(np.argmin(np.where(free, minv[1:], np.inf)))
+            delta = minv[j1]
+            u[p[used]] += delta
+            v[used] -= delta
+            minv[1:][free] -= delta
+            j0 = j1
+            if p[j0] == 0:
+                break
+        while j0:
+            j1 = way[j0]
+            p[j0] = p[j1]
+            j0 = j1
+    cols = np.flatnonzero(p[1:])
+    rows = p[1:][cols] - 1
+    order = np.argsort(rows)
+    return rows[order], cols[order]

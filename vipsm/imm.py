@@ -1,0 +1,140 @@
+"""An interacting multiple model (IMM) filter of a person's position and velocity: standing or walking.
+
+Two motion models on the state (x, y, vx, vy), world frame, SI units:
+
+* **standing**: the velocity is zero (the model resets it each step); the position wanders by
+  ``stand_sigma_mps`` per square root of a second (a standing person's leg-pair midpoint shuffles with
+  the weight shifting from foot to foot);
+* **walking**: constant velocity with white acceleration noise, one model per ``walk_accel_mps2``:
+  steady walking (0.3 m/s^2: the speed wanders by ~0.1 m/s over a few seconds, and the filter averages
+  the gait's wobble out) and manoeuvring (2 m/s^2: starting, stopping, turning, stepping aside take
+  about half a second).
+
+The models switch with rate ``switch_per_s`` (a Markov chain: the probability of leaving a model in
+one step of ``dt`` is ``1 - exp(-rate dt)``, shared evenly among the others). The walking models'
+probability is P(moving); the combined
+state gives position, velocity and covariance. Standard IMM (Blom and Bar-Shalom): mixing, per-model
+Kalman prediction and update, model probabilities from the measurement likelihoods.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+STANDING = 0  # the first model; the others walk
+
+
+@dataclass(frozen=True)
+class ImmConfig:
+    stand_sigma_mps: float = 0.05
+    walk_accel_mps2: tuple[float, ...] = (0.3, 2.0)
+    switch_per_s: float = 0.5
+    #: speed uncertainty of a new track (a walker: up to ~1.5 m/s)
+    init_speed_sigma_mps: float = 0.8
+    #: P(moving) of a new track
+    init_p_moving: float = 0.2
+
+    def __post_init__(self) -> None:
+        if not self.walk_accel_mps2 or min(self.stand_sigma_mps, *self.walk_accel_mps2, self.switch_per_s,
+                                           self.init_speed_sigma_mps) <= 0.0:
+            raise ValueError("the IMM's noise, switch rate and initial speed sigma must be positive")
+        if not 0.0 < self.init_p_moving < 1.0:
+            raise ValueError(f"init_p_moving must be in (0, 1), got {self.init_p_moving}")
+
+
+_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+
+
+class Imm:
+    """One track's IMM state: per-model means (m x 4) and covariances (m x 4 x 4), model probabilities."""
+
+    def __init__(self, x_m: float, y_m: float, pos_sigma_m: float, cfg: ImmConfig) -> None:
+        self.cfg = cfg
+        p = np.diag([pos_sigma_m**2, pos_sigma_m**2, cfg.init_speed_sigma_mps**2, cfg.init_speed_sigma_mps**2])
+        n = 1 + len(cfg.walk_accel_mps2)
+        self.means = np.tile(np.array([x_m, y_m, 0.0, 0.0]), (n, 1))
+        p_stand = p.copy()
+        p_stand[2:, 2:] = np.eye(2) * 1e-6
+        self.covs = np.stack([p_stand] + [p] * (n - 1))
+        self.probs = np.array([1.0 - cfg.init_p_moving] + [cfg.init_p_moving / (n - 1)] * (n - 1))
+        self._mean: np.ndarray | None = None
+        self._cov: np.ndarray | None = None
+
+    # ---------------------------------------------------------------- combined estimate
+    @property
+    def p_moving(self) -> float:
+        return float(1.0 - self.probs[STANDING])
+
+    @property
+    def mean(self) -> np.ndarray:
+        """The combined state (computed once per filter step)."""
+        if self._mean is None:
+            self._mean = self.probs @ self.means
+        return self._mean
+
+    @property
+    def cov(self) -> np.ndarray:
+        """The combined covariance (computed once per filter step)."""
+        if self._cov is None:
+            d = self.means - self.mean
+            self._cov = np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
+        return self._cov
+
+    # ---------------------------------------------------------------- filter steps
+    def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        c = self.cfg
+        f_walk = np.eye(4)
+        f_walk[0, 2] = f_walk[1, 3] = dt
+        f_stand = np.diag([1.0, 1.0, 0.0, 0.0])
+        g = np.array([[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
+                      [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]])
+        q_stand = np.diag([c.stand_sigma_mps**2 * dt] * 2 + [1e-6, 1e-6])
+        walks = c.walk_accel_mps2
+        return [f_stand] + [f_walk] * len(walks), [q_stand] + [a**2 * g for a in walks]
+
+    def predict(self, dt: float) -> None:
+        """Mix the models and predict each ``dt`` seconds ahead."""
+        if dt <= 0.0:
+            return
+        n = self.probs.size
+        stay = math.exp(-self.cfg.switch_per_s * dt)
+        trans = np.full((n, n), (1.0 - stay) / (n - 1))
+        np.fill_diagonal(trans, stay)
+        c = trans.T @ self.probs  # predicted model probabilities
+        mix = trans * self.probs[:, None] / np.maximum(c[None, :], 1e-300)  # mix[i, j] = P(i | j)
+        means = mix.T @ self.means
+        covs = np.empty_like(self.covs)
+        for j in range(n):
+            d = self.means - means[j]
+            covs[j] = np.einsum("i,ijk->jk", mix[:, j], self.covs + np.einsum("ij,ik->ijk", d, d))
+        fs, qs = self._models(dt)
+        for j in range(n):
+            means[j] = fs[j] @ means[j]
+            covs[j] = fs[j] @ covs[j] @ fs[j].T + qs[j]
+        self.means, self.covs, self.probs = means, covs, c
+        self._mean = self._cov = None
+
+    def innovation(self, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The combined prediction's innovation and its covariance for a position measurement."""
+        return z - self.mean[:2], self.cov[:2, :2] + r
+
+    def update(self, z: np.ndarray, r: np.ndarray) -> None:
+        """Fold in a position measurement ``z`` (2,) with covariance ``r`` (2 x 2)."""
+        like = np.empty(self.probs.size)
+        for j in range(self.probs.size):
+            s = self.covs[j][:2, :2] + r
+            y = z - self.means[j][:2]
+            k = self.covs[j][:, :2] @ np.linalg.inv(s)
+            self.means[j] = self.means[j] + k @ y
+            self.covs[j] = (np.eye(4) - k @ _H) @ self.covs[j]
+            self.covs[j] = 0.5 * (self.covs[j] + self.covs[j].T)
+            like[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / (2 * math.pi * math.sqrt(np.linalg.det(s)))
+        self._mean = self._cov = None
+        post = self.probs * like
+        total = float(post.sum())
+        if total > 0.0 and math.isfinite(total):
+            self.probs = np.clip(post / total, 1e-6, 1.0 - 1e-6)
+            self.probs /= self.probs.sum()
