@@ -162,7 +162,7 @@ class LiveConfig:
 
     def __post_init__(self) -> None:
         if self.listen:  # checked here, so dump-config, run and sim refuse the same values
-            from .liveview import check_exposure, parse_listen
+            from .listen_address import check_exposure, parse_listen
 
             check_exposure(parse_listen(self.listen)[0], self.allow_remote)
 
