@@ -2,7 +2,7 @@
 
 VIPSM and plain PSM run in this process on identical inputs: each cycle (every 0.1 s) the world
 produces one UTM-30LX sweep, the wheel odometry and one camera frame, and both estimators step on
-exactly those objects. How the errors are computed (see also docs/simulation.md):
+exactly those objects. How the errors are computed (see also docs/evaluation.md):
 
 * in view: a true obstacle is *in view* in a cycle when it is moving (at the scan and at the
   previous cycle, so optical flow can see it), at least half of its angular width lies inside the

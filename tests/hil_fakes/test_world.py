@@ -453,7 +453,7 @@ STRESS_FILES = sorted((Path(__file__).resolve().parents[2] / "docs" / "scenarios
 
 @pytest.mark.parametrize("path", STRESS_FILES, ids=[p.stem for p in STRESS_FILES])
 def test_the_documented_stress_scenarios_build(path: Path) -> None:
-    """docs/scenarios: the stress checks beyond the realistic suite (docs/simulation.md) stay valid."""
+    """docs/scenarios: the stress checks beyond the realistic suite (docs/evaluation.md) stay valid."""
     from hil_fakes.world.pedestrians import PEDESTRIAN_DATA_DIR
 
     prm = load_scenario_file(path)
