@@ -482,7 +482,8 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
 def warm_up(config: EstimatorConfig | None = None) -> None:
     """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
     machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
-    it: the scan matcher's, the static map's ray march, the body's circle refinement and the leg features."""
+    it: the scan matcher's, the static map's ray march, the seen-through test, the body's circle
+    refinement and the leg features (``tests/vipsm/test_warm_up.py`` checks that none is left)."""
     from .legs import features
     from .psm import warm_up as psm_warm_up
     from .tracker import refine_fixed_radius
@@ -492,5 +493,8 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
                                                                     cfg.no_odometry_refine_iterations)))
     b = np.linspace(-2.0, 2.0, 181)
     FreeSpaceGrid(cfg.static_map).integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
+    memory = ScanMemory(cfg.seen_through)
+    memory.push(Pose2D(0.0, 0.0, 0.0), 3.0 + 0.5 * np.sin(3.0 * b), b)
+    memory.seen_through(np.array([[1.0, 0.0], [2.0, 0.5]]))
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)
     features(np.array([[1.0, 0.0], [1.05, 0.05], [1.0, 0.1]]), 0.5, 0.5)
