@@ -175,8 +175,10 @@ def _advance(o: Odometry, dt_s: float) -> Odometry:
 class OverloadMonitor:
     """Whether the estimator keeps up with the scans, with hysteresis, and the obstacle rate it can hold.
 
-    ``load`` is the estimator's smoothed time per scan over the budget (the scan period with a
-    scan-triggered loop, ``loop.period_s`` with the timer). Overload starts when the load reaches
+    ``load`` is the median of the estimator's last ``window`` times per scan over the budget (the
+    scan period with a scan-triggered loop, ``loop.period_s`` with the timer): overload is the
+    estimator being slower than the scans for most of its recent runs, so one slow run (a page
+    fault, a garbage collection, a kernel loaded late) never enters it. Overload starts when the load reaches
     ``enter_load`` and ends only when it has stayed at or below ``leave_load`` for ``leave_after``
     estimates in a row (a band and a dwell, so a load near 1 does not flap). While overloaded the
     estimator runs on the newest scan every ``every`` budgets, with ``every`` the whole number of
@@ -184,11 +186,14 @@ class OverloadMonitor:
     (counted by the loop). Outside overload ``every`` is 1.
     """
 
-    def __init__(self, enter_load: float = 1.0, leave_load: float = 0.7, alpha: float = 0.3,
+    def __init__(self, enter_load: float = 1.0, leave_load: float = 0.7, window: int = 5,
                  leave_after: int = 10) -> None:
         if not 0.0 < leave_load < enter_load:
             raise ValueError("leave_load must be positive and below enter_load")
-        self.enter_load, self.leave_load, self.alpha, self.leave_after = enter_load, leave_load, alpha, leave_after
+        if window < 1:
+            raise ValueError("window must be >= 1")
+        self.enter_load, self.leave_load, self.leave_after = enter_load, leave_load, leave_after
+        self._recent: deque[float] = deque(maxlen=window)
         self._low = 0
         self.compute_s: float | None = None
         self.overloaded = False
@@ -197,7 +202,8 @@ class OverloadMonitor:
 
     def record(self, compute_s: float, budget_s: float) -> bool:
         """One estimator run of ``compute_s`` against ``budget_s``; returns True when the state changed."""
-        c = compute_s if self.compute_s is None else self.compute_s + self.alpha * (compute_s - self.compute_s)
+        self._recent.append(compute_s)
+        c = float(np.median(self._recent))
         self.compute_s = c
         load = c / budget_s if budget_s > 0 else 0.0
         was = self.overloaded
