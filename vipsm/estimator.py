@@ -40,7 +40,7 @@ from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
 from .legs import LegModel
-from .motion import ConstantVelocity
+from .motion import ConstantVelocity, Twist2D, deskew, laser_twist
 from .people import PeopleConfig, PeopleTracker, PersonDetection, detect_people
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
@@ -67,6 +67,7 @@ def _estimator_psm() -> PsmConfig:
 
 
 MOTION_PRIORS = ("odometry", "constant_velocity")
+DESKEW_MODES = ("off", "no_odometry", "always")
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,10 @@ class EstimatorConfig:
     #: odometry the simulated suite's obstacle errors grow with them (paper2 0.008 -> 0.013 m), so they
     #: are off there by default
     no_odometry_refine_iterations: int = 5
+    #: the scan the matcher sees is de-skewed: each return moved by the laser's motion since the first beam
+    #: (``Scan.beam_dt_s``; the motion is the odometry's twist, without odometry the constant-velocity
+    #: model's), see :func:`vipsm.motion.deskew`. "off", "no_odometry" (only without odometry) or "always"
+    deskew: str = "no_odometry"
     #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
     #: this length); scans in between publish the tracks predicted to their stamp
     obstacle_period_s: float = 0.1
@@ -125,6 +130,8 @@ class EstimatorConfig:
     def __post_init__(self) -> None:
         if self.no_odometry_refine_iterations < 0:
             raise ValueError(f"no_odometry_refine_iterations must be >= 0, got {self.no_odometry_refine_iterations}")
+        if self.deskew not in DESKEW_MODES:
+            raise ValueError(f"deskew must be one of {', '.join(DESKEW_MODES)}, got {self.deskew!r}")
         if self.motion_prior not in MOTION_PRIORS:
             raise ValueError(f"motion_prior must be one of {', '.join(MOTION_PRIORS)}, got {self.motion_prior!r}")
 
@@ -187,6 +194,7 @@ class Estimator:
         scan, scan_ok = _checked(scan)
         scan, lone_m, dropped = self._prefilter(scan)
         odometry, predicted, given = self._prior(scan.stamp_s, odometry)
+        scan, lone_m = self._deskewed(scan, lone_m, odometry, given)
         camera, flags = self._visual_bearings(scan, odometry, frame, flags)
         masks = camera + self._track_masks(scan.stamp_s, predicted)
         rest = restore(scan.ranges_m, scan.bearings_rad, masks, self.config.restore, self.config.psm.min_range_m)
@@ -220,6 +228,19 @@ class Estimator:
             self._people.step(scan.stamp_s, people, _visibility(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
+
+    def _deskewed(self, scan: Scan, lone_m: np.ndarray, odometry: Odometry, given: bool) -> tuple[Scan, np.ndarray]:
+        """The scan (and the lone returns) as seen from the laser's pose at the first beam (``deskew``): every
+        stage of the cycle then places its beams with the one pose the matcher finds for the stamp."""
+        cfg = self.config
+        if not (cfg.deskew == "always" or (cfg.deskew == "no_odometry" and not given)):
+            return scan, lone_m
+        tw = Twist2D(odometry.v_mps, 0.0, odometry.w_radps) if given else self._motion.twist
+        tw = laser_twist(tw, cfg.laser_mount)
+        jump, factor = cfg.psm.seg_jump_m, cfg.psm.seg_jump_range_factor
+        ranges, _ = deskew(scan.ranges_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
+        lone, _ = deskew(lone_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
+        return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities), lone
 
     def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
         """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
