@@ -79,9 +79,6 @@ class SelfReturns:
         self._count = np.zeros(0, dtype=np.int64)
         self._own_m = np.zeros(0)  # per beam: the range the robot is seen at (valid where found)
 
-    def reset(self) -> None:
-        self._anchor_m = None
-
     def found(self) -> np.ndarray:
         """Per beam: found to see the robot (empty before the first scan)."""
         return self._count >= self.checks
