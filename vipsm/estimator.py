@@ -40,12 +40,13 @@ from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
 from .legs import LegModel
-from .motion import ConstantVelocity
+from .motion import ConstantVelocity, Twist2D, deskew, laser_twist
 from .people import PeopleConfig, PeopleTracker, PersonDetection, detect_people
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
 from .seen_through import ScanMemory, SeenThroughConfig
+from .sensor import SelfReturns
 from .static_map import FreeSpaceGrid, StaticMapConfig
 from .tracker import Detection, Track, Tracker, TrackerConfig
 from .types import Estimate, EstimateFlag, Frame, Obstacle, Odometry, Pose2D, Scan
@@ -67,6 +68,7 @@ def _estimator_psm() -> PsmConfig:
 
 
 MOTION_PRIORS = ("odometry", "constant_velocity")
+DESKEW_MODES = ("off", "no_odometry", "always")
 
 
 @dataclass(frozen=True)
@@ -118,6 +120,16 @@ class EstimatorConfig:
     #: odometry the simulated suite's obstacle errors grow with them (paper2 0.008 -> 0.013 m), so they
     #: are off there by default
     no_odometry_refine_iterations: int = 5
+    #: the scan the matcher sees is de-skewed: each return moved by the laser's motion since the first beam
+    #: (``Scan.beam_dt_s``; the motion is the odometry's twist, without odometry the constant-velocity
+    #: model's), see :func:`vipsm.motion.deskew`. "off", "no_odometry" (only without odometry) or "always"
+    deskew: str = "no_odometry"
+    #: beams that see the robot itself are cut from every stage (:class:`vipsm.sensor.SelfReturns`): a
+    #: return whose range stays within ``self_returns_tol_m`` over ``self_returns_checks`` turns of
+    #: ``self_returns_turn_rad`` each moves with the robot. ``self_returns_turn_rad`` 0: off
+    self_returns_turn_rad: float = math.radians(30.0)
+    self_returns_tol_m: float = 0.05
+    self_returns_checks: int = 2
     #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
     #: this length); scans in between publish the tracks predicted to their stamp
     obstacle_period_s: float = 0.1
@@ -125,6 +137,11 @@ class EstimatorConfig:
     def __post_init__(self) -> None:
         if self.no_odometry_refine_iterations < 0:
             raise ValueError(f"no_odometry_refine_iterations must be >= 0, got {self.no_odometry_refine_iterations}")
+        if self.self_returns_turn_rad < 0.0 or not self.self_returns_tol_m > 0.0 or self.self_returns_checks < 1:
+            raise ValueError("need self_returns_turn_rad >= 0 (0: off), self_returns_tol_m > 0 and "
+                             "self_returns_checks >= 1")
+        if self.deskew not in DESKEW_MODES:
+            raise ValueError(f"deskew must be one of {', '.join(DESKEW_MODES)}, got {self.deskew!r}")
         if self.motion_prior not in MOTION_PRIORS:
             raise ValueError(f"motion_prior must be one of {', '.join(MOTION_PRIORS)}, got {self.motion_prior!r}")
 
@@ -176,6 +193,9 @@ class Estimator:
         self._last_obstacle_s: float | None = None
         self._last_odo: Pose2D | None = None
         self._motion = ConstantVelocity(self.config.max_prediction_gap_s)
+        c = self.config
+        self._self_returns = (SelfReturns(c.self_returns_turn_rad, c.self_returns_tol_m, c.self_returns_checks)
+                              if c.self_returns_turn_rad > 0.0 else None)
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
 
@@ -187,6 +207,8 @@ class Estimator:
         scan, scan_ok = _checked(scan)
         scan, lone_m, dropped = self._prefilter(scan)
         odometry, predicted, given = self._prior(scan.stamp_s, odometry)
+        scan, lone_m, dropped = self._without_self_returns(scan, lone_m, dropped, predicted)
+        scan, lone_m = self._deskewed(scan, lone_m, odometry, given)
         camera, flags = self._visual_bearings(scan, odometry, frame, flags)
         masks = camera + self._track_masks(scan.stamp_s, predicted)
         rest = restore(scan.ranges_m, scan.bearings_rad, masks, self.config.restore, self.config.psm.min_range_m)
@@ -220,6 +242,32 @@ class Estimator:
             self._people.step(scan.stamp_s, people, _visibility(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
+
+    def _without_self_returns(self, scan: Scan, lone_m: np.ndarray, dropped: np.ndarray, predicted: Pose2D
+                              ) -> tuple[Scan, np.ndarray, np.ndarray]:
+        """The scan without the beams that see the robot itself (they count as removed, like the pre-filter's)."""
+        if self._self_returns is None:
+            return scan, lone_m, dropped
+        heading = predicted.theta_rad + self.config.laser_theta_rad
+        own = self._self_returns.update(np.where(np.isfinite(lone_m), lone_m, scan.ranges_m), heading)
+        if not own.any():
+            return scan, lone_m, dropped
+        ranges = np.where(own, np.nan, scan.ranges_m)
+        scan = Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities)
+        return scan, np.where(own, np.nan, lone_m), dropped | own
+
+    def _deskewed(self, scan: Scan, lone_m: np.ndarray, odometry: Odometry, given: bool) -> tuple[Scan, np.ndarray]:
+        """The scan (and the lone returns) as seen from the laser's pose at the first beam (``deskew``): every
+        stage of the cycle then places its beams with the one pose the matcher finds for the stamp."""
+        cfg = self.config
+        if not (cfg.deskew == "always" or (cfg.deskew == "no_odometry" and not given)):
+            return scan, lone_m
+        tw = Twist2D(odometry.v_mps, 0.0, odometry.w_radps) if given else self._motion.twist
+        tw = laser_twist(tw, cfg.laser_mount)
+        jump, factor = cfg.psm.seg_jump_m, cfg.psm.seg_jump_range_factor
+        ranges, _ = deskew(scan.ranges_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
+        lone, _ = deskew(lone_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
+        return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities), lone
 
     def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
         """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
