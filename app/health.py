@@ -76,6 +76,29 @@ class LoopHealth:
 
 
 @dataclass
+class StopUntilClear:
+    """A stop held from the first intrusion until no intrusion was seen for ``resume_after_clear_s``
+    (the tracked safety stop and the protective field share it)."""
+
+    resume_after_clear_s: float
+    stopped: bool = False
+    _clear_since_s: float | None = None
+
+    def update(self, now_s: float, intrusion: bool) -> bool:
+        """True while the base must stay stopped."""
+        if intrusion:
+            self.stopped = True
+            self._clear_since_s = None
+        elif self.stopped:
+            if self._clear_since_s is None:
+                self._clear_since_s = now_s
+            if now_s - self._clear_since_s >= self.resume_after_clear_s:
+                self.stopped = False
+                self._clear_since_s = None
+        return self.stopped
+
+
+@dataclass
 class SafetyMonitor:
     """Stop when a tracked obstacle's predicted path enters the zone around the robot's predicted path.
 
@@ -88,8 +111,13 @@ class SafetyMonitor:
     horizon_s: float
     resume_after_clear_s: float
     step_s: float = 0.1
-    stopped: bool = False
-    _clear_since_s: float | None = None
+
+    def __post_init__(self) -> None:
+        self._hold = StopUntilClear(self.resume_after_clear_s)
+
+    @property
+    def stopped(self) -> bool:
+        return self._hold.stopped
 
     def intrusion(self, x_m: float, y_m: float, theta_rad: float, v_mps: float, obstacles: Sequence[Obstacle]) -> bool:
         if not obstacles:
@@ -108,16 +136,7 @@ class SafetyMonitor:
         self, now_s: float, x_m: float, y_m: float, theta_rad: float, v_mps: float, obstacles: Sequence[Obstacle]
     ) -> bool:
         """True while the base must stay stopped."""
-        if self.intrusion(x_m, y_m, theta_rad, v_mps, obstacles):
-            self.stopped = True
-            self._clear_since_s = None
-        elif self.stopped:
-            if self._clear_since_s is None:
-                self._clear_since_s = now_s
-            if now_s - self._clear_since_s >= self.resume_after_clear_s:
-                self.stopped = False
-                self._clear_since_s = None
-        return self.stopped
+        return self._hold.update(now_s, self.intrusion(x_m, y_m, theta_rad, v_mps, obstacles))
 
 
 class OdometryHistory:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .evaluation.traces import CycleTrace, RunTrace
+from .procs import process_alive
 
 LABELS = {"vipsm": "VIPSM", "plain_psm": "plain PSM"}
 DPI = 150
@@ -318,15 +319,7 @@ def remove_stale_partials(out_dir: Path) -> None:
     """Removes the temporary files of a killed figure writer (its process is gone)."""
     for p in out_dir.glob(".*.partial"):
         m = _PARTIAL.match(p.name)
-        if m is not None and not _alive(int(m["pid"])):
+        if m is not None and not process_alive(int(m["pid"])):
             p.unlink(missing_ok=True)
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

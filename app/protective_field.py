@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .health import StopUntilClear
+
 
 @dataclass(frozen=True)
 class FieldParams:
@@ -118,13 +120,11 @@ class ProtectiveField:
     def __init__(self, params: FieldParams, mount: tuple[float, float, float], resume_after_clear_s: float) -> None:
         self.params = params
         self.mount = mount
-        self.resume_after_clear_s = resume_after_clear_s
-        self.stopped = False
+        self._hold = StopUntilClear(resume_after_clear_s)
         self.last: FieldResult | None = None
         #: scans with an intrusion, and in-field returns ignored as unconfirmed (whole run)
         self.intrusion_scans = 0
         self.unconfirmed_returns = 0
-        self._clear_since_s: float | None = None
         self._last_seq: int | None = None
 
     def update(self, now_s: float, ranges_m: np.ndarray, bearings_rad: np.ndarray, v_mps: float,
@@ -135,13 +135,12 @@ class ProtectiveField:
             self.unconfirmed_returns += result.unconfirmed
         self._last_seq = seq
         self.last = result
-        if result.intrusion:
-            self.stopped = True
-            self._clear_since_s = None
-        elif self.stopped:
-            if self._clear_since_s is None:
-                self._clear_since_s = now_s
-            if now_s - self._clear_since_s >= self.resume_after_clear_s:
-                self.stopped = False
-                self._clear_since_s = None
-        return self.stopped
+        return self._hold.update(now_s, result.intrusion)
+
+    @property
+    def stopped(self) -> bool:
+        return self._hold.stopped
+
+    @property
+    def resume_after_clear_s(self) -> float:
+        return self._hold.resume_after_clear_s

@@ -51,6 +51,7 @@ from .evaluation.metrics import (
 )
 from .evaluation.runner import _replace_fields, mount_values
 from .evaluation.scenarios import scenario_param_sets
+from .procs import process_alive
 
 SIM_LOG_PATTERN = "sim-%Y%m%d-%H%M%S.mcap"
 #: the test hook delaying the daemon's start (see the module's doc)
@@ -343,21 +344,13 @@ def remove_stale_sim_dirs(tmp_root: str | None = None) -> list[str]:
             pid = int((d / OWNER_FILE).read_text(encoding="ascii"))
         except (OSError, ValueError):
             continue
-        if pid == os.getpid() or _alive(pid):
+        if pid == os.getpid() or process_alive(pid):
             continue
         shutil.rmtree(d, ignore_errors=True)
         removed.append(str(d))
     return removed
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def run_sim(config: Config, args: argparse.Namespace) -> dict[str, Any]:

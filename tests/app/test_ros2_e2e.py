@@ -15,23 +15,11 @@ from pathlib import Path
 
 import pytest
 
+from app.cmd_ros2 import LOOPBACK_XML
 from app.ros2.publisher import TOPICS
 
 ROOT = Path(__file__).resolve().parents[2]
-CYCLONE_XML = """<?xml version="1.0" encoding="UTF-8" ?>
-<CycloneDDS xmlns="https://cdds.io/config">
-  <Domain Id="any">
-    <General>
-      <Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>
-      <AllowMulticast>false</AllowMulticast>
-    </General>
-    <Discovery>
-      <Peers><Peer address="127.0.0.1"/></Peers>
-      <ParticipantIndex>auto</ParticipantIndex>
-    </Discovery>
-  </Domain>
-</CycloneDDS>
-"""
+CYCLONE_XML = LOOPBACK_XML  # loopback only, no multicast: the machine's network stays out
 NAMESPACE = "/e2e"
 
 
