@@ -10,19 +10,12 @@ import threading
 import numpy as np
 
 from app.config import Config
-from app.daemon import ControlLoop, OdomSample, ScanSample
+from app.daemon import ControlLoop, ScanSample
+from tests.app.loop_fakes import FakeBase, SimClock
 from vipsm.estimator import Estimator
-from vipsm.types import Odometry, Scan
+from vipsm.types import Scan
 
 SCAN_PERIOD_S = 0.025  # the UTM-30LX's 40 scans a second
-
-
-class _Clock:
-    def __init__(self) -> None:
-        self.now_s = 100.0
-
-    def __call__(self) -> float:
-        return self.now_s
 
 
 def _room_ranges(bearings_rad: np.ndarray) -> np.ndarray:
@@ -37,7 +30,7 @@ def _room_ranges(bearings_rad: np.ndarray) -> np.ndarray:
 class _Scanner:
     """Scans every 25 ms on the simulated clock; waiting for one moves the clock to it."""
 
-    def __init__(self, clock: _Clock, silent_after_s: float = math.inf) -> None:
+    def __init__(self, clock: SimClock, silent_after_s: float = math.inf) -> None:
         self.clock = clock
         self.bearings = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)
         self.ranges = _room_ranges(self.bearings)
@@ -77,42 +70,16 @@ class _Scanner:
         pass
 
 
-class _Base:
-    """A robot standing still, its odometry sampled with every cycle."""
-
-    def __init__(self, clock: _Clock) -> None:
-        self.clock = clock
-        self.commands: list[tuple[float, float]] = []
-
-    def state(self) -> str:
-        return "ok"
-
-    def poll(self) -> list[OdomSample]:
-        return [OdomSample(Odometry(0.0, 0.0, 0.0, 0.0, 0.0, self.clock.now_s))]
-
-    def command(self, v_mps: float, w_radps: float) -> None:
-        self.commands.append((v_mps, w_radps))
-
-    def stop(self) -> None:
-        self.commands.append((0.0, 0.0))
-
-    def counters(self) -> dict[str, int]:
-        return {}
-
-    def close(self) -> None:
-        pass
-
-
-def _loop(trigger: str, clock: _Clock, scanner: _Scanner) -> ControlLoop:
+def _loop(trigger: str, clock: SimClock, scanner: _Scanner) -> ControlLoop:
     base = Config()
     config = dataclasses.replace(base, loop=dataclasses.replace(base.loop, trigger=trigger, period_s=0.1),
                                  status=dataclasses.replace(base.status, enabled=False))
-    return ControlLoop(config, scanner=scanner, base=_Base(clock), camera=None, estimator=Estimator(plain_psm=True),
+    return ControlLoop(config, scanner=scanner, base=FakeBase(clock), camera=None, estimator=Estimator(plain_psm=True),
                        clock=clock, wall_clock=lambda: 1.7e9)
 
 
 def test_a_scan_triggered_loop_estimates_on_every_scan() -> None:
-    clock = _Clock()
+    clock = SimClock()
     scanner = _Scanner(clock)
     loop = _loop("scan", clock, scanner)
     loop.run(threading.Event(), duration_s=2.0)
@@ -122,7 +89,7 @@ def test_a_scan_triggered_loop_estimates_on_every_scan() -> None:
 
 def test_a_timer_loop_estimates_on_the_newest_scan_once_per_period() -> None:
     """The contrast: with the 0.1 s timer, four scans arrive per cycle and only the newest is used."""
-    clock = _Clock()
+    clock = SimClock()
     scanner = _Scanner(clock)
     loop = _loop("timer", clock, scanner)
     stop = threading.Event()
@@ -131,14 +98,14 @@ def test_a_timer_loop_estimates_on_the_newest_scan_once_per_period() -> None:
     assert 19 <= loop.stats.estimates <= 21 and scanner.delivered >= 4 * (loop.stats.estimates - 1)
 
 
-def _advance(clock: _Clock, timeout_s: float | None) -> bool:
+def _advance(clock: SimClock, timeout_s: float | None) -> bool:
     clock.now_s += timeout_s or 0.0
     return False
 
 
 def test_a_scan_triggered_loop_still_cycles_when_the_scanner_falls_silent() -> None:
     """Without scans a cycle still runs every period: the stall is noticed and the base stopped."""
-    clock = _Clock()
+    clock = SimClock()
     scanner = _Scanner(clock, silent_after_s=0.5)
     loop = _loop("scan", clock, scanner)
     loop.run(threading.Event(), duration_s=2.0)

@@ -11,21 +11,14 @@ import numpy as np
 import pytest
 
 from app.config import Config
-from app.daemon import ControlLoop, OdomSample, ScanSample
+from app.daemon import ControlLoop, ScanSample
 from app.health import OverloadMonitor
+from tests.app.loop_fakes import FakeBase, SimClock
 from vipsm.estimator import Estimator
-from vipsm.types import Odometry, Scan
+from vipsm.types import Scan
 
 SCAN_PERIOD_S = 0.025
 BEARINGS = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)
-
-
-class _Clock:
-    def __init__(self) -> None:
-        self.now_s = 100.0
-
-    def __call__(self) -> float:
-        return self.now_s
 
 
 def _room(b: np.ndarray) -> np.ndarray:
@@ -39,7 +32,7 @@ class _StarvedScanner:
     """A scan every 25 ms; its reader thread cannot run while the estimator holds the interpreter, so a
     scan taken then is received only 2 ms after the estimator returns (what a busy CPython does)."""
 
-    def __init__(self, clock: _Clock) -> None:
+    def __init__(self, clock: SimClock) -> None:
         self.clock = clock
         self.blocked: list[tuple[float, float]] = []
         self.k = 0
@@ -83,33 +76,10 @@ class _StarvedScanner:
         pass
 
 
-class _Base:
-    def __init__(self, clock: _Clock) -> None:
-        self.clock, self.commands = clock, list[tuple[float, float]]()
-
-    def state(self) -> str:
-        return "ok"
-
-    def poll(self) -> list[OdomSample]:
-        return [OdomSample(Odometry(0.0, 0.0, 0.0, 0.0, 0.0, self.clock.now_s))]
-
-    def command(self, v_mps: float, w_radps: float) -> None:
-        self.commands.append((v_mps, w_radps))
-
-    def stop(self) -> None:
-        self.commands.append((0.0, 0.0))
-
-    def counters(self) -> dict[str, int]:
-        return {}
-
-    def close(self) -> None:
-        pass
-
-
 class _SlowEstimator:
     """The real estimator, taking ``compute_s`` of simulated time, during which the reader is blocked."""
 
-    def __init__(self, clock: _Clock, scanner: _StarvedScanner, compute_s: float) -> None:
+    def __init__(self, clock: SimClock, scanner: _StarvedScanner, compute_s: float) -> None:
         self.inner, self.clock, self.scanner, self.compute_s = Estimator(plain_psm=True), clock, scanner, compute_s
 
     def step(self, *args: object) -> object:
@@ -120,20 +90,20 @@ class _SlowEstimator:
         return est
 
 
-def _loop(compute_s: float, trigger: str = "scan") -> tuple[ControlLoop, _Clock, _StarvedScanner, _SlowEstimator]:
-    clock = _Clock()
+def _loop(compute_s: float, trigger: str = "scan") -> tuple[ControlLoop, SimClock, _StarvedScanner, _SlowEstimator]:
+    clock = SimClock()
     scanner = _StarvedScanner(clock)
     est = _SlowEstimator(clock, scanner, compute_s)
     c = Config()
     config = dataclasses.replace(c, loop=dataclasses.replace(c.loop, trigger=trigger, period_s=0.1),
                                  mission=dataclasses.replace(c.mission, mode="cruise"),
                                  status=dataclasses.replace(c.status, enabled=False))
-    loop = ControlLoop(config, scanner=scanner, base=_Base(clock), camera=None, estimator=est,  # type: ignore[arg-type]
+    loop = ControlLoop(config, scanner=scanner, base=FakeBase(clock), camera=None, estimator=est,  # type: ignore[arg-type]
                        clock=clock, wall_clock=lambda: 1.7e9)
     return loop, clock, scanner, est
 
 
-def _run_for(loop: ControlLoop, clock: _Clock, seconds: float, trigger: str = "scan") -> None:
+def _run_for(loop: ControlLoop, clock: SimClock, seconds: float, trigger: str = "scan") -> None:
     stop = threading.Event()
     if trigger == "timer":
         def wait(timeout: float | None = None) -> bool:

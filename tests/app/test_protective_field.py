@@ -17,10 +17,11 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from app.config import Config
-from app.daemon import ControlLoop, OdomSample, ScanSample
+from app.daemon import ControlLoop, ScanSample
 from app.protective_field import FieldParams, ProtectiveField, evaluate
+from tests.app.loop_fakes import FakeBase, SimClock
 from vipsm.estimator import Estimator
-from vipsm.types import Odometry, Scan
+from vipsm.types import Scan
 
 ROOT = Path(__file__).resolve().parents[2]
 BEARINGS = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)  # the UTM-30LX's 0.25 deg beams
@@ -144,18 +145,10 @@ def test_any_object_whose_centre_is_in_the_field_stops(x: float, y: float, radiu
 # the control loop: cruise stops for what is in the path, on a simulated clock
 
 
-class _Clock:
-    def __init__(self) -> None:
-        self.now_s = 100.0
-
-    def __call__(self) -> float:
-        return self.now_s
-
-
 class _Scanner:
     """A fresh scan of ``ranges`` at every poll (the test sets what the laser sees)."""
 
-    def __init__(self, clock: _Clock) -> None:
+    def __init__(self, clock: SimClock) -> None:
         self.clock, self.seq, self.ranges = clock, 0, cast()
 
     def state(self) -> str:
@@ -175,43 +168,19 @@ class _Scanner:
         pass
 
 
-class _Base:
-    def __init__(self, clock: _Clock) -> None:
-        self.clock, self.commands = clock, list[tuple[float, float]]()
-
-    def state(self) -> str:
-        return "ok"
-
-    def poll(self) -> list[OdomSample]:
-        v = self.commands[-1][0] if self.commands else 0.0
-        return [OdomSample(Odometry(0.0, 0.0, 0.0, v, 0.0, self.clock.now_s))]
-
-    def command(self, v_mps: float, w_radps: float) -> None:
-        self.commands.append((v_mps, w_radps))
-
-    def stop(self) -> None:
-        self.commands.append((0.0, 0.0))
-
-    def counters(self) -> dict[str, int]:
-        return {}
-
-    def close(self) -> None:
-        pass
-
-
-def _loop(mode: str = "cruise", **safety: object) -> tuple[ControlLoop, _Clock, _Scanner, _Base]:
-    clock = _Clock()
+def _loop(mode: str = "cruise", **safety: object) -> tuple[ControlLoop, SimClock, _Scanner, FakeBase]:
+    clock = SimClock()
     c = Config()
     config = dataclasses.replace(c, mission=dataclasses.replace(c.mission, mode=mode, resume_after_clear_s=1.0),
                                  safety=dataclasses.replace(c.safety, **safety),
                                  status=dataclasses.replace(c.status, enabled=False))
-    scanner, base = _Scanner(clock), _Base(clock)
+    scanner, base = _Scanner(clock), FakeBase(clock, moving=True)
     loop = ControlLoop(config, scanner=scanner, base=base, camera=None, estimator=Estimator(plain_psm=True),
                        clock=clock, wall_clock=lambda: 1.7e9)
     return loop, clock, scanner, base
 
 
-def _run(loop: ControlLoop, clock: _Clock, seconds: float) -> None:
+def _run(loop: ControlLoop, clock: SimClock, seconds: float) -> None:
     for _ in range(round(seconds / 0.1)):
         clock.now_s += 0.1
         loop.step(clock.now_s)
