@@ -107,22 +107,33 @@ def log_line(level: str, message: str, wall_s: float) -> Log:
 def scene_update(obstacles: typing.Iterable[Obstacle], wall_s: float, lifetime_s: float) -> SceneUpdate:
     """All previous obstacles deleted, then one entity per obstacle: a 1 m cylinder of its radius,
     an arrow for its velocity (length = the distance covered in 1 s) and its speed as text."""
+    return _replace_scene(_obstacle_entity, obstacles, wall_s, lifetime_s)
+
+
+def _replace_scene(entity: typing.Callable[[typing.Any, Timestamp, Duration], SceneEntity],
+                   items: typing.Iterable[typing.Any], wall_s: float, lifetime_s: float) -> SceneUpdate:
+    """Every previous entity deleted, then one ``entity(item, ...)`` per item, all with one lifetime."""
     ts = timestamp(wall_s)
     life = Duration(sec=int(lifetime_s), nsec=int(round((lifetime_s % 1.0) * 1e9)))
     return SceneUpdate(
         deletions=[SceneEntityDeletion(timestamp=ts, type=SceneEntityDeletionType.All, id="")],
-        entities=[_obstacle_entity(ob, ts, life) for ob in obstacles],
+        entities=[entity(item, ts, life) for item in items],
     )
+
+
+def _velocity_arrows(x_m: float, y_m: float, vx_mps: float, vy_mps: float) -> list[ArrowPrimitive]:
+    """An arrow as long as the distance covered in 1 s (none when standing)."""
+    speed = math.hypot(vx_mps, vy_mps)
+    if speed <= 1e-3:
+        return []
+    return [ArrowPrimitive(pose=planar_pose(x_m, y_m, math.atan2(vy_mps, vx_mps), 1.0),
+                           shaft_length=max(speed - 0.1, 0.01), shaft_diameter=0.04, head_length=0.1,
+                           head_diameter=0.12, color=ARROW_COLOR)]
 
 
 def _obstacle_entity(ob: Obstacle, ts: Timestamp, life: Duration) -> SceneEntity:
     speed = math.hypot(ob.vx_mps, ob.vy_mps)
-    heading = math.atan2(ob.vy_mps, ob.vx_mps)
-    arrows = []
-    if speed > 1e-3:
-        arrows.append(ArrowPrimitive(pose=planar_pose(ob.x_m, ob.y_m, heading, 1.0),
-                                     shaft_length=max(speed - 0.1, 0.01), shaft_diameter=0.04, head_length=0.1,
-                                     head_diameter=0.12, color=ARROW_COLOR))
+    arrows = _velocity_arrows(ob.x_m, ob.y_m, ob.vx_mps, ob.vy_mps)
     return SceneEntity(
         timestamp=ts, frame_id="odom", id=f"obstacle-{ob.track_id}", lifetime=life, frame_locked=False,
         metadata=[KeyValuePair(key="vx_mps", value=f"{ob.vx_mps:.3f}"),
@@ -144,21 +155,11 @@ def people_scene_update(people: typing.Iterable[Person], wall_s: float, lifetime
     """``/people``: all previous entities deleted, then one per person: a cylinder of a person's size
     (moving: the obstacles' colour with a velocity arrow; standing: ``STANDING_COLOR``), a text with its
     id and P(moving), and every field of :class:`vipsm.types.Person` as metadata."""
-    ts = timestamp(wall_s)
-    life = Duration(sec=int(lifetime_s), nsec=int(round((lifetime_s % 1.0) * 1e9)))
-    return SceneUpdate(
-        deletions=[SceneEntityDeletion(timestamp=ts, type=SceneEntityDeletionType.All, id="")],
-        entities=[_person_entity(p, ts, life) for p in people],
-    )
+    return _replace_scene(_person_entity, people, wall_s, lifetime_s)
 
 
 def _person_entity(p: Person, ts: Timestamp, life: Duration) -> SceneEntity:
-    speed = math.hypot(p.vx_mps, p.vy_mps)
-    arrows = []
-    if p.moving and speed > 1e-3:
-        arrows.append(ArrowPrimitive(pose=planar_pose(p.x_m, p.y_m, math.atan2(p.vy_mps, p.vx_mps), 1.0),
-                                     shaft_length=max(speed - 0.1, 0.01), shaft_diameter=0.04, head_length=0.1,
-                                     head_diameter=0.12, color=ARROW_COLOR))
+    arrows = _velocity_arrows(p.x_m, p.y_m, p.vx_mps, p.vy_mps) if p.moving else []
     meta = {"vx_mps": f"{p.vx_mps:.3f}", "vy_mps": f"{p.vy_mps:.3f}", "p_moving": f"{p.p_moving:.4f}",
             "moving": str(p.moving).lower(), "existence": f"{p.existence:.4f}",
             "covariance_m2": ",".join(f"{v:.6g}" for v in p.covariance),
