@@ -36,6 +36,7 @@ from .metrics import (
     target_misses,
     targets_for,
 )
+from .person_metrics import PeopleScore
 from .traces import track_point
 
 
@@ -178,6 +179,7 @@ def run_scenario(
     judges = {name: FalseStopJudge() for name in methods}
     for _est, mlog in methods.values():
         mlog.report_delays_s = {i: None for i, o in enumerate(scenario.obstacles) if o.start_s < scenario.duration_s}
+        mlog.people_score = PeopleScore(scenario)
     for k in range(n_cycles):
         t = k * CYCLE_S
         w0 = time.perf_counter()
@@ -198,6 +200,7 @@ def run_scenario(
         t_world += time.perf_counter() - w0
 
         views = _in_view(truth, truth_frame, moving_prev, sweep.hit_obstacle, frame is not None, mount, hfov)
+        beams = np.bincount(sweep.hit_obstacle[sweep.hit_obstacle >= 0], minlength=len(truth.obstacles))
         log.times_s.append(t)
         log.true_poses.append((truth.x_m, truth.y_m, truth.theta_rad))
         log.true_obstacles.append([(o.x_m, o.y_m) for o in truth.obstacles])
@@ -212,6 +215,7 @@ def run_scenario(
             t_est = world.truth(e.stamp_s) if abs(e.stamp_s - t) > 1e-9 else truth
             _record(mlog, e, t_est, views)
             _score_reports(mlog, judges[mlog.name], e, t, scenario, t_est, truth, odo.v_mps)
+            mlog.people_score.update(t, e, t_est, beams)
     for _est, mlog in methods.values():
         mlog.minutes = n_cycles * CYCLE_S / 60.0
         ex, ey, eth = mlog.poses[-1]

@@ -13,6 +13,11 @@
   (``vignetting``: relative fall-off in the corners, cos^4-like), motion blur over the exposure time
   (``exposure_s``; the scene is rendered at the start and the end of the exposure and averaged), and
   JPEG compression at ``jpeg_quality`` (50-75 on the RZ50's web settings).
+* **Lights switched off or on** (``lights``: the room's light level against time, 1 = on): the scene's
+  radiance drops at once by the level; the camera's auto-exposure then raises its gain in steps of
+  ``ae_step_db`` every ``ae_period_s`` until the image is as bright as before (each step an exposure
+  jump), and the sensor's noise, referred to the image, rises with the gain: lights at 1/3 give the
+  same brightness with 3x the gain and 3x the noise. Switching back on is the same in reverse.
 """
 
 from __future__ import annotations
@@ -39,6 +44,12 @@ class CameraEffects:
     exposure_drift: float = 0.03
     vignetting: float = 0.25
     jpeg_quality: int = 65
+    #: the room's light level from each instant on: (t_s, level) steps, 1 = lights on; () = always on
+    lights: tuple[tuple[float, float], ...] = ()
+    #: auto-exposure gain step and the interval between steps [?] (camcorder-class AE: 1-3 dB steps,
+    #: several per second; the SNC-RZ50's own are not published)
+    ae_step_db: float = 2.0
+    ae_period_s: float = 0.2
 
     def __post_init__(self) -> None:
         lo, hi = self.latency_s
@@ -46,6 +57,8 @@ class CameraEffects:
             raise ValueError(f"CameraEffects.latency_s must be 0 <= lo <= hi <= 1 s, got {self.latency_s}")
         if not (1.0 <= self.fps <= 60.0 and 1 <= self.jpeg_quality <= 100 and 0.0 <= self.exposure_s < 0.2):
             raise ValueError(f"implausible camera effects {self}")
+        if any(not 0.01 <= level <= 1.0 for _, level in self.lights) or self.ae_step_db <= 0 or self.ae_period_s <= 0:
+            raise ValueError(f"CameraEffects: light levels must be 0.01..1 and the AE step and period > 0, got {self}")
 
 
 IDEAL_CAMERA = CameraEffects(enabled=False)
@@ -74,9 +87,35 @@ def vignette_gain(width_px: int, height_px: int, strength: float) -> np.ndarray:
     return (1.0 - strength * r2).astype(np.float32)[..., None]
 
 
-def photometric(img: np.ndarray, gain: float, fx: CameraEffects) -> np.ndarray:
+def photometric(
+    img: np.ndarray, gain: float, fx: CameraEffects, noise_sigma: float = 0.0, rng: np.random.Generator | None = None
+) -> np.ndarray:
+    """Vignetting and exposure ``gain``, plus Gaussian noise of ``noise_sigma`` grey levels (the sensor
+    noise the render did not hold: what a higher camera gain adds)."""
     g = vignette_gain(img.shape[1], img.shape[0], fx.vignetting) * np.float32(gain)
-    return np.clip(img.astype(np.float32) * g, 0, 255).astype(np.uint8)
+    out = img.astype(np.float32) * g
+    if noise_sigma > 0:
+        if rng is None:
+            raise ValueError("photometric: noise_sigma > 0 needs an rng")
+        out += rng.standard_normal(img.shape[:2], dtype=np.float32)[..., None] * np.float32(noise_sigma)
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def light_and_gain(t_s: float, fx: CameraEffects) -> tuple[float, float]:
+    """(light level, auto-exposure gain) at ``t_s``: after each change of the light level the gain steps
+    by ``ae_step_db`` every ``ae_period_s`` towards 1 / level (the brightness it had with the lights on)."""
+    level, gain_db = 1.0, 0.0
+    events = sorted(fx.lights)
+    for k, (t_ev, new_level) in enumerate(events):
+        if t_ev > t_s:
+            break
+        level = new_level
+        target_db = -20.0 * math.log10(level)
+        t_next = events[k + 1][0] if k + 1 < len(events) else math.inf
+        steps = math.floor((min(t_s, t_next) - t_ev) / fx.ae_period_s + 1e-9)
+        change = max(-steps * fx.ae_step_db, min(steps * fx.ae_step_db, target_db - gain_db))
+        gain_db += change
+    return level, 10.0 ** (gain_db / 20.0)
 
 
 def jpeg_roundtrip(img: np.ndarray, quality: int) -> np.ndarray:

@@ -39,25 +39,24 @@ def _foot_offset(p: np.ndarray, gait: Gait) -> np.ndarray:
 
 def walking_direction(path: ObstaclePath, t_s: np.ndarray) -> np.ndarray:
     """Unit vectors (..., 2) a person faces at ``t_s``: the direction of motion, or while standing the
-    direction of the path segment they are about to walk (or last walked)."""
+    direction of the path segment they stand on (before the start: the first; after the end: the last)."""
     pts = np.asarray(path.waypoints, float).reshape(-1, 2)
     vel = path.velocities(t_s)
     speed = np.hypot(vel[..., 0], vel[..., 1])[..., None]
     if len(pts) > 1:
-        before = pts[1] - pts[0]
-        after = pts[-1] - pts[-2]
+        seg = np.diff(pts, axis=0)
+        seg = seg / np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-9)[:, None]
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        s = distance_walked(path, t_s)
+        k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+        idle = seg[k]
     else:
-        before = after = np.array([1.0, 0.0])
-    before = before / max(float(np.hypot(*before)), 1e-9)
-    after = after / max(float(np.hypot(*after)), 1e-9)
-    t = np.asarray(t_s, float)[..., None]
-    idle = np.where(t < path.start_s, before, after)
+        idle = np.broadcast_to(np.array([1.0, 0.0]), np.shape(t_s) + (2,))
     return np.where(speed > 1e-9, vel / np.where(speed > 1e-9, speed, 1.0), idle)
 
 
 def distance_walked(path: ObstaclePath, t_s: np.ndarray) -> np.ndarray:
-    t = np.asarray(t_s, float)
-    return np.clip((t - path.start_s) * path.speed_mps, 0.0, path.length_m)
+    return path.distance_m(np.asarray(t_s, float))
 
 
 def leg_centres(path: ObstaclePath, gait: Gait, t_s: np.ndarray, height_m: float) -> np.ndarray:

@@ -23,8 +23,8 @@ import numpy as np
 from hil_fakes.kinematics import Unicycle
 from hil_fakes.wheel_odometry import WheelOdometry
 
-from .camera_effects import CameraClock, distortion_maps, photometric
-from .geometry import cast_circles, cast_walls, walls_array
+from .camera_effects import CameraClock, distortion_maps, light_and_gain, photometric
+from .geometry import RigidBox, cast_boxes, cast_circles, cast_walls, walls_array
 from .laser_effects import footprint_return
 from .people import body_parts, leg_centres
 from .render import ViewRenderer
@@ -45,7 +45,8 @@ class ObstacleTruth:
     vy_mps: float
     radius_m: float
     moving: bool
-    #: "cylinder" or "person" (x_m, y_m is then the body centre, radius_m the body's radius)
+    #: "cylinder", "person" (x_m, y_m is then the body centre, radius_m the body's radius), or a rigid
+    #: box: "cart" (pushed by a person), "door" (a panel turning about its hinge); radius_m: its half diagonal
     kind: str = "cylinder"
     #: a person's leg centres at the laser's height
     legs: tuple[tuple[float, float], ...] = ()
@@ -216,7 +217,7 @@ class World:
                 legs = tuple((float(a), float(b)) for a, b in lc)
             obs.append(
                 ObstacleTruth(i, float(p[0]), float(p[1]), float(vel[0]), float(vel[1]), o.radius_m,
-                              bool(np.hypot(*vel) > 0), "person" if o.gait is not None else "cylinder", legs)
+                              bool(np.hypot(*vel) > 0), o.kind, legs)
             )
         return Truth(t_s, x, y, math.atan2(math.sin(th), math.cos(th)), v, w, tuple(obs))
 
@@ -283,6 +284,8 @@ class World:
         centres, radii, owners = [], [], []
         t = np.asarray(times, float) - self.start_s
         for k, o in enumerate(self.scenario.obstacles):
+            if isinstance(o, RigidBox):
+                continue
             if o.gait is None:
                 centres.append(o.positions(t)[..., None, :])
                 radii.append(o.radius_m)
@@ -336,7 +339,32 @@ class World:
             refl = np.where(closer, refl_c[k], refl)
             cos_inc = np.where(closer, np.nan_to_num(cos_c, nan=1.0), cos_inc)
             surface = np.where(closer, 100000 + k, surface)
-        return dist, owner, refl, cos_inc, surface
+        return self._cast_boxes(ox, oy, dx, dy, times, (dist, owner, refl, cos_inc, surface))
+
+    def _cast_boxes(
+        self, ox: np.ndarray, oy: np.ndarray, dx: np.ndarray, dy: np.ndarray, times: np.ndarray,
+        hits: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The rigid boxes (carts, doors) crossing the laser's plane, where they are at each beam's time,
+        in front of the first hits found so far (surface id 200000 + box index)."""
+        z = self.mount.laser_z_m
+        boxes = [(k, o) for k, o in enumerate(self.scenario.obstacles)
+                 if isinstance(o, RigidBox) and o.z0_m <= z <= o.height_m]
+        dist, owner, refl, cos_inc, surface = hits
+        if not boxes:
+            return hits
+        t = np.asarray(times, float) - self.start_s
+        poses = np.stack([o.poses(t) for _, o in boxes], axis=-2)  # (N, K, 3)
+        half = np.array([(o.length_m / 2, o.width_m / 2) for _, o in boxes])
+        t_b, cos_b = cast_boxes(np.broadcast_to(ox, dx.shape), np.broadcast_to(oy, dy.shape), dx, dy, poses, half)
+        j = np.argmin(t_b, axis=-1)
+        t_j = np.take_along_axis(t_b, j[..., None], axis=-1)[..., 0]
+        closer = t_j < dist
+        index = np.array([k for k, _ in boxes])
+        refl_b = np.array([o.reflectivity for _, o in boxes])
+        return (np.where(closer, t_j, dist), np.where(closer, index[j], owner), np.where(closer, refl_b[j], refl),
+                np.where(closer, np.take_along_axis(cos_b, j[..., None], axis=-1)[..., 0], cos_inc),
+                np.where(closer, 200000 + index[j], surface))
 
     # ------------------------------------------------------------------ camera
     def _view_renderer(self) -> ViewRenderer:
@@ -387,7 +415,12 @@ class World:
         img = shots[0] if len(shots) == 1 else cv2.addWeighted(shots[0], 0.5, shots[1], 0.5, 0.0)
         map_x, map_y = distortion_maps(w, h, fx, fy, cxt, cyt, fx_.k1, fx_.k2, margin)
         img = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return photometric(img, self._clock.exposure_gain(t_s), fx_)
+        level, gain = light_and_gain(t_s, fx_)
+        with self._lock:
+            rng = np.random.default_rng(self._cam_rng.integers(1 << 62)) if level < 1.0 else None
+        # the render's noise is scaled with the scene by level x gain; the sensor's is by the gain alone
+        extra = cm.noise_sigma * gain * math.sqrt(max(1.0 - level * level, 0.0))
+        return photometric(img, self._clock.exposure_gain(t_s) * level * gain, fx_, extra, rng)
 
     @property
     def camera_clock(self) -> CameraClock:
@@ -400,8 +433,7 @@ class World:
         out: list[tuple[float, float, float, float, float]] = []
         for o in self.scenario.obstacles:
             if o.gait is None:
-                px, py = (float(v) for v in o.positions(t))
-                out.append((px, py, o.radius_m, 0.0, o.height_m))
+                out.extend(o.camera_parts(float(t)))
             else:
                 out.extend(body_parts(o, o.gait, float(t)))
         out.extend((c.x_m, c.y_m, c.radius_m, c.z0_m, c.z1_m) for c in self.scenario.clutter.circles)
