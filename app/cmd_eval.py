@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .cli import print_json
 from .evaluation.metrics import ROBUSTNESS_FACTOR
-from .evaluation.report import print_table
+from .evaluation.report import print_people_table, print_table
 from .evaluation.runner import run_scenario, scenario_result, tune_allocator
 from .evaluation.scenarios import add_scenario_arguments, driven_scenarios
 
@@ -50,6 +50,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         print_json({"scenarios": results})
     else:
         print_table(results, ROBUSTNESS_FACTOR if args.scenario == "robustness" else 1.0)
+        print_people_table(results)
         print(f"total {elapsed:.2f} s for {len(results)} scenario(s), both methods, {args.world} world")
     return 0
 

@@ -62,6 +62,16 @@ METRIC_KEYS = (
     "stop_cycles",
     "static_report_cycles",
     "report_delay_max_s",
+    # issue 29's per-person figures (app/evaluation/person_metrics.py): the worst person's, and each person's
+    "person_located_min",
+    "person_located_moving_min",
+    "person_err_mean_max_m",
+    "person_moving_err_mean_max_m",
+    "person_velocity_err_max_mps",
+    "first_report_max_s",
+    "first_reports_missing",
+    "moving_while_standing_cycles",
+    "people",
 )
 
 ROBUSTNESS_FACTOR = 2.0

@@ -40,3 +40,28 @@ def print_table(results: list[dict[str, Any]], factor: float = 1.0) -> None:
                 f"{_fmt(m['pose_err_final_m']):>6} {_fmt(m['heading_err_final_deg'], 1, 2):>8} "
                 f"{_fmt(m['ms_per_cycle'], 1, 1):>6}  {check}"
             )
+
+
+def print_people_table(results: list[dict[str, Any]]) -> None:
+    """Issue 29's per-person figures (VIPSM) of every scenario checked against issue 29's targets."""
+    rows = [r for r in results if r.get("params", {}).get("targets") == "issue29" and r["vipsm"].get("people")]
+    if not rows:
+        return
+    print()
+    print("Per person (VIPSM; in view: >= 5 laser beams on the legs): located by people / by moving obstacles "
+          "while walking,")
+    print("error (people / moving obstacles), velocity error, first report after each walk start, "
+          "cycles reported moving while standing > 0.5 s")
+    header = (f"{'scenario':<16} {'person':>6} {'view':>5} {'walk':>5} {'located':>7} {'moving':>7} {'err':>6} "
+              f"{'err mov':>7} {'vel err':>7} {'stand':>5}  first report (s)")
+    print(header)
+    print("-" * len(header))
+    for r in rows:
+        for p in r["vipsm"]["people"]:
+            first = ", ".join("never" if d is None else f"{d:.1f}" for d in p["first_report_s"]) or "-"
+            located = _fmt(p["located_fraction"], 100, 1) + "%"
+            moving = _fmt(p["located_moving_fraction"], 100, 1) + "%"
+            print(f"{r['name']:<16} {p['index']:>6} {p['cycles_in_view']:>5} {p['cycles_walking_in_view']:>5} "
+                  f"{located:>7} {moving:>7} "
+                  f"{_fmt(p['err_mean_m']):>6} {_fmt(p['moving_err_mean_m']):>7} {_fmt(p['velocity_err_mean_mps']):>7} "
+                  f"{p['moving_while_standing_cycles']:>5}  {first}")

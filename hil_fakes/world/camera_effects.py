@@ -87,18 +87,9 @@ def vignette_gain(width_px: int, height_px: int, strength: float) -> np.ndarray:
     return (1.0 - strength * r2).astype(np.float32)[..., None]
 
 
-def photometric(
-    img: np.ndarray, gain: float, fx: CameraEffects, noise_sigma: float = 0.0, rng: np.random.Generator | None = None
-) -> np.ndarray:
-    """Vignetting and exposure ``gain``, plus Gaussian noise of ``noise_sigma`` grey levels (the sensor
-    noise the render did not hold: what a higher camera gain adds)."""
+def photometric(img: np.ndarray, gain: float, fx: CameraEffects) -> np.ndarray:
     g = vignette_gain(img.shape[1], img.shape[0], fx.vignetting) * np.float32(gain)
-    out = img.astype(np.float32) * g
-    if noise_sigma > 0:
-        if rng is None:
-            raise ValueError("photometric: noise_sigma > 0 needs an rng")
-        out += rng.standard_normal(img.shape[:2], dtype=np.float32)[..., None] * np.float32(noise_sigma)
-    return np.clip(out, 0, 255).astype(np.uint8)
+    return np.clip(img.astype(np.float32) * g, 0, 255).astype(np.uint8)
 
 
 def light_and_gain(t_s: float, fx: CameraEffects) -> tuple[float, float]:

@@ -137,11 +137,14 @@ class ViewRenderer:
         height_px: int,
         obstacles: list[tuple[float, float, float, float, float]],
         rng: np.random.Generator,
+        noise_scale: float = 1.0,
     ) -> np.ndarray:
-        """BGR uint8 image. ``obstacles``: vertical cylinders (centre x, centre y, radius, z bottom, z top)."""
+        """BGR uint8 image. ``obstacles``: vertical cylinders (centre x, centre y, radius, z bottom, z top);
+        ``noise_scale`` multiplies the sensor noise (a dim scene rendered before the camera's gain)."""
         if tilt_rad == 0.0:
             return self._render_level(
-                cam_x_m, cam_y_m, cam_z_m, heading_rad, fx, fy, cx, cy, width_px, height_px, obstacles, rng
+                cam_x_m, cam_y_m, cam_z_m, heading_rad, fx, fy, cx, cy, width_px, height_px, obstacles, rng,
+                noise_scale,
             )
         xs = ((np.arange(width_px, dtype=np.float64) - cx) / fx)[None, :]
         ys = ((np.arange(height_px, dtype=np.float64) - cy) / fy)[:, None]
@@ -222,11 +225,11 @@ class ViewRenderer:
         gain = np.where(is_wall, self.wall_gain[np.maximum(w_idx_b, 0)], 1.0)
         if obstacles:
             gain = np.where(label >= 4, obj_gain, gain)
-        return self._shade(s_m, t_m, foot / fx, label, gain, rng)
+        return self._shade(s_m, t_m, foot / fx, label, gain, rng, noise_scale)
 
     def _shade(
         self, s_m: np.ndarray, t_m: np.ndarray, foot_m: np.ndarray, label: np.ndarray, gain: np.ndarray,
-        rng: np.random.Generator,
+        rng: np.random.Generator, noise_scale: float = 1.0,
     ) -> np.ndarray:
         """Sample the texture at surface coordinates (s, t) in metres, tint per surface class, add noise."""
         shape = label.shape
@@ -259,7 +262,7 @@ class ViewRenderer:
             # frame so images stay reproducible (cv2's RNG is per thread: this reseeds the caller's)
             noise = np.empty(shape, f32)
             cv2.setRNGSeed(int(rng.integers(1 << 31)))
-            cv2.randn(noise, 0.0, float(self.noise_sigma))
+            cv2.randn(noise, 0.0, float(self.noise_sigma * noise_scale))
             grey += noise
         grey_u8 = np.clip(grey, 0.0, 255.0).astype(np.uint8)
         grey_u8[label == 0] = 150
@@ -281,6 +284,7 @@ class ViewRenderer:
         height_px: int,
         obstacles: list[tuple[float, float, float, float, float]],
         rng: np.random.Generator,
+        noise_scale: float = 1.0,
     ) -> np.ndarray:
         """Fast path for a level camera (tilt 0): every ray of a column has the same azimuth, so the
         scene is cast once per column and each column is a band of ceiling, wall and floor with the
@@ -350,4 +354,4 @@ class ViewRenderer:
                 foot += hit_f * (tk32 - foot)
                 shade = _lambert(hx / ob[k, 2], hy / ob[k, 2]).astype(f32)[None, :]
                 gain += hit_f * (shade - gain)
-        return self._shade(s_m, t_m, foot / f32(fx), label, gain, rng)
+        return self._shade(s_m, t_m, foot / f32(fx), label, gain, rng, noise_scale)

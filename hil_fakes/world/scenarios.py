@@ -128,7 +128,8 @@ PARAMS: dict[str, Param] = {
     "crowd_walkers": Param(int, 7, 1, 10, "", "scene crowd: recorded walkers (plus the first one's companion)"),
     "crowd_spacing_s": Param(float, 1.2, 0.3, 10.0, "s", "scene crowd: time between the walkers' closest approaches"),
     "wall_gap_m": Param(float, 0.2, 0.05, 1.5, "m", "scene along_wall: the wall to the nearer leg's surface"),
-    "door_hinge_x_m": Param(float, 4.0, 1.0, ROOM_LENGTH_M - 2.0, "m", "scene door: the hinge's x in the left wall"),
+    "door_hinge_x_m": Param(float, 5.0, 2.5, ROOM_LENGTH_M - 0.5, "m", "scene door: the hinge's x in the left wall "
+                            "(the doorway's far side)"),
     "door_width_m": Param(float, 0.9, 0.6, 1.2, "m", "scene door: the leaf's width"),
     "door_open_s": Param(float, 6.0, 0.0, None, "s", "scene door: the door starts opening"),
     "door_close_s": Param(float, 12.0, 0.0, None, "s", "scene door: the door starts closing (0: stays open)"),

@@ -23,7 +23,7 @@ and where needed its walls; :func:`hil_fakes.world.scenarios.build_scenario` cal
   out of the room's open end, the nearer leg's surface ``wall_gap_m`` from the wall (a wall forces a
   straight line; a recorded shape's sway would cross it, so this walker's path is straight).
 * **A door** (``scene = "door"``): a 40 mm leaf ``door_width_m`` wide in the left wall, hinged at
-  ``door_hinge_x_m``, swings 90 deg into the room at ``door_open_s`` and back at ``door_close_s``, each
+  ``door_hinge_x_m`` (the doorway's far side), swings 90 deg into the room at ``door_open_s`` and back at ``door_close_s``, each
   swing over ``door_swing_s`` on a cosine (peak about 95 deg/s for 1.5 s, a door pushed by hand [?]);
   behind the doorway a corridor 1.2 m deep, which the laser sees while the door is open.
 """
@@ -159,8 +159,9 @@ def shortened_for_cart(path: ObstaclePath, length_m: float) -> ObstaclePath:
 
 # ------------------------------------------------------------------------------------- doors
 def door(prm: dict[str, Any], wall_y_m: float) -> RigidBox:
-    """The door leaf: hinged at (``door_hinge_x_m``, wall), closed along +x in the wall, open at -90 deg
-    (into the room), swinging on a cosine over ``door_swing_s`` at ``door_open_s`` and ``door_close_s``."""
+    """The door leaf: hinged at (``door_hinge_x_m``, wall) on the doorway's far side (seen from the robot's
+    start), closed along -x in the wall, open at -90 deg (into the room, the leaf facing the robot),
+    swinging on a cosine over ``door_swing_s`` from ``door_open_s`` and back from ``door_close_s``."""
     t = np.append(np.arange(0.0, prm["duration_s"], KNOT_DT_S), prm["duration_s"])
     sw = prm["door_swing_s"]
 
@@ -169,8 +170,8 @@ def door(prm: dict[str, Any], wall_y_m: float) -> RigidBox:
         return 0.5 * (1.0 - np.cos(math.pi * u))
 
     opened = swing(prm["door_open_s"]) - (swing(prm["door_close_s"]) if prm["door_close_s"] > 0 else 0.0)
-    yaw = -0.5 * math.pi * opened
-    hx, half = prm["door_hinge_x_m"] + DOOR_CLEARANCE_M / 2, prm["door_width_m"] / 2
+    yaw = math.pi + 0.5 * math.pi * opened
+    hx, half = prm["door_hinge_x_m"] - DOOR_CLEARANCE_M / 2, prm["door_width_m"] / 2
     cx, cy = hx + half * np.cos(yaw), wall_y_m + half * np.sin(yaw)
     knots = tuple((float(a), float(b), float(c), float(d)) for a, b, c, d in zip(t, cx, cy, yaw, strict=True))
     return RigidBox("door", prm["door_width_m"], DOOR_THICKNESS_M, knots, height_m=DOOR_HEIGHT_M, reflectivity=0.55)
@@ -179,8 +180,8 @@ def door(prm: dict[str, Any], wall_y_m: float) -> RigidBox:
 def doorway_walls(prm: dict[str, Any], room: tuple[Wall, ...], wall_y_m: float) -> tuple[Wall, ...]:
     """The room's walls with the left wall (the first) cut for the doorway and a corridor behind it."""
     left, rest = room[0], room[1:]
-    x0 = prm["door_hinge_x_m"]
-    x1 = x0 + prm["door_width_m"] + DOOR_CLEARANCE_M
+    x1 = prm["door_hinge_x_m"]
+    x0 = x1 - prm["door_width_m"] - DOOR_CLEARANCE_M
     back = wall_y_m + CORRIDOR_DEPTH_M
     c0, c1 = max(left.x0_m, x0 - 1.0), min(left.x1_m, x1 + 1.0)
     return (

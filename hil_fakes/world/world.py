@@ -410,17 +410,16 @@ class World:
         cxt, cyt = cx + fx_.pp_offset_px[0], cy + fx_.pp_offset_px[1]
         times = (t_s - fx_.exposure_s / 2, t_s + fx_.exposure_s / 2) if fx_.exposure_s > 0 else (t_s,)
         k = (fx, fy, cxt + margin, cyt + margin)
-        shots = [self._render_pinhole(t, pan_rad + fx_.mount_yaw_rad, tilt_rad, k, w + 2 * margin, h + 2 * margin)
+        # a dim room (lights off) is rendered with the sensor noise 1 / level as large against the scene:
+        # the camera's gain then scales both, so the image has the old brightness and gain x the noise
+        level, gain = light_and_gain(t_s, fx_)
+        shots = [self._render_pinhole(t, pan_rad + fx_.mount_yaw_rad, tilt_rad, k, w + 2 * margin, h + 2 * margin,
+                                      1.0 / level)
                  for t in times]
         img = shots[0] if len(shots) == 1 else cv2.addWeighted(shots[0], 0.5, shots[1], 0.5, 0.0)
         map_x, map_y = distortion_maps(w, h, fx, fy, cxt, cyt, fx_.k1, fx_.k2, margin)
         img = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        level, gain = light_and_gain(t_s, fx_)
-        with self._lock:
-            rng = np.random.default_rng(self._cam_rng.integers(1 << 62)) if level < 1.0 else None
-        # the render's noise is scaled with the scene by level x gain; the sensor's is by the gain alone
-        extra = cm.noise_sigma * gain * math.sqrt(max(1.0 - level * level, 0.0))
-        return photometric(img, self._clock.exposure_gain(t_s) * level * gain, fx_, extra, rng)
+        return photometric(img, self._clock.exposure_gain(t_s) * level * gain, fx_)
 
     @property
     def camera_clock(self) -> CameraClock:
@@ -440,7 +439,8 @@ class World:
         return out
 
     def _render_pinhole(
-        self, t_s: float, pan_rad: float, tilt_rad: float, k: tuple[float, float, float, float], w: int, h: int
+        self, t_s: float, pan_rad: float, tilt_rad: float, k: tuple[float, float, float, float], w: int, h: int,
+        noise_scale: float = 1.0,
     ) -> np.ndarray:
         fx, fy, cx, cy = k
         with self._lock:
@@ -452,7 +452,8 @@ class World:
         cam_x = x + c * m.camera_x_m - s * m.camera_y_m
         cam_y = y + s * m.camera_x_m + c * m.camera_y_m
         bodies = self._camera_bodies(t_s)
-        return view.render(cam_x, cam_y, m.camera_z_m, th + pan_rad, tilt_rad, fx, fy, cx, cy, w, h, bodies, rng)
+        return view.render(cam_x, cam_y, m.camera_z_m, th + pan_rad, tilt_rad, fx, fy, cx, cy, w, h, bodies, rng,
+                           noise_scale)
 
     # ------------------------------------------------------------------ sonar
     def sonar_range_m(
