@@ -24,8 +24,8 @@ and where needed its walls; :func:`hil_fakes.world.scenarios.build_scenario` cal
   straight line; a recorded shape's sway would cross it, so this walker's path is straight).
 * **A door** (``scene = "door"``): a 40 mm leaf ``door_width_m`` wide in the left wall, hinged at
   ``door_hinge_x_m`` (the doorway's far side), swings 90 deg into the room at ``door_open_s`` and back at
-  ``door_close_s``, each swing over ``door_swing_s`` on a cosine (peak about 95 deg/s for 1.5 s, a door pushed by hand [?]);
-  behind the doorway a corridor 1.2 m deep, which the laser sees while the door is open.
+  ``door_close_s``, each swing over ``door_swing_s`` on a cosine (peak about 95 deg/s for 1.5 s, a door
+  pushed by hand [?]); behind the doorway a corridor 1.2 m deep, which the laser sees while the door is open.
 """
 
 from __future__ import annotations
