@@ -11,7 +11,7 @@ import pytest
 
 from app.evaluation import metrics
 from app.evaluation.person_metrics import PERSON_BEAMS_IN_VIEW, PeopleScore, summary
-from hil_fakes.world import ObstacleTruth, ObstaclePath, Truth
+from hil_fakes.world import ObstaclePath, ObstacleTruth, Truth
 from hil_fakes.world.geometry import Gait
 from hil_fakes.world.scenes import walk_profile
 
