@@ -177,9 +177,10 @@ def run_scenario(
     t_world = 0.0
     last_frame: Frame | None = None
     judges = {name: FalseStopJudge() for name in methods}
+    people = {name: PeopleScore(scenario) for name in methods}
     for _est, mlog in methods.values():
         mlog.report_delays_s = {i: None for i, o in enumerate(scenario.obstacles) if o.start_s < scenario.duration_s}
-        mlog.people_score = PeopleScore(scenario)
+        mlog.people_score = people[mlog.name]
     for k in range(n_cycles):
         t = k * CYCLE_S
         w0 = time.perf_counter()
@@ -215,7 +216,7 @@ def run_scenario(
             t_est = world.truth(e.stamp_s) if abs(e.stamp_s - t) > 1e-9 else truth
             _record(mlog, e, t_est, views)
             _score_reports(mlog, judges[mlog.name], e, t, scenario, t_est, truth, odo.v_mps)
-            mlog.people_score.update(t, e, t_est, beams)
+            people[mlog.name].update(t, e, t_est, beams)
     for _est, mlog in methods.values():
         mlog.minutes = n_cycles * CYCLE_S / 60.0
         ex, ey, eth = mlog.poses[-1]

@@ -237,6 +237,9 @@ def test_the_realistic_suite_runs_in_reduced_form(capsys: pytest.CaptureFixture[
             assert set(m) == set(metrics.METRIC_KEYS)
             assert m["false_tracks_per_min"] is not None and m["false_tracks_per_min"] >= 0
             assert 0 <= m["false_stop_cycles"] <= m["stop_cycles"] <= 26
+            n_people = {"crowd": 8, "lights_off": 0, "door_swing": 0, "paper1": 0, "paper2": 0}.get(sc["name"])
+            if n_people is not None:  # one entry per true person (issue 29's per-person figures)
+                assert len(m["people"]) == n_people
         assert isinstance(sc["targets_missed"], list)
     code, out, _ = run_cli(capsys, ["eval", "--scenario", "cross_90", "--duration", "2.0", "--seed", "42"])
     assert code == 0 and "cross_90" in out and ("met" in out or "MISSED" in out)

@@ -104,3 +104,16 @@ def test_issue29_targets_apply_to_its_scenes_only() -> None:
     assert set(door) == {"false_tracks_per_min", "false_stop_cycles"}
     old = metrics.targets_for({"world": "realistic", "obstacle_kind": "person", "obstacles": 1})
     assert "first_report_max_s" not in old and old["obstacle_detected_fraction"] == (0.95, "min")
+
+
+def test_the_table_lists_every_person_of_issue29_scenes(capsys: pytest.CaptureFixture[str]) -> None:
+    from app.evaluation.report import print_people_table
+
+    person = {"index": 3, "cycles_in_view": 40, "cycles_walking_in_view": 30, "located_fraction": 0.5,
+              "located_moving_fraction": 0.75, "err_mean_m": 0.05, "moving_err_mean_m": 0.04,
+              "velocity_err_mean_mps": 0.2, "first_report_s": [0.4, None], "moving_while_standing_cycles": 2}
+    results = [{"name": "stop_and_go", "params": {"targets": "issue29"}, "vipsm": {"people": [person]}},
+               {"name": "cross_90", "params": {"targets": "issue11"}, "vipsm": {"people": [person]}}]
+    print_people_table(results)
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith(("stop_and_go", "cross_90"))]
+    assert len(rows) == 1 and "50.0%" in rows[0] and "75.0%" in rows[0] and rows[0].endswith("0.4, never")
