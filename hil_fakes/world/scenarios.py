@@ -271,6 +271,10 @@ def validate_params(raw: dict[str, Any]) -> dict[str, Any]:
         raise ScenarioError("lights_on_s", "must be after lights_off_s (or 0: never)")
     if out["door_close_s"] and out["door_close_s"] < out["door_open_s"] + out["door_swing_s"]:
         raise ScenarioError("door_close_s", "must be at least door_swing_s after door_open_s (or 0: never)")
+    legs_m = 2 * (Gait().hip_halfwidth_m + out["person_leg_diameter_m"] / 2)
+    if 0 < out["companion_offset_m"] < legs_m:
+        raise ScenarioError("companion_offset_m", f"{out['companion_offset_m']} m: the two people's legs would "
+                            f"overlap; 0 (none) or >= {legs_m:.2f} m")
     if out["scene"] in ("crowd", "along_wall") and out["obstacle_kind"] != "person":
         raise ScenarioError("scene", f"scene {out['scene']} is walked by people: needs obstacle_kind person")
     if out["camera_latency_min_s"] > out["camera_latency_max_s"]:
@@ -563,6 +567,7 @@ def _crowd(prm: dict[str, Any]) -> tuple[list[ObstaclePath], list[str]]:
     ids = sorted(pid for pid, p in paths.items() if float(np.hypot(*(p.xy_m[-1] - p.xy_m[0]))) >= 2.0)
     ids = ids[ids.index(prm["person_path_id"]):] if prm["person_path_id"] in ids else ids
     walkers: list[ObstaclePath] = []
+    chosen: list[int] = []
     horizon = prm["duration_s"]
     pad = prm["companion_offset_m"]
     for k in range(prm["crowd_walkers"]):
@@ -583,11 +588,13 @@ def _crowd(prm: dict[str, Any]) -> tuple[list[ObstaclePath], list[str]]:
                     - (pad if j == 0 else 0.0) for j, w in enumerate(walkers)]
             if all(g > 0.1 for g in gaps):
                 walkers.append(path)
+                chosen.append(pid)
                 ids.remove(pid)
                 break
         else:
             raise ScenarioError("crowd_walkers", f"no recorded path fits walker {k + 1} clear of the others")
-    return walkers, [f"crowd: {source} pedestrians {[round(w.speed_mps, 2) for w in walkers]} m/s"]
+    speeds = [round(w.speed_mps, 2) for w in walkers]
+    return walkers, [f"crowd: {source} pedestrians {chosen} walked at {speeds} m/s"]
 
 
 #: a crowd's walkers come from and go to this far behind the walls (through doorways the laser does not

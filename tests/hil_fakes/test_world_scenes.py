@@ -216,6 +216,7 @@ def test_bad_hard_scene_keys_are_scenario_errors() -> None:
         ({"scene": "door", "door_open_s": 6.0, "door_close_s": 6.5}, "door_close_s"),
         ({"scene": "crowd"}, "scene"),
         ({"scene": "hall"}, "scene"),
+        ({"obstacle_kind": "person", "companion_offset_m": 0.25}, "companion_offset_m"),
     ):
         with pytest.raises(ScenarioError) as err:
             build_scenario(bad)
