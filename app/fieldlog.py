@@ -16,6 +16,8 @@ Channels (topic: schema, encoding):
 ``/truth``           ``vipsm.GroundTruth``         simulated runs only: the world's true robot/obstacles (JSON)
 ``/vipsm/cycle``     ``vipsm.Cycle``               the estimator's exact inputs and outputs, for replay (JSON)
 ``/vipsm/config``    ``vipsm.Config``              the whole configuration and ``log_version``, once (JSON)
+``/vipsm/scanner``   ``vipsm.ScannerInfo``         the scanner's geometry, timing, range limits: before the
+                                                   first ``/scan`` and on every change (JSON; from log 3 on)
 ===================  ============================  ==========================================================
 
 The ``foxglove.*`` channels are the SDK's typed channels (official protobuf schemas by
@@ -48,7 +50,7 @@ import numpy as np
 
 from .errors import LogFormatError
 from .logread import LogMessage, LogReadResult, read_log  # noqa: F401 - the log's reader lives beside it
-from .logschemas import CYCLE, DIAGNOSTICS, GROUND_TRUTH, config_schema
+from .logschemas import CYCLE, DIAGNOSTICS, GROUND_TRUTH, SCANNER_INFO, config_schema
 
 #: the project's JSON channels: topic -> (schema name, schema factory)
 JSON_TOPICS: dict[str, tuple[str, Callable[[], dict[str, Any]]]] = {
@@ -56,6 +58,7 @@ JSON_TOPICS: dict[str, tuple[str, Callable[[], dict[str, Any]]]] = {
     "/truth": ("vipsm.GroundTruth", lambda: GROUND_TRUTH),
     "/vipsm/cycle": ("vipsm.Cycle", lambda: CYCLE),
     "/vipsm/config": ("vipsm.Config", config_schema),
+    "/vipsm/scanner": ("vipsm.ScannerInfo", lambda: SCANNER_INFO),
 }
 
 #: the Foxglove channels: topic -> name of the SDK's typed channel class in ``foxglove.channels``

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import foxglove
+import numpy as np
 import pytest
 from foxglove.messages import LaserScan
 from mcap.reader import make_reader
@@ -244,3 +245,35 @@ def test_close_on_a_full_disk_does_not_raise(tmp_path: Path, monkeypatch: pytest
     result = LogReadResult()
     list(read_log(log.path, result))
     assert result.truncated  # the file ends where the disk filled up, and says so when read
+
+
+def test_scanner_info_is_the_scans_own_and_written_only_on_a_change() -> None:
+    """/vipsm/scanner: the scan's beams, bearings and beam timing (one turn of the mirror from them), the
+    given limits; written before the first scan, not again for microsecond jitter, again for a new scanner,
+    and tried again when the log refused it."""
+    from vipsm.types import Scan
+
+    step = 2 * math.pi / 1024
+    scan = Scan(np.ones(682), -math.radians(120) + step * np.arange(682), 0.0, 0, 0.1 / 1024)
+    info = lm.scanner_info(scan, (0.02, 5.6))
+    assert info["beams"] == 682 and info["angle_increment_rad"] == pytest.approx(step)
+    assert info["scan_time_s"] == pytest.approx(0.1) and info["time_increment_s"] == pytest.approx(0.1 / 1024)
+    assert (info["range_min_m"], info["range_max_m"]) == (0.02, 5.6)
+    unknown = lm.scanner_info(Scan(np.ones(3), np.array([0.0, 0.1, 0.2]), 0.0), (0.0, math.inf))
+    assert unknown["scan_time_s"] == 0.0 and unknown["range_max_m"] is None  # JSON has no +inf
+    written: list[dict] = []
+    accept = [False, True, True, True]
+
+    def log(topic: str, wall_s: float, payload: dict) -> bool:
+        assert topic == "/vipsm/scanner"
+        ok = accept.pop(0)
+        if ok:
+            written.append(payload)
+        return ok
+
+    w = lm.ScannerInfoLog()
+    w.before_scan(log, 0.0, info)  # refused (queue full): tried again with the next scan
+    w.before_scan(log, 0.1, info)
+    w.before_scan(log, 0.2, {**info, "scan_time_s": 0.1 * (1 + 1e-5)})  # jitter: not a new scanner
+    w.before_scan(log, 0.3, {**info, "range_max_m": 30.0})
+    assert written == [info, {**info, "range_max_m": 30.0}] and accept == [True]
