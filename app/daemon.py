@@ -307,6 +307,8 @@ class ControlLoop:
         self.odom = OdometryHistory()
         self.stats = RunStats()
         self.last_scan: ScanSample | None = None
+        #: ``/vipsm/scanner`` before the first scan and whenever the scanner's geometry changes
+        self._scanner_info = lm.ScannerInfoLog()
         self.last_frame: FrameSample | None = None
         self.last_estimate: Estimate | None = None
         self.last_odom_sample: OdomSample | None = None
@@ -408,6 +410,7 @@ class ControlLoop:
                 self.last_scan = s
                 if self.log is not None:
                     w = self.wall(s.scan.stamp_s)
+                    self._scanner_info.before_scan(self.log.log, w, lm.scanner_info(s.scan, s.range_limits_m))
                     self.log.log("/scan", w, lambda s=s, w=w: scan_message(s, w))
                 if self.ros2 is not None:
                     self.ros2.scan(s, self.wall(s.scan.stamp_s))
