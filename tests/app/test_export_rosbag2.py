@@ -397,3 +397,80 @@ def lm_read(path: Path) -> list[Any]:
     from app.logread import read_log
 
     return list(read_log(path))
+
+
+class _SwitchingScanner:
+    """A scanner port on the simulated clock: a URG-04LX-class scanner (``URG``, its PP limits on every
+    sample, as :class:`app.devices.ScannerAdapter` gives them) for the first ``switch_at`` scans, then,
+    as after a reconnect to another device, a UTM-30LX (1081 beams, 25 ms, 0.023-60 m)."""
+
+    def __init__(self, clock: Any, switch_at: int) -> None:
+        self.clock, self.switch_at, self.seq = clock, switch_at, 0
+        self.next_s = clock.now_s + URG["scan_time_s"]
+
+    def _geometry(self) -> tuple[np.ndarray, float, tuple[float, float], float]:
+        if self.seq < self.switch_at:
+            b = URG["angle_min_rad"] + URG["angle_increment_rad"] * np.arange(URG["beams"])
+            return b, URG["time_increment_s"], (URG["range_min_m"], URG["range_max_m"]), URG["scan_time_s"]
+        return -0.75 * math.pi + 2 * math.pi / 1440 * np.arange(1081), 0.025 / 1440, (0.023, 60.0), 0.025
+
+    def state(self) -> str:
+        return "ok"
+
+    def wait_scan(self, timeout_s: float) -> bool:
+        self.clock.now_s = max(self.clock.now_s, min(self.next_s, self.clock.now_s + timeout_s))
+        return self.next_s <= self.clock.now_s
+
+    def poll(self) -> list[Any]:
+        from app.daemon import ScanSample
+        from vipsm.types import Scan
+
+        out = []
+        while self.next_s <= self.clock.now_s:
+            b, dt, limits, period = self._geometry()
+            ranges = np.minimum(2.0 / np.maximum(np.abs(np.cos(b)), 1e-3), 1.5 / np.maximum(np.abs(np.sin(b)), 1e-3))
+            out.append(ScanSample(Scan(ranges, b, self.next_s, self.seq, dt), range_limits_m=limits))
+            self.seq += 1
+            self.next_s += period
+        return out
+
+    def counters(self) -> dict[str, int]:
+        return {}
+
+    def close(self) -> None:
+        pass
+
+
+def test_the_daemon_logs_its_scanners_own_values_and_a_changed_scanner(tmp_path: Path) -> None:
+    """The control loop writes /vipsm/scanner from the driver's samples (PP limits, beam timing) before the
+    first scan and again when another scanner answers; the export gives each scan its own scanner's values."""
+    import threading
+
+    from app.daemon import ControlLoop
+    from app.fieldlog import FieldLog
+    from tests.app.loop_fakes import FakeBase, SimClock
+    from vipsm.estimator import Estimator
+
+    clock = SimClock()
+    base = Config()
+    config = dataclasses.replace(base, loop=dataclasses.replace(base.loop, trigger="scan", period_s=0.1),
+                                 status=dataclasses.replace(base.status, enabled=False))
+    log = FieldLog(str(tmp_path / "run.mcap"), fsync=False).start()
+    scanner = _SwitchingScanner(clock, switch_at=8)
+    loop = ControlLoop(config, scanner=scanner, base=FakeBase(clock), camera=None,
+                       estimator=Estimator(plain_psm=True), field_log=log, clock=clock, wall_clock=lambda: 1.7e9)
+    loop.run(threading.Event(), duration_s=1.2)
+    log.close()
+    assert log.stats.dropped == 0 and log.stats.bad_messages == 0
+    infos = [m.data for m in lm_read(Path(log.path)) if m.topic == "/vipsm/scanner"]
+    assert [i["beams"] for i in infos] == [682, 1081]
+    result = export_rosbag2(log.path, tmp_path / "bag")
+    assert result.scan_info["assumed"] == 0 and not result.warnings
+    scans = bag_messages(tmp_path / "bag")[1]["/scan"]
+    urg = [m for m in scans if len(m.ranges) == 682]
+    utm = [m for m in scans if len(m.ranges) == 1081]
+    assert len(urg) == 8 and len(utm) >= 4 and len(urg) + len(utm) == len(scans)
+    assert_laser_fields(urg, URG)
+    for m in utm:
+        assert (m.range_min, m.range_max, m.scan_time) == pytest.approx((0.023, 60.0, 0.025))
+        assert m.time_increment == pytest.approx(0.025 / 1440)
