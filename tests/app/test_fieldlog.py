@@ -277,3 +277,26 @@ def test_scanner_info_is_the_scans_own_and_written_only_on_a_change() -> None:
     w.before_scan(log, 0.2, {**info, "scan_time_s": 0.1 * (1 + 1e-5)})  # jitter: not a new scanner
     w.before_scan(log, 0.3, {**info, "range_max_m": 30.0})
     assert written == [info, {**info, "range_max_m": 30.0}] and accept == [True]
+
+
+def test_every_rotated_file_begins_with_the_newest_config_and_scanner(tmp_path: Path) -> None:
+    """A file after rotation can be read alone: it holds the run's /vipsm/config and the /vipsm/scanner in
+    force (the newest, not the first), before its first scan. Driven step by step (no writer thread), so
+    where each file ends does not depend on timing."""
+    log = FieldLog(str(tmp_path / "rot.mcap"), rotate_bytes=1, fsync=False)
+    log._open_file()  # noqa: SLF001 - the writer thread's steps, one by one
+    log._write("/vipsm/config", 1.0, {"log_version": 3})  # noqa: SLF001
+    for k in range(3):
+        log._write("/vipsm/scanner", 1.0 + k, {"beams": 5, "scan_time_s": 0.1 * (k + 1)})  # noqa: SLF001
+        log._write("/scan", 1.0 + k, lm.laser_scan([1.0] * 5, -1.0, 1.0, None, 1.0 + k))  # noqa: SLF001
+        log._flush()  # noqa: SLF001
+        log._rotate_if_due()  # noqa: SLF001 - rotate_bytes=1: a new file after every step
+    log._finish_file()  # noqa: SLF001
+    assert len(log.stats.files) == 4 and log.stats.written == 7 and log.stats.rewritten == 6
+    for k, path in enumerate(log.stats.files):
+        msgs = list(read_log(path))
+        assert [m.topic for m in msgs] == (["/vipsm/config"] if k == 0 else ["/vipsm/config", "/vipsm/scanner"]) + \
+            (["/vipsm/scanner", "/scan"] if k < 3 else []), path
+        if k:  # the newest scanner record, at the time of the last message before the file
+            assert msgs[1].data["scan_time_s"] == pytest.approx(0.1 * k)
+            assert msgs[0].log_time_ns == msgs[1].log_time_ns == lm.stamp_ns(float(k))
