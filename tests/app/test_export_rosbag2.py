@@ -441,6 +441,22 @@ class _SwitchingScanner:
         pass
 
 
+class _LiveViewStub:
+    """What the control loop uses of :class:`app.liveview.LiveView`: its latched messages are kept."""
+
+    state = "ok"
+
+    def __init__(self) -> None:
+        self.latched: dict[str, Any] = {}
+        self.on_event: Any = None
+
+    def latch(self, topic: str, t_wall_s: float, payload: Any) -> None:
+        self.latched[topic] = payload
+
+    def stop(self, timeout_s: float = 1.5) -> None:
+        pass
+
+
 def test_the_daemon_logs_its_scanners_own_values_and_a_changed_scanner(tmp_path: Path) -> None:
     """The control loop writes /vipsm/scanner from the driver's samples (PP limits, beam timing) before the
     first scan and again when another scanner answers; the export gives each scan its own scanner's values."""
@@ -456,14 +472,15 @@ def test_the_daemon_logs_its_scanners_own_values_and_a_changed_scanner(tmp_path:
     config = dataclasses.replace(base, loop=dataclasses.replace(base.loop, trigger="scan", period_s=0.1),
                                  status=dataclasses.replace(base.status, enabled=False))
     log = FieldLog(str(tmp_path / "run.mcap"), fsync=False).start()
-    scanner = _SwitchingScanner(clock, switch_at=8)
-    loop = ControlLoop(config, scanner=scanner, base=FakeBase(clock), camera=None,
+    scanner, live = _SwitchingScanner(clock, switch_at=8), _LiveViewStub()
+    loop = ControlLoop(config, scanner=scanner, base=FakeBase(clock), camera=None, live_view=live,
                        estimator=Estimator(plain_psm=True), field_log=log, clock=clock, wall_clock=lambda: 1.7e9)
     loop.run(threading.Event(), duration_s=1.2)
     log.close()
     assert log.stats.dropped == 0 and log.stats.bad_messages == 0
     infos = [m.data for m in lm_read(Path(log.path)) if m.topic == "/vipsm/scanner"]
     assert [i["beams"] for i in infos] == [682, 1081]
+    assert live.latched["/vipsm/scanner"] == infos[-1]  # a viewer connecting later gets the scanner in force
     result = export_rosbag2(log.path, tmp_path / "bag")
     assert result.scan_info["assumed"] == 0 and not result.warnings
     scans = bag_messages(tmp_path / "bag")[1]["/scan"]
