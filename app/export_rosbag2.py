@@ -18,9 +18,10 @@ A ``/scan`` message takes its bearings from itself and its ``range_min``/``range
 own values: the UTM-30LX's PP reply live and in ``sim``, a bag's LaserScan fields in ``replay BAG
 --log``), never from one scanner model. A log written before that channel (log version 1 or 2), or a
 scan that does not fit the record (another beam count or window), is exported with range_min 0 and
-range_max +inf (the log's ranges already mark invalid readings +-inf or NaN, REP 117) and the beam
-timing of the log's first ``/vipsm/cycle`` with as many beams (0, ROS's "unknown", without one); that
-is said once per beam count (``ExportResult.warnings``) and the scans counted (``scan_info``).
+range_max +inf (the log's ranges already mark invalid readings +-inf or NaN, REP 117), the beam time
+of the log's first ``/vipsm/cycle`` with as many beams and as scan time the median spacing of the
+scans' stamps (0, ROS's "unknown", where the log gives neither); that is said once per beam count
+(``ExportResult.warnings``) and the scans counted (``scan_info``).
 
 Frames follow REP 105 (``odom``, ``base_link``, ``laser``); header stamps are the messages' own
 stamps, bag times the log times. Version 1 logs (no ``/tf``) export without transforms.
@@ -144,37 +145,54 @@ class _Scanner:
             a = self.legacy[n]
             self.result.warnings.append(
                 f"{self.log_path}: /scan with {n} beams: {why}; exported with range_min 0 and range_max +inf (every "
-                f"finite range in the log is a reading: it marks invalid ones +-inf or NaN) and time_increment "
-                f"{a['time_increment_s']:.6g} s, scan_time {a['scan_time_s']:.6g} s ({a['timing']})")
+                f"finite range in the log is a reading: it marks invalid ones +-inf or NaN), {a['said']}")
         return self.legacy[n]
 
 
 def legacy_scan_info(log_path: str | Path, n_beams: int) -> dict[str, Any]:
     """What is assumed for a scan the log states no limits or timing for: no limits (``range_min`` 0,
-    ``range_max`` +inf: the log's ranges already mark invalid readings), and the beam timing of the log's
-    first ``/vipsm/cycle`` with as many beams (the estimator's exact input: ``beam_dt_s`` and one turn of
-    the mirror from it), else 0 (ROS's "unknown")."""
-    from vipsm.sensor import scan_period_s
+    ``range_max`` +inf: the log's ranges already mark invalid readings); ``time_increment`` the
+    ``beam_dt_s`` of the log's first ``/vipsm/cycle`` with as many beams (the estimator's exact input);
+    ``scan_time`` the median spacing of the stamps of the log's first ``LEGACY_STAMPS`` such ``/scan``
+    messages (the time between scans, measured; a dropped scan is an outlier the median ignores), else
+    one turn of the mirror from the beam timing; what neither gives is 0 (ROS's "unknown")."""
+    from vipsm.sensor import scan_period_from_stamps, scan_period_s
 
-    out = {"range_min_m": 0.0, "range_max_m": math.inf, "time_increment_s": 0.0, "scan_time_s": 0.0,
-           "timing": "unknown: no /vipsm/cycle with as many beams"}
+    timing: tuple[float, float] | None = None  # (beam_dt_s, bearing_step_rad) of the first fitting cycle
+    stamps: list[float] = []
     for k, msg in enumerate(read_log(log_path)):
-        if k >= LEGACY_SEARCH_MESSAGES:
+        if k >= LEGACY_SEARCH_MESSAGES or (timing is not None and len(stamps) >= LEGACY_STAMPS):
             break
-        sc = msg.data.get("scan") if msg.topic == "/vipsm/cycle" and isinstance(msg.data, dict) else None
-        if not isinstance(sc, dict) or not isinstance(sc.get("ranges_m"), list) or len(sc["ranges_m"]) != n_beams:
-            continue
-        dt, step = sc.get("beam_dt_s"), sc.get("bearing_step_rad")
-        if isinstance(dt, int | float) and isinstance(step, int | float) and math.isfinite(dt):
-            out.update(time_increment_s=float(dt), scan_time_s=scan_period_s(dt, step),
-                       timing="from the log's /vipsm/cycle")
-        break
-    return out
+        if msg.topic == "/scan" and len(stamps) < LEGACY_STAMPS and len(msg.data.get("ranges", ())) == n_beams:
+            ts = msg.data.get("timestamp") or {}
+            stamps.append(float(ts.get("sec", 0)) + 1e-9 * float(ts.get("nsec", 0)))
+        elif timing is None and msg.topic == "/vipsm/cycle":
+            timing = _cycle_timing(msg.data, n_beams)
+    dt, step = timing if timing is not None else (0.0, 0.0)
+    measured = scan_period_from_stamps(np.asarray(stamps))
+    period = measured or scan_period_s(dt, step)
+    said = ["time_increment " + (f"{dt:.6g} s from the log's /vipsm/cycle" if timing else "0 (unknown: no "
+                                 "/vipsm/cycle with as many beams)"),
+            "scan_time " + (f"{period:.6g} s, " + (f"the median spacing of {len(stamps)} scans' stamps" if measured
+                                                   else "one turn from the beam timing") if period else "0 (unknown)")]
+    return {"range_min_m": 0.0, "range_max_m": math.inf, "time_increment_s": dt, "scan_time_s": period,
+            "said": "; ".join(said)}
 
 
-#: how far into a log :func:`legacy_scan_info` looks for a cycle (a cycle is logged every 0.1 s, after
-#: a few messages of each other channel: thousands of messages are many seconds of a run)
+def _cycle_timing(rec: Any, n_beams: int) -> tuple[float, float] | None:
+    """(beam_dt_s, bearing_step_rad) of a cycle record whose scan has ``n_beams`` beams, else None."""
+    sc = rec.get("scan") if isinstance(rec, dict) else None
+    if not isinstance(sc, dict) or not isinstance(sc.get("ranges_m"), list) or len(sc["ranges_m"]) != n_beams:
+        return None
+    dt, step = sc.get("beam_dt_s"), sc.get("bearing_step_rad")
+    ok = all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in (dt, step))
+    return (float(dt), float(step)) if ok else None
+
+
+#: how far into a log :func:`legacy_scan_info` looks (a cycle is logged every 0.1 s, after a few messages
+#: of each other channel: thousands of messages are many seconds of a run), and how many scans it times
 LEGACY_SEARCH_MESSAGES = 20_000
+LEGACY_STAMPS = 50
 
 
 @dataclass

@@ -274,12 +274,14 @@ def test_scan_limits_and_timing_are_the_scanners_and_follow_a_change(tmp_path: P
 
 
 def test_an_old_log_exports_with_the_stated_assumption_and_one_warning(tmp_path: Path) -> None:
-    """A log without /vipsm/scanner (version 2): range 0 to +inf and the beam timing of its first cycle with
-    as many beams; said once on stderr and in the summary, exit 0."""
+    """A log without /vipsm/scanner (version 2): range 0 to +inf, the beam time of its first cycle with as
+    many beams, the scan time measured from the scans' stamps (0.1 s apart; the beam timing alone would
+    say 0.05 s: a scanner whose bearing step is not its mirror's); said once on stderr and in the
+    summary, exit 0."""
     def with_beam_timing(w: LogWriter, k: int, t: float) -> None:
         if k == 0:
             rec = cycle(0, 0.0)
-            rec["scan"] = {"seq": 0, "stamp_s": t, "beam_dt_s": 0.1 / 1024, "first_bearing_rad": -1.0,
+            rec["scan"] = {"seq": 0, "stamp_s": t, "beam_dt_s": 0.05 / 1024, "first_bearing_rad": -1.0,
                            "bearing_step_rad": 2 * math.pi / 1024, "ranges_m": [1.0, None, None, None, 2.0]}
             w.add("/vipsm/cycle", t + 0.05, rec)
 
@@ -289,12 +291,13 @@ def test_an_old_log_exports_with_the_stated_assumption_and_one_warning(tmp_path:
     assert proc.returncode == 0, proc.stderr
     res = json.loads(proc.stdout)
     assert res["scan_info"] == {"recorded": 0, "assumed": N} and len(res["warnings"]) == 1
-    assert "range_min 0 and range_max +inf" in res["warnings"][0] and "/vipsm/cycle" in res["warnings"][0]
+    w = res["warnings"][0]
+    assert "range_min 0 and range_max +inf" in w and "/vipsm/cycle" in w and f"median spacing of {N}" in w
     assert proc.stderr.count("warning") == 1
     _, msgs = bag_messages(out)
     for m in msgs["/scan"]:
         assert m.range_min == 0.0 and m.range_max == math.inf
-        assert m.time_increment == pytest.approx(0.1 / 1024) and m.scan_time == pytest.approx(0.1)
+        assert m.time_increment == pytest.approx(0.05 / 1024) and m.scan_time == pytest.approx(0.1, rel=1e-6)
 
 
 def test_a_scan_that_does_not_fit_the_record_is_assumed_not_mislabelled(tmp_path: Path) -> None:
@@ -304,7 +307,9 @@ def test_a_scan_that_does_not_fit_the_record_is_assumed_not_mislabelled(tmp_path
     assert result.scan_info == {"assumed": N} and len(result.warnings) == 1
     assert "does not fit" in result.warnings[0]
     _, msgs = bag_messages(out)
-    assert all(m.range_max == math.inf and m.scan_time == 0.0 for m in msgs["/scan"])
+    # no cycle in this log: no beam time (0, unknown); the scan time measured from the stamps
+    assert all(m.range_max == math.inf and m.time_increment == 0.0 for m in msgs["/scan"])
+    assert all(m.scan_time == pytest.approx(0.1, rel=1e-6) for m in msgs["/scan"])
 
 
 def test_a_malformed_scanner_record_is_counted(tmp_path: Path) -> None:
