@@ -120,6 +120,9 @@ class _Scanner:
     legacy: dict[int, dict[str, Any]] = field(default_factory=dict)  # beams -> assumed record
 
     def record(self, d: dict[str, Any]) -> None:
+        """A new record (ValueError, KeyError, TypeError if malformed: the scans after it are then assumed,
+        never given an older scanner's values)."""
+        self.info = None
         keys = ("beams", "angle_min_rad", "angle_max_rad", "time_increment_s", "scan_time_s")
         for k in keys:
             v = d[k]

@@ -314,10 +314,11 @@ def test_a_scan_that_does_not_fit_the_record_is_assumed_not_mislabelled(tmp_path
 
 def test_a_malformed_scanner_record_is_counted(tmp_path: Path) -> None:
     log, out = tmp_path / "log.mcap", tmp_path / "bag"
-    scanner_log(log, [(0, five_beams(scan_time_s="fast"))])
+    scanner_log(log, [(0, five_beams()), (10, five_beams(scan_time_s="fast"))])
     result = export_rosbag2(log, out)
     assert result.read.bad_messages == 1 and "scan_time_s" in result.read.bad[0]
-    assert result.scan_info == {"assumed": N}
+    # after the bad record the older one no longer holds: those scans are assumed (and said so)
+    assert result.scan_info == {"recorded": 10, "assumed": N - 10} and len(result.warnings) == 1
 
 
 def write_urg_bag(path: Path, n: int = 12) -> None:
