@@ -118,11 +118,12 @@ class _Scanner:
     result: ExportResult
     info: dict[str, Any] | None = None
     legacy: dict[int, dict[str, Any]] = field(default_factory=dict)  # beams -> assumed record
+    malformed: bool = False  # the newest record could not be read
 
     def record(self, d: dict[str, Any]) -> None:
         """A new record (ValueError, KeyError, TypeError if malformed: the scans after it are then assumed,
         never given an older scanner's values)."""
-        self.info = None
+        self.info, self.malformed = None, True
         keys = ("beams", "angle_min_rad", "angle_max_rad", "time_increment_s", "scan_time_s")
         for k in keys:
             v = d[k]
@@ -131,7 +132,7 @@ class _Scanner:
         for k in ("range_min_m", "range_max_m"):
             if d[k] is not None and (isinstance(d[k], bool) or not isinstance(d[k], int | float)):
                 raise ValueError(f"{k!r} is {d[k]!r}, not a number or null")
-        self.info = d
+        self.info, self.malformed = d, False
 
     def for_scan(self, n: int, first_rad: float, last_rad: float) -> dict[str, Any]:
         i = self.info
@@ -142,7 +143,8 @@ class _Scanner:
         self.result.scan_info["assumed"] += 1
         if n not in self.legacy:
             self.legacy[n] = legacy_scan_info(self.log_path, n)
-            why = ("the log has no /vipsm/scanner before it (written before log version 3)" if i is None else
+            why = ("the /vipsm/scanner before it is malformed" if self.malformed else
+                   "the log has no /vipsm/scanner before it (written before log version 3)" if i is None else
                    f"it does not fit the /vipsm/scanner before it ({i['beams']} beams from {i['angle_min_rad']:.6f} "
                    f"to {i['angle_max_rad']:.6f} rad)")
             a = self.legacy[n]

@@ -319,6 +319,7 @@ def test_a_malformed_scanner_record_is_counted(tmp_path: Path) -> None:
     assert result.read.bad_messages == 1 and "scan_time_s" in result.read.bad[0]
     # after the bad record the older one no longer holds: those scans are assumed (and said so)
     assert result.scan_info == {"recorded": 10, "assumed": N - 10} and len(result.warnings) == 1
+    assert "is malformed" in result.warnings[0]
 
 
 def write_urg_bag(path: Path, n: int = 12) -> None:
