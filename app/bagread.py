@@ -128,6 +128,8 @@ class BagCycle:
     odometry_given: bool
     #: the time the bag recorded the scan at (ns)
     bag_time_ns: int
+    #: the laser as this scan's message describes it (its range limits and scan_time, for a field log)
+    sensor: SensorInfo | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -314,14 +316,14 @@ def _cycles(reader: Any, topics: BagTopics, intrinsics: Intrinsics | None, read:
             try:
                 msg = reader.deserialize(raw, conn.msgtype)
                 if conn.topic == topics.scan:
-                    scan = scan_from_msg(msg, seq)
+                    scan, sensor = scan_from_msg(msg, seq), sensor_info(msg)
                     if read.sensor is None:
-                        read.sensor = sensor_info(msg)
+                        read.sensor = sensor
                     seq += 1
                     read.scans += 1
                     ident = Odometry(0.0, 0.0, 0.0, 0.0, 0.0, scan.stamp_s)
                     yield BagCycle(scan, odom if odom is not None else ident, frame[0] if frame else None,
-                                   frame[1] if frame else None, odom is not None, t_ns)
+                                   frame[1] if frame else None, odom is not None, t_ns, sensor)
                     if max_scans is not None and read.scans >= max_scans:
                         return
                 elif conn.topic == topics.odom:

@@ -2,7 +2,8 @@
 
 * ``vipsm-robot probe --scanner URL --json``: VV/PP/II values and a summary of one GD scan
 * ``vipsm-robot probe --list --json``: attached URG-family scanners (USB vendor 0x15d1) and their tty
-* ``vipsm-robot fake scanner --pty [--link PATH] | --tcp 127.0.0.1:PORT``: serve the fake until Ctrl-C
+* ``vipsm-robot fake scanner --pty [--link PATH] | --tcp 127.0.0.1:PORT``: serve the fake until Ctrl-C;
+  ready (READY=1 to systemd, then its addresses on stdout) only once every endpoint listens
 * ``vipsm-robot bench --only scanner --json``: MD frame decode time and driver CPU share at 40 Hz
 
 :func:`to_vipsm_scan` turns a driver :class:`LaserScan` into the estimator's :class:`vipsm.types.Scan`.
@@ -95,12 +96,61 @@ def _parse_host_port(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
+FAKE_DESCRIPTION = """\
+Serve a byte-level fake Hokuyo UTM-30LX (SCIP 2.0) until Ctrl-C or SIGTERM.
+
+Readiness: only when every endpoint asked for is listening (the pty open, the TCP port bound and
+listening) and the fake answers, it
+  1. tells systemd, if NOTIFY_SOCKET is set: READY=1 and STATUS=serving ADDRESS ... (so a
+     Type=notify unit, or `systemd-run --service-type=notify`, starts its clients only then), and
+  2. prints one line per endpoint on stdout, flushed: first the pty's path (--link if given), then
+     socket://HOST:PORT for --tcp, with the port actually bound (--tcp 127.0.0.1:0 picks a free one).
+A client that waits for these lines (or for READY=1) never connects before the fake listens. Nothing
+is printed or notified when an endpoint cannot be set up (e.g. the port is taken): exit 2 with one
+line on stderr. On Ctrl-C or SIGTERM (once its options are read, also before it is ready) it tells systemd
+STOPPING=1, closes its endpoints, removes --link and exits 0.
+"""
+
+
 def _cmd_fake(args: argparse.Namespace) -> int:
-    from hil_fakes.transport import DeviceServer, PtyEndpoint, TcpEndpoint, wait_forever
-    from hil_fakes.utm30lx import Utm30lxConfig, Utm30lxModel
+    from .sdnotify import SystemdNotifier
 
     if not args.pty and not args.tcp:
         raise AppError("fake scanner needs --pty and/or --tcp HOST:PORT")
+    notifier = SystemdNotifier()
+    # SIGTERM ends the fake as cleanly as Ctrl-C (the pty link is removed), from the start on
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    servers: list[Any] = []
+    try:
+        _start_fake_servers(args, servers)
+        addresses = [s.address for s in servers]
+        notifier.notify("READY=1\nSTATUS=serving " + " ".join(addresses))  # every endpoint listens
+        for address in addresses:
+            print(address, flush=True)
+        while all(s.error is None for s in servers):
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        notifier.stopping()
+        failure = _stop_all(servers)
+        notifier.close()
+    if failure is not None:
+        raise AppError(f"the fake scanner failed: {failure}")
+    return 0
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _start_fake_servers(args: argparse.Namespace, servers: list[Any]) -> None:
+    """Every endpoint asked for, listening, its device thread running (appended to ``servers`` as each
+    starts, so that the caller stops those already up when a later one fails)."""
+    from hil_fakes.transport import DeviceServer, PtyEndpoint, TcpEndpoint
+    from hil_fakes.utm30lx import Utm30lxConfig, Utm30lxModel
+
     config = Utm30lxConfig(initial_time_ms=args.initial_time_ms, laser_on_at_start=not args.laser_off)
     source = None
     if args.scenario:
@@ -111,34 +161,35 @@ def _cmd_fake(args: argparse.Namespace) -> int:
             source = World(paper_scenario(args.scenario), start_s=time.monotonic()).range_source()
         except ScenarioError as exc:
             raise AppError(f"--scenario {args.scenario}: {exc}") from exc
-    servers: list[DeviceServer] = []
-    try:
-        if args.pty:
-            servers.append(DeviceServer(Utm30lxModel(config, source), PtyEndpoint(args.link)).start())
-        if args.tcp:
-            host, port = _parse_host_port(args.tcp)
-            try:
-                endpoint = TcpEndpoint(host, port)
-            except OSError as exc:
-                raise AppError(f"cannot listen on {args.tcp}: {exc}") from exc
-            servers.append(DeviceServer(Utm30lxModel(config, source), endpoint).start())
-    except BaseException:
-        for s in servers:
-            s.stop()
-        raise
+    if args.pty:
+        servers.append(DeviceServer(Utm30lxModel(config, source), PtyEndpoint(args.link)).start())
+    if args.tcp:
+        host, port = _parse_host_port(args.tcp)
+        try:
+            endpoint = TcpEndpoint(host, port)
+        except OSError as exc:
+            raise AppError(f"cannot listen on {args.tcp}: {exc.strerror or exc}") from exc
+        servers.append(DeviceServer(Utm30lxModel(config, source), endpoint).start())
+
+
+def _stop_all(servers: list[Any]) -> str | None:
+    """Stops every server (endpoints closed, the link removed); the first model failure, if any."""
+    failure = None
     for s in servers:
-        print(s.address, flush=True)
-    # SIGTERM ends the fake as cleanly as Ctrl-C (the pty link is removed).
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
-    wait_forever(servers)
-    return 0
+        try:
+            s.stop()
+        except RuntimeError as exc:
+            failure = failure or f"{exc}: {exc.__cause__!r}"
+    return failure
 
 
 def register_fake(fake_sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = fake_sub.add_parser("scanner", help="fake Hokuyo UTM-30LX (SCIP 2.0) on a pty and/or loopback TCP")
+    p = fake_sub.add_parser("scanner", help="fake Hokuyo UTM-30LX (SCIP 2.0) on a pty and/or loopback TCP",
+                            description=FAKE_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (its path is printed)")
     p.add_argument("--link", metavar="PATH", help="stable symlink to the pty (kept across a simulated replug)")
-    p.add_argument("--tcp", metavar="HOST:PORT", help="serve on TCP, e.g. 127.0.0.1:10940")
+    p.add_argument("--tcp", metavar="HOST:PORT", help="serve on TCP, e.g. 127.0.0.1:10940; port 0 picks a free "
+                   "port (the one bound is printed)")
     p.add_argument("--initial-time-ms", type=int, default=4821456, help="the sensor clock at start (24-bit ms)")
     p.add_argument("--laser-off", action="store_true", help="start with the laser off (BM then answers 00)")
     p.add_argument(

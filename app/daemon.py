@@ -307,6 +307,8 @@ class ControlLoop:
         self.odom = OdometryHistory()
         self.stats = RunStats()
         self.last_scan: ScanSample | None = None
+        #: ``/vipsm/scanner`` before the first scan and whenever the scanner's geometry changes
+        self._scanner_info = lm.ScannerInfoLog()
         self.last_frame: FrameSample | None = None
         self.last_estimate: Estimate | None = None
         self.last_odom_sample: OdomSample | None = None
@@ -399,6 +401,13 @@ class ControlLoop:
             self.stats.overload_cycles += 1
         self._busy.append((now_s, self.clock()))
 
+    def _log_latched(self, topic: str, wall_s: float, payload: dict[str, Any]) -> bool:
+        """A field-log message that a live viewer connecting later gets too (the live view latches it)."""
+        assert self.log is not None
+        if self.live_view is not None:
+            self.live_view.latch(topic, wall_s, payload)
+        return self.log.log(topic, wall_s, payload)
+
     def _drain(self) -> None:
         """Every sample the devices delivered since the last cycle: logged, the newest kept."""
         if self.scanner is not None:
@@ -408,6 +417,7 @@ class ControlLoop:
                 self.last_scan = s
                 if self.log is not None:
                     w = self.wall(s.scan.stamp_s)
+                    self._scanner_info.before_scan(self._log_latched, w, lm.scanner_info(s.scan, s.range_limits_m))
                     self.log.log("/scan", w, lambda s=s, w=w: scan_message(s, w))
                 if self.ros2 is not None:
                     self.ros2.scan(s, self.wall(s.scan.stamp_s))

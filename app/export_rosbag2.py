@@ -4,7 +4,7 @@ pure-Python ``rosbags`` package, so a ROS 2 user can ``ros2 bag play`` it withou
 ==================  ================================  ===============================================
 topic               type                              from
 ==================  ================================  ===============================================
-``/scan``           ``sensor_msgs/msg/LaserScan``     ``/scan`` (REP 117 invalid ranges kept)
+``/scan``           ``sensor_msgs/msg/LaserScan``     ``/scan`` + ``/vipsm/scanner`` (REP 117 ranges kept)
 ``/odom``           ``nav_msgs/msg/Odometry``         ``/odom`` wheel odometry (+ speeds from cycles)
 ``/vipsm/pose``     ``nav_msgs/msg/Odometry``         the estimated pose with its covariance
 ``/camera/image/compressed``  ``sensor_msgs/msg/CompressedImage``  ``/camera/image``
@@ -12,6 +12,16 @@ topic               type                              from
 ``/tf``             ``tf2_msgs/msg/TFMessage``        odom->base_link, base_link->camera, world->...
 ``/tf_static``      ``tf2_msgs/msg/TFMessage``        base_link->laser, once (transient local)
 ==================  ================================  ===============================================
+
+A ``/scan`` message takes its bearings from itself and its ``range_min``/``range_max``,
+``time_increment`` and ``scan_time`` from the newest ``/vipsm/scanner`` record before it (the scanner's
+own values: the UTM-30LX's PP reply live and in ``sim``, a bag's LaserScan fields in ``replay BAG
+--log``), never from one scanner model. A log written before that channel (log version 1 or 2), or a
+scan that does not fit the record (another beam count or window), is exported with range_min 0 and
+range_max +inf (the log's ranges already mark invalid readings +-inf or NaN, REP 117), the beam time
+of the log's first ``/vipsm/cycle`` with as many beams and as scan time the median spacing of the
+scans' stamps (0, ROS's "unknown", where the log gives neither); that is said once per beam count
+(``ExportResult.warnings``) and the scans counted (``scan_info``).
 
 Frames follow REP 105 (``odom``, ``base_link``, ``laser``); header stamps are the messages' own
 stamps, bag times the log times. Version 1 logs (no ``/tf``) export without transforms.
@@ -55,11 +65,6 @@ import numpy as np
 from .errors import AppError
 from .logread import LogMessage, LogReadResult, read_log
 
-#: the UTM-30LX's limits (PP: DMIN 23 mm, DMAX 60000 mm); the log does not repeat them per scan
-RANGE_MIN_M = 0.023
-RANGE_MAX_M = 60.0
-SCAN_PERIOD_S = 0.025
-
 TOPICS = {
     "/scan": "sensor_msgs/msg/LaserScan",
     "/odom": "nav_msgs/msg/Odometry",
@@ -79,7 +84,7 @@ UNOBSERVED_VARIANCE = 1e6
 MIN_SIGMA_M = 1e-3
 MIN_SIGMA_RAD = 1e-3
 #: log topics with no ROS 2 counterpart here (counted in ``ExportResult.not_exported``, not errors)
-NOT_EXPORTED = ("/pose", "/obstacles", "/log", "/diagnostics", "/truth", "/vipsm/config")
+NOT_EXPORTED = ("/pose", "/obstacles", "/log", "/diagnostics", "/truth", "/vipsm/config", "/vipsm/scanner")
 #: the schema each exported log topic must carry
 EXPECTED_SCHEMA = {"/scan": "foxglove.LaserScan", "/odom": "foxglove.PoseInFrame", "/tf": "foxglove.FrameTransforms",
                    "/camera/image": "foxglove.CompressedImage", "/vipsm/cycle": "vipsm.Cycle"}
@@ -91,6 +96,108 @@ class ExportResult:
     counts: Counter[str] = field(default_factory=Counter)
     not_exported: Counter[str] = field(default_factory=Counter)
     read: LogReadResult = field(default_factory=LogReadResult)
+    #: ``/scan`` messages whose limits and timing came from the log's ``/vipsm/scanner`` ("recorded") or
+    #: were assumed (an old log without it, or a scan that does not fit it: "assumed")
+    scan_info: Counter[str] = field(default_factory=Counter)
+    #: what was assumed, each said once (printed on stderr, in the JSON summary)
+    warnings: list[str] = field(default_factory=list)
+
+
+#: a /scan fits a /vipsm/scanner record when its beam count is the record's and its first and last
+#: bearings are the record's within this (both are written from the same bearings: any difference is
+#: another scanner or window)
+ANGLE_TOL_RAD = 1e-6
+
+
+@dataclass
+class _Scanner:
+    """The limits and timing of the log's scans: the newest ``/vipsm/scanner`` record, and for scans
+    without one (logs before version 3) the assumption of :func:`legacy_scan_info`."""
+
+    log_path: str
+    result: ExportResult
+    info: dict[str, Any] | None = None
+    legacy: dict[int, dict[str, Any]] = field(default_factory=dict)  # beams -> assumed record
+    malformed: bool = False  # the newest record could not be read
+
+    def record(self, d: dict[str, Any]) -> None:
+        """A new record (ValueError, KeyError, TypeError if malformed: the scans after it are then assumed,
+        never given an older scanner's values)."""
+        self.info, self.malformed = None, True
+        keys = ("beams", "angle_min_rad", "angle_max_rad", "time_increment_s", "scan_time_s")
+        for k in keys:
+            v = d[k]
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ValueError(f"{k!r} is {v!r}, not a finite number")
+        for k in ("range_min_m", "range_max_m"):
+            if d[k] is not None and (isinstance(d[k], bool) or not isinstance(d[k], int | float)):
+                raise ValueError(f"{k!r} is {d[k]!r}, not a number or null")
+        self.info, self.malformed = d, False
+
+    def for_scan(self, n: int, first_rad: float, last_rad: float) -> dict[str, Any]:
+        i = self.info
+        if i is not None and i["beams"] == n and abs(i["angle_min_rad"] - first_rad) <= ANGLE_TOL_RAD \
+                and abs(i["angle_max_rad"] - last_rad) <= ANGLE_TOL_RAD:
+            self.result.scan_info["recorded"] += 1
+            return i
+        self.result.scan_info["assumed"] += 1
+        if n not in self.legacy:
+            self.legacy[n] = legacy_scan_info(self.log_path, n)
+            why = ("the /vipsm/scanner before it is malformed" if self.malformed else
+                   "the log has no /vipsm/scanner before it (written before log version 3)" if i is None else
+                   f"it does not fit the /vipsm/scanner before it ({i['beams']} beams from {i['angle_min_rad']:.6f} "
+                   f"to {i['angle_max_rad']:.6f} rad)")
+            a = self.legacy[n]
+            self.result.warnings.append(
+                f"{self.log_path}: /scan with {n} beams: {why}; exported with range_min 0 and range_max +inf (every "
+                f"finite range in the log is a reading: it marks invalid ones +-inf or NaN), {a['said']}")
+        return self.legacy[n]
+
+
+def legacy_scan_info(log_path: str | Path, n_beams: int) -> dict[str, Any]:
+    """What is assumed for a scan the log states no limits or timing for: no limits (``range_min`` 0,
+    ``range_max`` +inf: the log's ranges already mark invalid readings); ``time_increment`` the
+    ``beam_dt_s`` of the log's first ``/vipsm/cycle`` with as many beams (the estimator's exact input);
+    ``scan_time`` the median spacing of the stamps of the log's first ``LEGACY_STAMPS`` such ``/scan``
+    messages (the time between scans, measured; a dropped scan is an outlier the median ignores), else
+    one turn of the mirror from the beam timing; what neither gives is 0 (ROS's "unknown")."""
+    from vipsm.sensor import scan_period_from_stamps, scan_period_s
+
+    timing: tuple[float, float] | None = None  # (beam_dt_s, bearing_step_rad) of the first fitting cycle
+    stamps: list[float] = []
+    for k, msg in enumerate(read_log(log_path)):
+        if k >= LEGACY_SEARCH_MESSAGES or (timing is not None and len(stamps) >= LEGACY_STAMPS):
+            break
+        if msg.topic == "/scan" and len(stamps) < LEGACY_STAMPS and len(msg.data.get("ranges", ())) == n_beams:
+            ts = msg.data.get("timestamp") or {}
+            stamps.append(float(ts.get("sec", 0)) + 1e-9 * float(ts.get("nsec", 0)))
+        elif timing is None and msg.topic == "/vipsm/cycle":
+            timing = _cycle_timing(msg.data, n_beams)
+    dt, step = timing if timing is not None else (0.0, 0.0)
+    measured = scan_period_from_stamps(np.asarray(stamps))
+    period = measured or scan_period_s(dt, step)
+    said = ["time_increment " + (f"{dt:.6g} s from the log's /vipsm/cycle" if timing else "0 (unknown: no "
+                                 "/vipsm/cycle with as many beams)"),
+            "scan_time " + (f"{period:.6g} s, " + (f"the median spacing of {len(stamps)} scans' stamps" if measured
+                                                   else "one turn from the beam timing") if period else "0 (unknown)")]
+    return {"range_min_m": 0.0, "range_max_m": math.inf, "time_increment_s": dt, "scan_time_s": period,
+            "said": "; ".join(said)}
+
+
+def _cycle_timing(rec: Any, n_beams: int) -> tuple[float, float] | None:
+    """(beam_dt_s, bearing_step_rad) of a cycle record whose scan has ``n_beams`` beams, else None."""
+    sc = rec.get("scan") if isinstance(rec, dict) else None
+    if not isinstance(sc, dict) or not isinstance(sc.get("ranges_m"), list) or len(sc["ranges_m"]) != n_beams:
+        return None
+    dt, step = sc.get("beam_dt_s"), sc.get("bearing_step_rad")
+    ok = all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in (dt, step))
+    return (float(dt), float(step)) if ok else None
+
+
+#: how far into a log :func:`legacy_scan_info` looks (a cycle is logged every 0.1 s, after a few messages
+#: of each other channel: thousands of messages are many seconds of a run), and how many scans it times
+LEGACY_SEARCH_MESSAGES = 20_000
+LEGACY_STAMPS = 50
 
 
 @dataclass
@@ -138,6 +245,7 @@ class _Bag:
         self.writer = Writer(out_dir, version=8)
         self.conns: dict[str, Any] = {}
         self.odometry = _Odometry()
+        self.scanner: _Scanner | None = None
 
     def __enter__(self) -> _Bag:
         self.writer.open()
@@ -201,6 +309,7 @@ def export_rosbag2(log_path: str | Path, out_dir: str | Path) -> ExportResult:
     try:
         with partial_folder(out) as tmp:
             with _Bag(tmp) as bag:
+                bag.scanner = _Scanner(str(log_path), result)
                 for msg in read_log(log_path, result.read):
                     _export_checked(bag, msg, result)
             _finish(log_path, out, tmp, result)
@@ -259,8 +368,14 @@ def _export_checked(bag: _Bag, msg: LogMessage, result: ExportResult) -> None:
     """One log message into the bag; one that does not fit its topic is skipped and counted."""
     expected = EXPECTED_SCHEMA.get(msg.topic)
     if expected is None:
-        if msg.topic == "/vipsm/config":
-            bag.odometry.configure(msg.data)
+        try:
+            if msg.topic == "/vipsm/config":
+                bag.odometry.configure(msg.data)
+            elif msg.topic == "/vipsm/scanner" and bag.scanner is not None:
+                bag.scanner.record(msg.data)
+        except (KeyError, TypeError, ValueError) as exc:
+            result.read.note_bad(f"{msg.topic} message at {msg.log_time_ns} ns: cannot read it: "
+                                 f"{type(exc).__name__}: {str(exc)[:200]}")
         result.not_exported[msg.topic] += 1
         return
     if msg.schema != expected:
@@ -301,14 +416,19 @@ def _write(bag: _Bag, topic: str, t: int, msg: Any, counts: Counter[str]) -> Non
 
 
 def _scan(bag: _Bag, d: dict[str, Any]) -> Any:
+    """Bearings from the scan itself; limits and timing from the scanner's record (or assumed)."""
     ranges = np.asarray([math.nan if v is None else v for v in d["ranges"]], dtype=np.float32)  # v1: null
     n = len(ranges)
-    inc = (d["end_angle"] - d["start_angle"]) / (n - 1) if n > 1 else 0.0
+    first, last = float(d["start_angle"]), float(d["end_angle"])
+    inc = (last - first) / (n - 1) if n > 1 else 0.0
     intensities = np.asarray(d["intensities"], dtype=np.float32)
+    assert bag.scanner is not None
+    info = bag.scanner.for_scan(n, first, last)
+    lo, hi = info["range_min_m"], info["range_max_m"]
     return bag.t["sensor_msgs/msg/LaserScan"](
-        header=bag.header(d["timestamp"], d["frame_id"] or "laser"), angle_min=d["start_angle"],
-        angle_max=d["end_angle"], angle_increment=inc, time_increment=SCAN_PERIOD_S / 1440.0,
-        scan_time=SCAN_PERIOD_S, range_min=RANGE_MIN_M, range_max=RANGE_MAX_M, ranges=ranges,
+        header=bag.header(d["timestamp"], d["frame_id"] or "laser"), angle_min=first, angle_max=last,
+        angle_increment=inc, time_increment=float(info["time_increment_s"]), scan_time=float(info["scan_time_s"]),
+        range_min=0.0 if lo is None else float(lo), range_max=math.inf if hi is None else float(hi), ranges=ranges,
         intensities=intensities)
 
 

@@ -16,6 +16,8 @@ Channels (topic: schema, encoding):
 ``/truth``           ``vipsm.GroundTruth``         simulated runs only: the world's true robot/obstacles (JSON)
 ``/vipsm/cycle``     ``vipsm.Cycle``               the estimator's exact inputs and outputs, for replay (JSON)
 ``/vipsm/config``    ``vipsm.Config``              the whole configuration and ``log_version``, once (JSON)
+``/vipsm/scanner``   ``vipsm.ScannerInfo``         the scanner's geometry, timing, range limits: before the
+                                                   first ``/scan`` and on every change (JSON; from log 3 on)
 ===================  ============================  ==========================================================
 
 The ``foxglove.*`` channels are the SDK's typed channels (official protobuf schemas by
@@ -25,7 +27,9 @@ The control loop only enqueues (``log``); a bounded queue drops and counts what 
 take, so the loop never blocks on the disk. A chunk is closed and the file flushed and fsynced once
 its oldest message is ``0.6 * flush_s`` old, so a process killed with SIGKILL (or a power cut) loses
 at most ``flush_s`` (the rest is the flush's own time). A log closed normally gets its summary and
-index. Files rotate by size or age and are created mode 0640 whatever the umask. A failed write
+index. Files rotate by size or age and are created mode 0640 whatever the umask; each later file
+begins with the newest ``/vipsm/config`` and ``/vipsm/scanner`` (:data:`LATCHED_TOPICS`, at the log
+time of the last message before it), so it replays and exports on its own. A failed write
 (disk full, I/O error) ends that file where it stands (readable up to its last complete chunk), is
 reported once through ``on_event``, and a new file is tried every ``retry_s``; messages in between
 still reach the live view and are counted as ``lost_to_disk``.
@@ -48,7 +52,7 @@ import numpy as np
 
 from .errors import LogFormatError
 from .logread import LogMessage, LogReadResult, read_log  # noqa: F401 - the log's reader lives beside it
-from .logschemas import CYCLE, DIAGNOSTICS, GROUND_TRUTH, config_schema
+from .logschemas import CYCLE, DIAGNOSTICS, GROUND_TRUTH, SCANNER_INFO, config_schema
 
 #: the project's JSON channels: topic -> (schema name, schema factory)
 JSON_TOPICS: dict[str, tuple[str, Callable[[], dict[str, Any]]]] = {
@@ -56,6 +60,7 @@ JSON_TOPICS: dict[str, tuple[str, Callable[[], dict[str, Any]]]] = {
     "/truth": ("vipsm.GroundTruth", lambda: GROUND_TRUTH),
     "/vipsm/cycle": ("vipsm.Cycle", lambda: CYCLE),
     "/vipsm/config": ("vipsm.Config", config_schema),
+    "/vipsm/scanner": ("vipsm.ScannerInfo", lambda: SCANNER_INFO),
 }
 
 #: the Foxglove channels: topic -> name of the SDK's typed channel class in ``foxglove.channels``
@@ -71,6 +76,10 @@ FOXGLOVE_TOPICS: dict[str, str] = {
 }
 
 TOPICS = (*FOXGLOVE_TOPICS, *JSON_TOPICS)
+
+#: channels written once or on a change that every file must hold to be read alone: the newest message
+#: of each is written again at the start of every later file (rotation, a new file after a disk error)
+LATCHED_TOPICS = ("/vipsm/config", "/vipsm/scanner")
 
 #: log files are readable by their owner and group only (they hold camera images and the robot's
 #: whereabouts; the configuration in them is redacted, see :func:`app.config.redacted_config`)
@@ -104,6 +113,8 @@ class FieldLogStats:
     last_disk_error: str | None = None
     #: an unexpected failure of the writer thread (it stopped); None while it runs
     error: str | None = None
+    #: latched messages written again at the start of a later file (not in ``written``)
+    rewritten: int = 0
 
 
 def _json_default(obj: Any) -> Any:
@@ -252,6 +263,9 @@ class FieldLog:
         self._writer: Any = None
         self._opened_at = 0.0
         self._retry_at = math.inf
+        #: the newest message of each latched topic (encoded) and the newest log time written
+        self._latched: dict[str, Any] = {}
+        self._last_log_ns = 0
 
     @property
     def path(self) -> str | None:
@@ -325,6 +339,13 @@ class FieldLog:
         self._writer = foxglove.open_mcap(self._file, context=self.context, writer_options=options)  # type: ignore[arg-type]
         self._opened_at = time.monotonic()
         self.stats.files.append(path)
+        self._write_latched()
+
+    def _write_latched(self) -> None:
+        """A new file begins with the newest message of every latched topic (none before the first)."""
+        for topic, data in self._latched.items():
+            self._channel(topic).log(data, log_time=self._last_log_ns)
+            self.stats.rewritten += 1
 
     def _finish_file(self) -> None:
         """Summary and index written, the file synced and closed (a failure is recorded, not raised)."""
@@ -397,6 +418,9 @@ class FieldLog:
             ns = int(round(t_wall_s * 1e9))
             data = encode_json(payload) if topic in JSON_TOPICS else payload
             channel.log(data, log_time=ns)
+            if topic in LATCHED_TOPICS:
+                self._latched[topic] = data
+            self._last_log_ns = max(self._last_log_ns, ns)
         except (TypeError, ValueError, ArithmeticError, OverflowError) as exc:
             self.stats.bad_messages += 1
             self.stats.last_bad_message = f"{topic}: {type(exc).__name__}: {exc}"

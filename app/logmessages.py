@@ -38,11 +38,13 @@ from foxglove.messages import (
     Vector3,
 )
 
-from vipsm.types import Obstacle, Person
+from vipsm.sensor import scan_period_s
+from vipsm.types import Obstacle, Person, Scan
 
 #: the field-log layout this version writes (recorded in ``/vipsm/config`` as ``log_version``);
-#: 1 = JSON everywhere (written before the Foxglove SDK), 2 = official protobuf schemas + ``/tf``
-LOG_VERSION = 2
+#: 1 = JSON everywhere (written before the Foxglove SDK), 2 = official protobuf schemas + ``/tf``,
+#: 3 = + ``/vipsm/scanner`` (the scanner's geometry, timing and range limits for ``/scan``)
+LOG_VERSION = 3
 
 LOG_LEVELS = {"debug": LogLevel.Debug, "info": LogLevel.Info, "warning": LogLevel.Warning,
               "error": LogLevel.Error, "fatal": LogLevel.Fatal}
@@ -89,6 +91,64 @@ def laser_scan(ranges_m: list[float], first_rad: float, last_rad: float, intensi
         timestamp=timestamp(wall_s), frame_id="laser", pose=planar_pose(0.0, 0.0, 0.0),
         start_angle=first_rad, end_angle=last_rad, ranges=ranges_m, intensities=intensities or [],
     )
+
+
+#: the channel of :func:`scanner_info` (schema ``vipsm.ScannerInfo``, :data:`app.logschemas.SCANNER_INFO`)
+SCANNER_TOPIC = "/vipsm/scanner"
+
+
+def scanner_info(scan: Scan, range_limits_m: tuple[float, float] | None,
+                 scan_time_s: float | None = None) -> dict[str, Any]:
+    """The ``/vipsm/scanner`` record of the scanner that took ``scan``: beams and bearings from the scan,
+    ``time_increment_s`` its ``beam_dt_s`` (signed), ``scan_time_s`` as given (a ROS bag's own ``scan_time``) or
+    else one turn of the mirror (``beam_dt_s`` times the beams a full turn holds: 25 ms from the UTM-30LX's
+    PP), ``range_min_m``/``range_max_m`` from ``range_limits_m`` (the PP reply's DMIN/DMAX, a bag's
+    limits); what the data does not state is 0 (times) or null (limits), never a model's constant."""
+    b = scan.bearings_rad
+    n = int(b.size)
+    step = float(b[1] - b[0]) if n > 1 else 0.0
+    dt = float(scan.beam_dt_s)  # negative: beam 0 taken last (a clockwise scanner, reversed by bagread)
+    dt = dt if math.isfinite(dt) else 0.0
+    period = scan_period_s(dt, step) if scan_time_s is None else float(scan_time_s)
+    lo, hi = range_limits_m if range_limits_m is not None else (None, None)
+    return {"beams": n, "angle_min_rad": float(b[0]) if n else 0.0, "angle_max_rad": float(b[-1]) if n else 0.0,
+            "angle_increment_rad": step, "time_increment_s": dt,
+            "scan_time_s": period if math.isfinite(period) and period > 0.0 else 0.0,
+            "range_min_m": _finite_or_none(lo), "range_max_m": _finite_or_none(hi)}
+
+
+def _finite_or_none(v: float | None) -> float | None:
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+class ScannerInfoLog:
+    """Writes ``/vipsm/scanner`` before a scan whose scanner differs from the one last written (the first
+    scan, a reconnect to another scanner or window): counts and limits exactly, times and angles beyond
+    ``rel_tol`` (so a bag whose ``scan_time`` is measured per scan, jittering by microseconds, does not
+    write one record per scan). A record the log refused (queue full) is tried again with the next scan."""
+
+    def __init__(self, rel_tol: float = 1e-3) -> None:
+        self.rel_tol = rel_tol
+        self._written: dict[str, Any] | None = None
+
+    def changed(self, info: dict[str, Any]) -> bool:
+        last = self._written
+        if last is None or last.keys() != info.keys():
+            return True
+        for k, v in info.items():
+            w = last[k]
+            if isinstance(v, float) and isinstance(w, float):
+                if not math.isclose(v, w, rel_tol=self.rel_tol, abs_tol=1e-9):
+                    return True
+            elif v != w:
+                return True
+        return False
+
+    def before_scan(self, log: typing.Callable[[str, float, Any], bool | None], wall_s: float,
+                    info: dict[str, Any]) -> None:
+        """``log(topic, wall_s, payload)`` (False: refused) is called when ``info`` is new."""
+        if self.changed(info) and log(SCANNER_TOPIC, wall_s, info) is not False:
+            self._written = info
 
 
 def pose_in_frame(x_m: float, y_m: float, theta_rad: float, wall_s: float, frame_id: str = "odom") -> PoseInFrame:

@@ -1,5 +1,5 @@
 """JSON schemas of the field log's own channels (``/vipsm/cycle``, ``/vipsm/config``,
-``/diagnostics``, ``/truth``): every field named, typed and required, no other field allowed, so a
+``/vipsm/scanner``, ``/diagnostics``, ``/truth``): every field named, typed and required, no other field allowed, so a
 reader (Foxglove, ``replay``, a user's script) can rely on them and a test can check every message.
 The ``/vipsm/config`` schema is derived from the configuration dataclasses, so it cannot drift."""
 
@@ -59,6 +59,17 @@ CYCLE = obj(
     odometry=obj(x_m=NUMBER, y_m=NUMBER, theta_rad=NUMBER, v_mps=NUMBER, w_radps=NUMBER, stamp_s=NUMBER),
     frame={"oneOf": [{"type": "null"}, _FRAME]},
     estimate=_ESTIMATE,
+)
+
+SCANNER_INFO = obj(
+    "the laser scanner's geometry, timing and range limits as its data states them (the UTM-30LX's PP reply, a "
+    "ROS bag's LaserScan fields), for the /scan messages that follow: written before the first scan and again "
+    "whenever a value changes. beams and angle_*_rad describe those scans (bearing of beam i = angle_min_rad + "
+    "i * angle_increment_rad); time_increment_s is the time from beam i to beam i + 1 (negative: taken in "
+    "descending order) and scan_time_s the time between scans (one turn of the mirror), 0 where the data does "
+    "not say; range_min_m / range_max_m are the limits of a valid reading, null where the data does not say",
+    beams=INTEGER, angle_min_rad=NUMBER, angle_max_rad=NUMBER, angle_increment_rad=NUMBER,
+    time_increment_s=NUMBER, scan_time_s=NUMBER, range_min_m=NUMBER_OR_NULL, range_max_m=NUMBER_OR_NULL,
 )
 
 

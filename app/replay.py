@@ -410,6 +410,7 @@ class BagFieldLog:
         self._life_s = 0.3
         self.cycle = 0
         self._last_frame_seq = -1
+        self._scanner_info = lm.ScannerInfoLog()
         self._put("/vipsm/config", 0.0, {"log_version": lm.LOG_VERSION, **dataclasses.asdict(config)})
 
     def _pending(self) -> int:
@@ -435,6 +436,10 @@ class BagFieldLog:
         lm, w = self._lm, bc.scan.stamp_s
         self.cycle += 1
         sample = ScanSample(bc.scan)
+        si = bc.sensor
+        info = lm.scanner_info(bc.scan, None if si is None else (si.range_min_m, si.range_max_m),
+                               None if si is None else si.scan_period_s)
+        self._scanner_info.before_scan(self._put, w, info)
         self._put("/scan", w, lambda: scan_message(sample, w))
         od = bc.odometry
         if bc.odometry_given:

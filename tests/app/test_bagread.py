@@ -212,6 +212,8 @@ def test_round_trip_sim_export_rosbag2_replay(tmp_path: Path) -> None:
     s = json.loads(run.stdout)
     assert s["cycles"] > 10 and s["bag"]["odometry_messages"] > 0
     assert s["bag"]["sensor"]["beams"] == 1081 and s["bag"]["sensor"]["scan_period_s"] == pytest.approx(0.025)
+    # the fake UTM-30LX's PP reply (DMIN 23 mm, DMAX 60000 mm), carried by the log's /vipsm/scanner
+    assert (s["bag"]["sensor"]["range_min_m"], s["bag"]["sensor"]["range_max_m"]) == pytest.approx((0.023, 60.0))
 
 
 def test_compressed_image_with_camera_info(tmp_path: Path) -> None:

@@ -304,7 +304,7 @@ def test_sim_log_conforms_to_the_official_and_its_own_schemas(sim_run: tuple[dic
             checked[schema.name] += 1
     assert {"foxglove.LaserScan", "foxglove.PoseInFrame", "foxglove.FrameTransforms", "foxglove.CompressedImage",
             "foxglove.SceneUpdate", "vipsm.Cycle", "vipsm.LoopDiagnostics", "vipsm.GroundTruth",
-            "vipsm.Config"} <= set(checked)
+            "vipsm.Config", "vipsm.ScannerInfo"} <= set(checked)
 
 
 def test_sim_transforms_chain_odom_to_the_sensors_and_the_world(sim_run: tuple[dict, Path]) -> None:

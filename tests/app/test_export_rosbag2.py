@@ -223,3 +223,278 @@ def test_a_running_exports_partial_folder_is_not_removed(tmp_path: Path) -> None
         with partial_folder(out):
             assert mine.exists()
     assert not mine.parent.exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# the scanner's own limits and timing (/vipsm/scanner), never the UTM-30LX's
+
+#: a URG-04LX-class scanner: 682 beams of 360/1024 deg from -120 deg, 10 Hz, 0.02-5.6 m
+URG = {"beams": 682, "angle_min_rad": -math.radians(120.0), "angle_increment_rad": 2 * math.pi / 1024,
+       "time_increment_s": 0.1 / 1024, "scan_time_s": 0.1, "range_min_m": 0.02, "range_max_m": 5.6}
+URG["angle_max_rad"] = URG["angle_min_rad"] + URG["angle_increment_rad"] * (URG["beams"] - 1)
+
+
+def scanner_log(path: Path, records: list[tuple[int, dict[str, Any]]]) -> None:
+    """N scans of 5 beams from -1 to +1 rad; ``records`` [(before scan k, /vipsm/scanner record)]."""
+    w = LogWriter(path)
+    for k in range(N):
+        t = T0 + 0.1 * k
+        for at, rec in records:
+            if at == k:
+                w.add("/vipsm/scanner", t, rec, "vipsm.ScannerInfo")
+        w.add("/scan", t, lm.laser_scan([1.0, math.inf, -math.inf, math.nan, 2.0], -1.0, 1.0, None, t))
+    w.finish()
+
+
+def five_beams(**changes: Any) -> dict[str, Any]:
+    rec = {"beams": 5, "angle_min_rad": -1.0, "angle_max_rad": 1.0, "angle_increment_rad": 0.5,
+           "time_increment_s": 0.1 / 1024, "scan_time_s": 0.1, "range_min_m": 0.02, "range_max_m": 5.6}
+    return {**rec, **changes}
+
+
+def test_scan_limits_and_timing_are_the_scanners_and_follow_a_change(tmp_path: Path) -> None:
+    """A 5.6 m, 10 Hz scanner's scans carry its values (not the UTM-30LX's 60 m and 25 ms); after a new
+    record (another scanner on reconnect) the scans carry the new ones; unknown limits export as 0 / +inf."""
+    log, out = tmp_path / "log.mcap", tmp_path / "bag"
+    later = five_beams(time_increment_s=0.025 / 1440, scan_time_s=0.025, range_min_m=None, range_max_m=None)
+    scanner_log(log, [(0, five_beams()), (12, later)])
+    result = export_rosbag2(log, out)
+    assert result.scan_info == {"recorded": N} and result.warnings == []
+    assert result.not_exported["/vipsm/scanner"] == 2
+    _, msgs = bag_messages(out)
+    scans = msgs["/scan"]
+    for k, m in enumerate(scans):
+        assert (m.angle_min, m.angle_max, m.angle_increment) == pytest.approx((-1.0, 1.0, 0.5))
+        if k < 12:
+            assert (m.range_min, m.range_max) == pytest.approx((0.02, 5.6))
+            assert (m.time_increment, m.scan_time) == pytest.approx((0.1 / 1024, 0.1))
+        else:
+            assert m.range_min == 0.0 and m.range_max == math.inf
+            assert (m.time_increment, m.scan_time) == pytest.approx((0.025 / 1440, 0.025))
+
+
+def test_an_old_log_exports_with_the_stated_assumption_and_one_warning(tmp_path: Path) -> None:
+    """A log without /vipsm/scanner (version 2): range 0 to +inf, the beam time of its first cycle with as
+    many beams, the scan time measured from the scans' stamps (0.1 s apart; the beam timing alone would
+    say 0.05 s: a scanner whose bearing step is not its mirror's); said once on stderr and in the
+    summary, exit 0."""
+    def with_beam_timing(w: LogWriter, k: int, t: float) -> None:
+        if k == 0:
+            rec = cycle(0, 0.0)
+            rec["scan"] = {"seq": 0, "stamp_s": t, "beam_dt_s": 0.05 / 1024, "first_bearing_rad": -1.0,
+                           "bearing_step_rad": 2 * math.pi / 1024, "ranges_m": [1.0, None, None, None, 2.0]}
+            w.add("/vipsm/cycle", t + 0.05, rec)
+
+    log, out = tmp_path / "log.mcap", tmp_path / "bag"
+    good_log(log, with_beam_timing)
+    proc = run_export(log, out)
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads(proc.stdout)
+    assert res["scan_info"] == {"recorded": 0, "assumed": N} and len(res["warnings"]) == 1
+    w = res["warnings"][0]
+    assert "range_min 0 and range_max +inf" in w and "/vipsm/cycle" in w and f"median spacing of {N}" in w
+    assert proc.stderr.count("warning") == 1
+    _, msgs = bag_messages(out)
+    for m in msgs["/scan"]:
+        assert m.range_min == 0.0 and m.range_max == math.inf
+        assert m.time_increment == pytest.approx(0.05 / 1024) and m.scan_time == pytest.approx(0.1, rel=1e-6)
+
+
+def test_a_scan_that_does_not_fit_the_record_is_assumed_not_mislabelled(tmp_path: Path) -> None:
+    log, out = tmp_path / "log.mcap", tmp_path / "bag"
+    scanner_log(log, [(0, five_beams(beams=682))])
+    result = export_rosbag2(log, out)
+    assert result.scan_info == {"assumed": N} and len(result.warnings) == 1
+    assert "does not fit" in result.warnings[0]
+    _, msgs = bag_messages(out)
+    # no cycle in this log: no beam time (0, unknown); the scan time measured from the stamps
+    assert all(m.range_max == math.inf and m.time_increment == 0.0 for m in msgs["/scan"])
+    assert all(m.scan_time == pytest.approx(0.1, rel=1e-6) for m in msgs["/scan"])
+
+
+def test_a_malformed_scanner_record_is_counted(tmp_path: Path) -> None:
+    log, out = tmp_path / "log.mcap", tmp_path / "bag"
+    scanner_log(log, [(0, five_beams()), (10, five_beams(scan_time_s="fast"))])
+    result = export_rosbag2(log, out)
+    assert result.read.bad_messages == 1 and "scan_time_s" in result.read.bad[0]
+    # after the bad record the older one no longer holds: those scans are assumed (and said so)
+    assert result.scan_info == {"recorded": 10, "assumed": N - 10} and len(result.warnings) == 1
+    assert "is malformed" in result.warnings[0]
+
+
+def write_urg_bag(path: Path, n: int = 12) -> None:
+    """A ROS 2 bag of a URG-04LX-class scanner (``URG``) standing in a 4 m x 3 m room."""
+    from rosbags.rosbag2 import Writer
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    t = ts.types
+    b = URG["angle_min_rad"] + URG["angle_increment_rad"] * np.arange(URG["beams"])
+    room = np.minimum(2.0 / np.maximum(np.abs(np.cos(b)), 1e-3), 1.5 / np.maximum(np.abs(np.sin(b)), 1e-3))
+    with Writer(path, version=8) as w:
+        c = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+        for i in range(n):
+            t_ns = int(T0 * 1e9) + i * 100_000_000
+            hdr = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](
+                sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id="laser")
+            msg = t["sensor_msgs/msg/LaserScan"](
+                header=hdr, angle_min=URG["angle_min_rad"], angle_max=URG["angle_max_rad"],
+                angle_increment=URG["angle_increment_rad"], time_increment=URG["time_increment_s"],
+                scan_time=URG["scan_time_s"], range_min=URG["range_min_m"], range_max=URG["range_max_m"],
+                ranges=room.astype(np.float32), intensities=np.zeros(0, np.float32))
+            w.write(c, t_ns, ts.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+
+
+def assert_laser_fields(msgs: list[Any], want: dict[str, Any]) -> None:
+    assert msgs
+    for m in msgs:
+        assert len(m.ranges) == want["beams"]
+        got = (m.angle_min, m.angle_max, m.angle_increment, m.time_increment, m.scan_time, m.range_min, m.range_max)
+        keys = ("angle_min_rad", "angle_max_rad", "angle_increment_rad", "time_increment_s", "scan_time_s",
+                "range_min_m", "range_max_m")
+        assert got == pytest.approx(tuple(want[k] for k in keys), rel=1e-6, abs=1e-6)
+
+
+def test_round_trip_of_a_urg04lx_bag_through_replay_log_export_and_replay(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``replay BAG --log`` -> ``export --rosbag2`` -> ``replay``: the exported scans have the source's 5.6 m,
+    10 Hz, 682-beam values, and so does what the second replay reads."""
+    from app.cli import main
+
+    src, log, out = tmp_path / "urg", tmp_path / "urg.mcap", tmp_path / "urg_out"
+    write_urg_bag(src)
+    assert main(["replay", str(src), "--scan", "/scan", "--log", str(log), "--json"]) == 0
+    capsys.readouterr()
+    infos = [m.data for m in lm_read(log) if m.topic == "/vipsm/scanner"]
+    assert len(infos) == 1 and infos[0]["range_max_m"] == pytest.approx(5.6)
+    result = export_rosbag2(log, out)
+    assert result.scan_info == {"recorded": 12} and not result.warnings
+    assert_laser_fields(bag_messages(out)[1]["/scan"], URG)
+    assert main(["replay", str(out), "--scan", "/scan", "--json"]) == 0
+    sensor = json.loads(capsys.readouterr().out)["bag"]["sensor"]
+    assert sensor["beams"] == 682 and sensor["range_max_m"] == pytest.approx(5.6)
+    assert sensor["scan_period_s"] == pytest.approx(0.1) and sensor["range_min_m"] == pytest.approx(0.02)
+
+
+def test_round_trip_of_a_real_768_beam_hokuyo_bag(shared_data: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """A real 7.5 Hz, 768-beam, 0.03-11 m Hokuyo recording (leg_tracker's positive_1.bag): every exported
+    scan carries the bag's own LaserScan fields."""
+    from rosbags.highlevel import AnyReader
+
+    from app.cli import main
+
+    bag = shared_data / "real_people_laser" / "positive_1.bag"
+    log, out = tmp_path / "real.mcap", tmp_path / "real_out"
+    assert main(["replay", str(bag), "--scan", "right_scan", "--max-scans", "10", "--log", str(log), "--json"]) == 0
+    capsys.readouterr()
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS1_NOETIC)) as r:
+        conn = [c for c in r.connections if c.topic == "right_scan"]
+        first = r.deserialize(next(r.messages(connections=conn))[2], conn[0].msgtype)
+    want = {"beams": len(first.ranges), "angle_min_rad": first.angle_min,
+            "angle_increment_rad": first.angle_increment, "time_increment_s": first.time_increment,
+            "scan_time_s": first.scan_time, "range_min_m": first.range_min, "range_max_m": first.range_max}
+    want["angle_max_rad"] = first.angle_min + first.angle_increment * (want["beams"] - 1)
+    assert want["beams"] == 768 and want["scan_time_s"] == pytest.approx(1 / 7.5) and want["range_max_m"] == 11.0
+    result = export_rosbag2(log, out)
+    assert result.scan_info == {"recorded": 10}
+    assert_laser_fields(bag_messages(out)[1]["/scan"], want)
+
+
+def lm_read(path: Path) -> list[Any]:
+    from app.logread import read_log
+
+    return list(read_log(path))
+
+
+class _SwitchingScanner:
+    """A scanner port on the simulated clock: a URG-04LX-class scanner (``URG``, its PP limits on every
+    sample, as :class:`app.devices.ScannerAdapter` gives them) for the first ``switch_at`` scans, then,
+    as after a reconnect to another device, a UTM-30LX (1081 beams, 25 ms, 0.023-60 m)."""
+
+    def __init__(self, clock: Any, switch_at: int) -> None:
+        self.clock, self.switch_at, self.seq = clock, switch_at, 0
+        self.next_s = clock.now_s + URG["scan_time_s"]
+
+    def _geometry(self) -> tuple[np.ndarray, float, tuple[float, float], float]:
+        if self.seq < self.switch_at:
+            b = URG["angle_min_rad"] + URG["angle_increment_rad"] * np.arange(URG["beams"])
+            return b, URG["time_increment_s"], (URG["range_min_m"], URG["range_max_m"]), URG["scan_time_s"]
+        return -0.75 * math.pi + 2 * math.pi / 1440 * np.arange(1081), 0.025 / 1440, (0.023, 60.0), 0.025
+
+    def state(self) -> str:
+        return "ok"
+
+    def wait_scan(self, timeout_s: float) -> bool:
+        self.clock.now_s = max(self.clock.now_s, min(self.next_s, self.clock.now_s + timeout_s))
+        return self.next_s <= self.clock.now_s
+
+    def poll(self) -> list[Any]:
+        from app.daemon import ScanSample
+        from vipsm.types import Scan
+
+        out = []
+        while self.next_s <= self.clock.now_s:
+            b, dt, limits, period = self._geometry()
+            ranges = np.minimum(2.0 / np.maximum(np.abs(np.cos(b)), 1e-3), 1.5 / np.maximum(np.abs(np.sin(b)), 1e-3))
+            out.append(ScanSample(Scan(ranges, b, self.next_s, self.seq, dt), range_limits_m=limits))
+            self.seq += 1
+            self.next_s += period
+        return out
+
+    def counters(self) -> dict[str, int]:
+        return {}
+
+    def close(self) -> None:
+        pass
+
+
+class _LiveViewStub:
+    """What the control loop uses of :class:`app.liveview.LiveView`: its latched messages are kept."""
+
+    state = "ok"
+
+    def __init__(self) -> None:
+        self.latched: dict[str, Any] = {}
+        self.on_event: Any = None
+
+    def latch(self, topic: str, t_wall_s: float, payload: Any) -> None:
+        self.latched[topic] = payload
+
+    def stop(self, timeout_s: float = 1.5) -> None:
+        pass
+
+
+def test_the_daemon_logs_its_scanners_own_values_and_a_changed_scanner(tmp_path: Path) -> None:
+    """The control loop writes /vipsm/scanner from the driver's samples (PP limits, beam timing) before the
+    first scan and again when another scanner answers; the export gives each scan its own scanner's values."""
+    import threading
+
+    from app.daemon import ControlLoop
+    from app.fieldlog import FieldLog
+    from tests.app.loop_fakes import FakeBase, SimClock
+    from vipsm.estimator import Estimator
+
+    clock = SimClock()
+    base = Config()
+    config = dataclasses.replace(base, loop=dataclasses.replace(base.loop, trigger="scan", period_s=0.1),
+                                 status=dataclasses.replace(base.status, enabled=False))
+    log = FieldLog(str(tmp_path / "run.mcap"), fsync=False).start()
+    scanner, live = _SwitchingScanner(clock, switch_at=8), _LiveViewStub()
+    loop = ControlLoop(config, scanner=scanner, base=FakeBase(clock), camera=None, live_view=live,
+                       estimator=Estimator(plain_psm=True), field_log=log, clock=clock, wall_clock=lambda: 1.7e9)
+    loop.run(threading.Event(), duration_s=1.2)
+    log.close()
+    assert log.stats.dropped == 0 and log.stats.bad_messages == 0
+    infos = [m.data for m in lm_read(Path(log.path)) if m.topic == "/vipsm/scanner"]
+    assert [i["beams"] for i in infos] == [682, 1081]
+    assert live.latched["/vipsm/scanner"] == infos[-1]  # a viewer connecting later gets the scanner in force
+    result = export_rosbag2(log.path, tmp_path / "bag")
+    assert result.scan_info["assumed"] == 0 and not result.warnings
+    scans = bag_messages(tmp_path / "bag")[1]["/scan"]
+    urg = [m for m in scans if len(m.ranges) == 682]
+    utm = [m for m in scans if len(m.ranges) == 1081]
+    assert len(urg) == 8 and len(utm) >= 4 and len(urg) + len(utm) == len(scans)
+    assert_laser_fields(urg, URG)
+    for m in utm:
+        assert (m.range_min, m.range_max, m.scan_time) == pytest.approx((0.023, 60.0, 0.025))
+        assert m.time_increment == pytest.approx(0.025 / 1440)

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import foxglove
+import numpy as np
 import pytest
 from foxglove.messages import LaserScan
 from mcap.reader import make_reader
@@ -244,3 +245,58 @@ def test_close_on_a_full_disk_does_not_raise(tmp_path: Path, monkeypatch: pytest
     result = LogReadResult()
     list(read_log(log.path, result))
     assert result.truncated  # the file ends where the disk filled up, and says so when read
+
+
+def test_scanner_info_is_the_scans_own_and_written_only_on_a_change() -> None:
+    """/vipsm/scanner: the scan's beams, bearings and beam timing (one turn of the mirror from them), the
+    given limits; written before the first scan, not again for microsecond jitter, again for a new scanner,
+    and tried again when the log refused it."""
+    from vipsm.types import Scan
+
+    step = 2 * math.pi / 1024
+    scan = Scan(np.ones(682), -math.radians(120) + step * np.arange(682), 0.0, 0, 0.1 / 1024)
+    info = lm.scanner_info(scan, (0.02, 5.6))
+    assert info["beams"] == 682 and info["angle_increment_rad"] == pytest.approx(step)
+    assert info["scan_time_s"] == pytest.approx(0.1) and info["time_increment_s"] == pytest.approx(0.1 / 1024)
+    assert (info["range_min_m"], info["range_max_m"]) == (0.02, 5.6)
+    unknown = lm.scanner_info(Scan(np.ones(3), np.array([0.0, 0.1, 0.2]), 0.0), (0.0, math.inf))
+    assert unknown["scan_time_s"] == 0.0 and unknown["range_max_m"] is None  # JSON has no +inf
+    written: list[dict] = []
+    accept = [False, True, True, True]
+
+    def log(topic: str, wall_s: float, payload: dict) -> bool:
+        assert topic == "/vipsm/scanner"
+        ok = accept.pop(0)
+        if ok:
+            written.append(payload)
+        return ok
+
+    w = lm.ScannerInfoLog()
+    w.before_scan(log, 0.0, info)  # refused (queue full): tried again with the next scan
+    w.before_scan(log, 0.1, info)
+    w.before_scan(log, 0.2, {**info, "scan_time_s": 0.1 * (1 + 1e-5)})  # jitter: not a new scanner
+    w.before_scan(log, 0.3, {**info, "range_max_m": 30.0})
+    assert written == [info, {**info, "range_max_m": 30.0}] and accept == [True]
+
+
+def test_every_rotated_file_begins_with_the_newest_config_and_scanner(tmp_path: Path) -> None:
+    """A file after rotation can be read alone: it holds the run's /vipsm/config and the /vipsm/scanner in
+    force (the newest, not the first), before its first scan. Driven step by step (no writer thread), so
+    where each file ends does not depend on timing."""
+    log = FieldLog(str(tmp_path / "rot.mcap"), rotate_bytes=1, fsync=False)
+    log._open_file()  # noqa: SLF001 - the writer thread's steps, one by one
+    log._write("/vipsm/config", 1.0, {"log_version": 3})  # noqa: SLF001
+    for k in range(3):
+        log._write("/vipsm/scanner", 1.0 + k, {"beams": 5, "scan_time_s": 0.1 * (k + 1)})  # noqa: SLF001
+        log._write("/scan", 1.0 + k, lm.laser_scan([1.0] * 5, -1.0, 1.0, None, 1.0 + k))  # noqa: SLF001
+        log._flush()  # noqa: SLF001
+        log._rotate_if_due()  # noqa: SLF001 - rotate_bytes=1: a new file after every step
+    log._finish_file()  # noqa: SLF001
+    assert len(log.stats.files) == 4 and log.stats.written == 7 and log.stats.rewritten == 6
+    for k, path in enumerate(log.stats.files):
+        msgs = list(read_log(path))
+        assert [m.topic for m in msgs] == (["/vipsm/config"] if k == 0 else ["/vipsm/config", "/vipsm/scanner"]) + \
+            (["/vipsm/scanner", "/scan"] if k < 3 else []), path
+        if k:  # the newest scanner record, at the time of the last message before the file
+            assert msgs[1].data["scan_time_s"] == pytest.approx(0.1 * k)
+            assert msgs[0].log_time_ns == msgs[1].log_time_ns == lm.stamp_ns(float(k))

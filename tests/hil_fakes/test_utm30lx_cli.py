@@ -6,9 +6,10 @@ import json
 import os
 import select
 import signal
+import socket
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -113,3 +114,101 @@ def test_fake_with_a_paper_scenario_world() -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(5)
+
+
+# ---------------------------------------------------------------------------------------------
+# readiness: READY=1 to systemd, then the addresses on stdout, only once every endpoint listens
+
+
+@pytest.fixture
+def notify_socket(tmp_path: Path) -> Iterator[socket.socket]:
+    """A datagram socket standing in for systemd's $NOTIFY_SOCKET."""
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    sock.bind(str(tmp_path / "notify"))
+    sock.setblocking(False)
+    yield sock
+    sock.close()
+
+
+def _notifications(sock: socket.socket) -> list[str]:
+    """The datagrams already delivered (sd_notify's sendto queues them at once; nothing is waited for)."""
+    out = []
+    while True:
+        try:
+            out.append(sock.recv(4096).decode())
+        except BlockingIOError:
+            return out
+
+
+def _start_notifying_fake(notify: socket.socket, *args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "app", "fake", "scanner", *args], cwd=REPO, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "NOTIFY_SOCKET": notify.getsockname()},
+    )
+
+
+def _reply(send: Callable[[bytes], None], recv: Callable[[], bytes]) -> bytes:
+    """VV sent once, its reply read to the empty line that ends it (reads time out: no retry, no sleep)."""
+    send(b"VV\n")
+    data = b""
+    while b"\n\n" not in data:
+        chunk = recv()
+        assert chunk, f"the fake closed or went silent after {data!r}"
+        data += chunk
+    return data
+
+
+def test_ready_is_notified_then_printed_once_every_endpoint_listens(
+        tmp_path: Path, notify_socket: socket.socket) -> None:
+    """The moment the addresses are printed, READY=1 has been sent, and both endpoints take a client at the
+    first attempt: a client that waits for either never connects before the fake listens."""
+    link = tmp_path / "hokuyo"
+    proc = _start_notifying_fake(notify_socket, "--pty", "--link", str(link), "--tcp", "127.0.0.1:0")
+    try:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline().strip(), proc.stdout.readline().strip()]  # '' if the fake died
+        assert lines[0] == str(link) and lines[1].startswith("socket://127.0.0.1:"), proc.stderr
+        (ready,) = _notifications(notify_socket)
+        assert ready.splitlines() == ["READY=1", f"STATUS=serving {lines[0]} {lines[1]}"]
+        port = int(lines[1].rsplit(":", 1)[1])
+        assert port != 0
+        with socket.create_connection(("127.0.0.1", port), timeout=10.0) as conn:
+            assert _reply(conn.sendall, lambda: conn.recv(4096)).startswith(b"VV\n00P\n")
+        fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
+        try:
+            def read_pty() -> bytes:
+                ready_fds, _, _ = select.select([fd], [], [], 10.0)
+                return os.read(fd, 4096) if ready_fds else b""
+            assert _reply(lambda b: os.write(fd, b) and None, read_pty).startswith(b"VV\n00P\n")
+        finally:
+            os.close(fd)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(10) == 0
+        assert _notifications(notify_socket) == ["STOPPING=1"] and not link.exists()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+
+
+def test_an_endpoint_that_cannot_listen_gives_no_readiness(tmp_path: Path, notify_socket: socket.socket) -> None:
+    """The TCP port is taken: the pty already up is closed again, nothing printed, no READY=1, exit 2."""
+    taken = socket.create_server(("127.0.0.1", 0))
+    link = tmp_path / "hokuyo"
+    try:
+        port = taken.getsockname()[1]
+        proc = _start_notifying_fake(notify_socket, "--pty", "--link", str(link), "--tcp", f"127.0.0.1:{port}")
+        out, err = proc.communicate(timeout=60)
+    finally:
+        taken.close()
+    assert proc.returncode == 2 and out == ""
+    assert "cannot listen" in err and len(err.strip().splitlines()) == 1
+    assert _notifications(notify_socket) == ["STOPPING=1"] and not link.exists()
+
+
+def test_help_documents_the_readiness_handshake() -> None:
+    result = _run_cli("fake", "scanner", "--help")
+    assert result.returncode == 0
+    for words in ("READY=1", "NOTIFY_SOCKET", "port 0 picks a free", "prints one line per endpoint"):
+        assert words in " ".join(result.stdout.split()), words
