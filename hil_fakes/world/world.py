@@ -268,8 +268,8 @@ class World:
             refl = np.where(src >= 0, np.take_along_axis(refl_s, pick, axis=1)[:, 0], 0.4)
         else:
             dist0, hit_ob, refl = dist[:, 0], owner[:, 0], refl_s[:, 0]
-        sigma = np.where(dist0 <= lm.near_limit_m, lm.sigma_near_m, lm.sigma_far_m)
         finite = np.isfinite(dist0)
+        sigma = lm.sigma_m(np.where(finite, dist0, 0.0))
         ranges = np.where(finite, dist0 + sigma * noise, np.nan)
         bad = ~finite | (ranges > lm.max_range_m) | (ranges < lm.dmin_m)
         ranges[bad] = np.nan
