@@ -1,7 +1,7 @@
 """What a real UTM-30LX does that an ideal ray caster does not: mixed pixels, dropouts, spurious returns.
 
-Sources: Hokuyo UTM-30LX datasheet (accuracy +-30 mm over 0.1-10 m: sigma 10 mm, in
-:class:`~hil_fakes.world.sensors.LaserModel`); Ye & Borenstein, "Characterization of a 2-D laser
+Sources: the range noise is in :class:`~hil_fakes.world.sensors.LaserModel` (measured on a recorded
+UTM-30LX frame, within the datasheet's +-30 mm over 0.1-10 m); Ye & Borenstein, "Characterization of a 2-D laser
 scanner for mobile robot obstacle negotiation" (ICRA 2002) and Tang et al. / Kneip et al. on the
 "mixed pixel" (veiling) effect of pulsed time-of-flight scanners; the UTM-30LX's error codes for
 no echo (fact sheet, SCIP section on error values).
