@@ -101,11 +101,16 @@ def real_dir(shared_data: Path) -> Path:
     return path
 
 
-def test_the_real_held_out_figures_the_bounds_come_from(model, real_dir: Path) -> None:
+def test_against_the_real_held_out_figures_measured_now(model, real_dir: Path, sim_walkers, sim_furniture) -> None:
+    """The same bounds from the real held-out sets scored by the model shipped now (a retrained model
+    moves them: the constants above must then be measured again)."""
     _, legs = lr.range_share(lr.real_legs(real_dir), model, 1.0, 4.0)
     _, nonlegs = lr.range_share(lr.real_nonlegs(real_dir), model, 1.0, 4.0)
-    assert legs == pytest.approx(REAL_LEG_SHARE, abs=0.01)
-    assert nonlegs == pytest.approx(REAL_NONLEG_SHARE, abs=0.01)
+    assert legs is not None and nonlegs is not None
+    assert lr.range_share(sim_walkers, model, 1.0, 4.0)[1] >= legs - MARGIN
+    assert lr.range_share(sim_furniture, model, 1.0, 4.0, ("chair", "table"))[1] <= nonlegs
+    stale = f"REAL_LEG_SHARE / REAL_NONLEG_SHARE are stale: measured now {legs:.2f} / {nonlegs:.2f}"
+    assert abs(legs - REAL_LEG_SHARE) < 0.05 and abs(nonlegs - REAL_NONLEG_SHARE) < 0.05, stale
 
 
 def test_the_simulated_range_noise_is_the_measured_utm30lx_noise(shared_data: Path) -> None:
