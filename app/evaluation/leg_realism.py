@@ -1,7 +1,7 @@
 """The simulated world's legs against the leg detector learned from real scans (issue 29).
 
-    PYTHONPATH=. python -m app.evaluation.leg_realism [--data-dir DIR] [--geometry utm30lx|leg_tracker|both]
-                                                      [--step S] [--json]
+    PYTHONPATH=. python -m app.evaluation.leg_realism [--data-dir DIR | --no-real] [--step S] [--json]
+                                                      [--geometry utm30lx|leg_tracker|both]
 
 The same leg-candidate segments the estimator and ``tools/train_legs.py`` take (pre-filtered, segmented,
 at most ``LegConfig.max_width_m`` wide, at least 3 returns) are scored by the shipped model
