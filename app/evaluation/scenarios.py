@@ -46,6 +46,8 @@ ROBUSTNESS_SUITE: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("s1_two_obstacles", "1", {"obstacles": 2}),
     ("s2_odom_noise3", "2", {"odom_noise": 3.0}),
     ("s1_odom_noise3", "1", {"odom_noise": 3.0}),
+    ("s2_laser_noise3", "2", {"laser_noise_scale": 3.0}),
+    ("s1_laser_noise3", "1", {"laser_noise_scale": 3.0}),
 )
 
 

@@ -38,6 +38,9 @@ class LaserEffects:
     grazing_limit_deg: float = 78.0
     dropout_prob: float = 0.001
     spurious_prob: float = 2e-4
+    #: the range noise (:class:`~hil_fakes.world.sensors.LaserModel`) times this: 1 the measured sensor,
+    #: about 3 the datasheet's accuracy bound read as 3 sigma of random noise (a pessimistic world)
+    noise_scale: float = 1.0
 
     def __post_init__(self) -> None:
         if self.footprint_rays < 1 or self.footprint_rays % 2 == 0:
@@ -45,6 +48,8 @@ class LaserEffects:
         for name in ("mixed_prob", "dropout_prob", "spurious_prob"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"LaserEffects.{name} must be a probability")
+        if not (math.isfinite(self.noise_scale) and self.noise_scale >= 0.0):
+            raise ValueError(f"LaserEffects.noise_scale must be >= 0, got {self.noise_scale}")
 
     def offsets_rad(self) -> np.ndarray:
         """Angular offsets of the sub-rays from the beam's axis (one ray only when disabled)."""

@@ -269,7 +269,7 @@ class World:
         else:
             dist0, hit_ob, refl = dist[:, 0], owner[:, 0], refl_s[:, 0]
         finite = np.isfinite(dist0)
-        sigma = lm.sigma_m(np.where(finite, dist0, 0.0))
+        sigma = lm.sigma_m(np.where(finite, dist0, 0.0)) * self.scenario.laser_effects.noise_scale
         ranges = np.where(finite, dist0 + sigma * noise, np.nan)
         bad = ~finite | (ranges > lm.max_range_m) | (ranges < lm.dmin_m)
         ranges[bad] = np.nan

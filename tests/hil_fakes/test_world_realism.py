@@ -15,7 +15,7 @@ from hil_fakes.world.camera_effects import CameraEffects, distortion_maps
 from hil_fakes.world.geometry import Gait
 from hil_fakes.world.laser_effects import LaserEffects
 from hil_fakes.world.people import leg_centres
-from hil_fakes.world.scenarios import REALISTIC_SUITE, ScenarioError, suite_scenario
+from hil_fakes.world.scenarios import REALISTIC_SUITE, ScenarioError, suite_scenario, validate_params
 
 
 def _static(obstacles: tuple[ObstaclePath, ...] = (), **params: object) -> object:
@@ -108,6 +108,23 @@ def test_range_noise_grows_with_range_to_the_datasheet_bound() -> None:
     assert float(lm.sigma_m(np.array(12.0))) == lm.sigma_far_m
     with pytest.raises(ValueError, match="range noise"):
         LaserModel(sigma_per_range=-0.001)
+
+
+def test_the_noise_scale_multiplies_the_range_noise() -> None:
+    """``laser_noise_scale`` (a pessimistic world: 3 is the datasheet's bound read as 3 sigma) scales the
+    scan-to-scan spread of a static scene, nothing else."""
+    fx = LaserEffects(mixed_prob=0.0, dropout_prob=0.0, spurious_prob=0.0)
+    spreads = []
+    for scale in (1.0, 3.0):
+        world = World(replace(_static(), laser_effects=replace(fx, noise_scale=scale)))
+        sweeps = np.array([world.sweep(0.5 * k).ranges_m for k in range(30)])
+        ok = np.isfinite(sweeps).all(axis=0)
+        spreads.append(float(np.median(np.std(sweeps[:, ok], axis=0))))
+    assert 2.6 < spreads[1] / spreads[0] < 3.4
+    with pytest.raises(ValueError, match="noise_scale"):
+        LaserEffects(noise_scale=-1.0)
+    with pytest.raises(ScenarioError, match="laser_noise_scale"):
+        validate_params({"laser_noise_scale": 11.0})
 
 
 def test_dropouts_and_spurious_returns_have_the_configured_rates() -> None:
