@@ -138,3 +138,4 @@ class Imm:
         if total > 0.0 and math.isfinite(total):
             self.probs = np.clip(post / total, 1e-6, 1.0 - 1e-6)
             self.probs /= self.probs.sum()
+
