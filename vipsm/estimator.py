@@ -239,7 +239,7 @@ class Estimator:
         if self._people is not None:
             legs = _with_evidence(detect_legs(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
                                               self.config.people, self.config.bodies, dropped), bodies)
-            self._people.step(scan.stamp_s, legs, _visibility(scan, laser))
+            self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -488,6 +488,22 @@ def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
         return not (np.isfinite(r[k]) and r[k] < math.hypot(dx, dy) - margin_m)
 
     return visible
+
+
+def _seen_through(scan: Scan, laser: Pose2D, margin_m: float = 0.15):
+    """``seen_free(x, y)``: the beam towards that world point returned at least ``margin_m`` beyond it
+    (a leg's width: nothing stands there now)."""
+    b, r = scan.bearings_rad, scan.ranges_m
+
+    def seen_free(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+        if b.size < 2 or not b[0] <= bearing <= b[-1]:
+            return False
+        k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
+        return bool(np.isfinite(r[k]) and r[k] >= math.hypot(dx, dy) + margin_m)
+
+    return seen_free
 
 
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:

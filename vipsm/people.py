@@ -57,6 +57,12 @@ class PeopleConfig:
     leg_step_m: float = 0.1
     #: a leg track unseen this long ends (a walker's leg hidden behind the other for a stride)
     leg_memory_s: float = 0.5
+    #: a leg seen this far from where it was up to ``leg_travel_s`` ago has left its own footprint (a leg's
+    #: width and its centre's drift with the viewpoint; a walker's swing leg moves 0.3-0.6 m in a stride
+    #: of about half a second): motion evidence, like a return where the laser saw free space. Over a
+    #: short time only: a static leg's position drifts with the robot's pose error
+    leg_travel_m: float = 0.2
+    leg_travel_s: float = 1.0
     #: two legs of one person: centres at most this far apart (stride at the laser's height)
     leg_pair_max_m: float = 0.65
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
@@ -75,8 +81,8 @@ class PeopleConfig:
     moving_off: float = 0.4
     #: share of a walker's / a still body's detections with motion evidence (the likelihood of it): a
     #: track that walks by its kinematics but shows none is a static thing whose detections drift
-    evidence_moving: float = 0.5
-    evidence_standing: float = 0.05
+    evidence_moving: float = 0.2
+    evidence_standing: float = 0.02
     #: the probability that a new track is a body that moves (a person), not a static thing
     dynamic_prior: float = 0.5
     #: a track nowhere the scan could see it loses existence with this time constant (a person hidden
@@ -101,7 +107,7 @@ class PeopleConfig:
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
         if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m, self.leg_memory_s,
-               self.leg_max_speed_mps) <= 0.0 or self.max_tracks < 1:
+               self.leg_max_speed_mps, self.leg_travel_m, self.leg_travel_s) <= 0.0 or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
 
 
@@ -130,7 +136,16 @@ class LegTrack:
     seen_s: float
     #: this cycle's detection (None: unseen)
     det: LegDetection | None = None
-    person: int | None = None
+    #: (stamp_s, x_m, y_m) of its detections over the last ``PeopleConfig.leg_travel_s``
+    path: list[tuple[float, float, float]] = field(default_factory=list)
+    #: how far its newest detection lies from the furthest of ``path``, and that point
+    travel_m: float = 0.0
+    left_xy: tuple[float, float] = (0.0, 0.0)
+
+    def seen(self, stamp_s: float, det: LegDetection, window_s: float) -> None:
+        self.x_m, self.y_m, self.seen_s, self.det = det.x_m, det.y_m, stamp_s, det
+        self.path = [p for p in self.path if stamp_s - p[0] <= window_s] + [(stamp_s, det.x_m, det.y_m)]
+        self.travel_m, self.left_xy = max((math.hypot(det.x_m - x, det.y_m - y), (x, y)) for _, x, y in self.path)
 
     def predicted(self, stamp_s: float, cap_s: float) -> tuple[float, float]:
         dt = min(max(stamp_s - self.seen_s, 0.0), cap_s)
@@ -195,14 +210,18 @@ class PeopleTracker:
         self._next_id = FIRST_ID
         self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
+        self._seen_free = None
 
     # ------------------------------------------------------------------ one cycle
-    def step(self, stamp_s: float, detections: list[LegDetection], visible=None) -> None:
+    def step(self, stamp_s: float, detections: list[LegDetection], visible=None, seen_free=None) -> None:
         """Predict every person to ``stamp_s``, track the legs ``detections``, measure each person from
         its legs, start people from free legs, update existence and motion state. ``visible(x, y) ->
         bool`` (optional): whether the scan could have seen a person there (a miss elsewhere, e.g.
-        behind something nearer, is no evidence)."""
+        behind something nearer, is no evidence). ``seen_free(x, y) -> bool`` (optional): the scan saw
+        through that point: a leg that travelled counts as motion evidence only when the place it left
+        is seen empty (a leg track that hopped to a neighbouring table leg left one standing there)."""
         c = self.config
+        self._seen_free = seen_free
         for t in self.tracks:
             dt = stamp_s - t.stamp_s
             t.filt.predict(dt)
@@ -258,11 +277,12 @@ class PeopleTracker:
                 vmax = c.leg_max_speed_mps
                 lt.vx_mps = 0.5 * lt.vx_mps + 0.5 * float(np.clip((d.x_m - lt.x_m) / dt, -vmax, vmax))
                 lt.vy_mps = 0.5 * lt.vy_mps + 0.5 * float(np.clip((d.y_m - lt.y_m) / dt, -vmax, vmax))
-            lt.x_m, lt.y_m, lt.seen_s, lt.det = d.x_m, d.y_m, stamp_s, d
+            lt.seen(stamp_s, d, c.leg_travel_s)
         taken = set(got.values())
         for j, d in enumerate(detections):
             if j not in taken:
-                self.legs[self._next_leg] = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s, d)
+                self.legs[self._next_leg] = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s)
+                self.legs[self._next_leg].seen(stamp_s, d, c.leg_travel_s)
                 self._next_leg += 1
         gone = {k for k, lt in self.legs.items() if stamp_s - lt.seen_s > c.leg_memory_s}
         if len(self.legs) - len(gone) > 2 * c.max_tracks:  # the longest unseen go first
@@ -298,18 +318,29 @@ class PeopleTracker:
 
     def _measurement(self, t: PersonTrack) -> tuple[float, float, float, list[LegTrack]] | None:
         """(x, y, sigma, the legs seen) from the person's legs this cycle; None when none was seen. A
-        partly hidden leg is known only to within a hip's half-width, like a lone one."""
+        hidden leg of the pair is where its track predicts it (a standing leg where it was seen; its
+        noise grows with how far it may have gone since); a person of one leg is that leg, known to a
+        hip's half-width, and so is a partly hidden leg."""
         c = self.config
         legs = [self.legs[k] for k in t.leg_ids]
         seen = [lt for lt in legs if lt.det is not None]
         if not seen:
             return None
         hidden = [lt for lt in legs if lt.det is None]
-        if len(seen) == 2 or (hidden and not t.moving):  # a standing person's hidden leg is where it was seen
-            a, b = seen[0], (seen + hidden)[1]
-            sigma = c.leg_sigma_m if any(lt.det.occluded for lt in seen) else c.pair_sigma_m
-            return 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m), sigma, seen
-        return seen[0].x_m, seen[0].y_m, c.leg_sigma_m, seen
+        if len(seen) == 1 and not hidden:
+            return seen[0].x_m, seen[0].y_m, c.leg_sigma_m, seen
+        a = seen[0]
+        if hidden:
+            h = hidden[0]
+            bx, by = h.predicted(t.stamp_s, c.leg_memory_s)
+            gone = math.hypot(h.vx_mps, h.vy_mps) * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
+            sigma = min(math.hypot(c.pair_sigma_m, 0.5 * gone), c.leg_sigma_m)
+        else:
+            bx, by = seen[1].x_m, seen[1].y_m
+            sigma = c.pair_sigma_m
+        if any(lt.det.occluded for lt in seen):
+            sigma = c.leg_sigma_m
+        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
 
     def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None) -> bool:
         mean, cov = t.filt.mean[:2], t.filt.cov[:2, :2]
@@ -325,7 +356,7 @@ class PeopleTracker:
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # motion evidence: seen on a walker's detections at rate evidence_moving, on anything standing still
         # (a person or furniture) at rate evidence_standing; a static thing never walks
-        ev = any(lt.det.evidence for lt in seen)
+        ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
         pm = t.filt.p_moving
         e_dyn = pm * c.evidence_moving + (1.0 - pm) * c.evidence_standing
         t.p_dynamic = _bayes(t.p_dynamic, e_dyn if ev else 1.0 - e_dyn,
@@ -333,6 +364,13 @@ class PeopleTracker:
         p_leg = max(lt.det.p_leg for lt in seen)
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _travelled(self, lt: LegTrack) -> bool:
+        """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_travel_s``, and that
+        place is seen empty now."""
+        if lt.travel_m < self.config.leg_travel_m or lt.det is None or lt.det.occluded:
+            return False
+        return self._seen_free is None or bool(self._seen_free(*lt.left_xy))
 
     def _release(self, t: PersonTrack) -> None:
         t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]
@@ -407,16 +445,19 @@ class PeopleTracker:
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
                   ) -> tuple[Obstacle, ...]:
-        """The moving ``people`` as moving obstacles, but those within a leg pair's reach (plus its radius)
-        of one of ``others`` (the body tracker's): the same body, reported once. The bearing interval is
-        the person's radius seen from ``laser``; scan indices -1 (a track, not one scan's segment)."""
+        """The moving ``people`` seen this cycle as moving obstacles, but those within a leg pair's reach
+        (plus its radius) of one of ``others`` (the body tracker's): the same body, reported once. A
+        walker no leg of whom was seen may have stopped or turned: it stays in ``people`` while its
+        position is known, but it is no obstacle (the protective field on the raw scan still guards the
+        robot). The bearing interval is the person's radius seen from ``laser``; scan indices -1 (a
+        track, not one scan's segment)."""
         c = self.config
         if not c.report_moving:
             return ()
         out = []
         for p in people:
             near = any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m for o in others)
-            if not p.moving or near:
+            if not p.moving or not p.legs or near:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
