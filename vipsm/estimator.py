@@ -434,8 +434,9 @@ class Estimator:
         margin around where it is now), or on a person who walks (the IMM's walking models more likely
         than standing): a body that moves, or pauses in the candidate test for a cycle, must not write
         itself into the static map (its trail of occupied cells would hide its next steps' evidence)."""
-        live = [(float(t.state[0]), float(t.state[1]), t.radius_m) for t in self._tracker.tracks
-                if (self._tracker.reported(t) or (not t.confirmed and t.evidence >= 1)) and t.missed <= 2]
+        tr = self._tracker
+        live = [(float(t.state[0]), float(t.state[1]), t.radius_m) for t in tr.tracks
+                if (tr.reported(t) or (not t.confirmed and t.evidence >= 1)) and tr.recently_seen(t)]
         if self._people is not None:
             live += [(float(t.filt.mean[0]), float(t.filt.mean[1]), self.config.people.person_radius_m)
                      for t in self._people.tracks if t.filt.p_moving >= 0.5 and t.legs]

@@ -57,12 +57,11 @@ class PeopleConfig:
     leg_step_m: float = 0.1
     #: a leg track unseen this long ends (a walker's leg hidden behind the other for a stride)
     leg_memory_s: float = 0.5
-    #: a leg seen this far from where it was up to ``leg_travel_s`` ago has left its own footprint (a leg's
-    #: width and its centre's drift with the viewpoint; a walker's swing leg moves 0.3-0.6 m in a stride
-    #: of about half a second): motion evidence, like a return where the laser saw free space. Over a
-    #: short time only: a static leg's position drifts with the robot's pose error
+    #: a leg seen this far from where it was within ``leg_memory_s`` has left its own footprint (a leg's
+    #: width and its centre's drift with the viewpoint; a walker's swing leg moves 0.3-0.6 m in a swing
+    #: of about 0.4 s): motion evidence, like a return where the laser saw free space. Over a short time
+    #: only: a static leg's position drifts with the robot's pose error
     leg_travel_m: float = 0.2
-    leg_travel_s: float = 1.0
     #: two legs of one person: centres at most this far apart (stride at the laser's height)
     leg_pair_max_m: float = 0.65
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
@@ -83,8 +82,6 @@ class PeopleConfig:
     #: track that walks by its kinematics but shows none is a static thing whose detections drift
     evidence_moving: float = 0.2
     evidence_standing: float = 0.02
-    #: the probability that a new track is a body that moves (a person), not a static thing
-    dynamic_prior: float = 0.5
     #: a track nowhere the scan could see it loses existence with this time constant (a person hidden
     #: behind another is still there for a few seconds; a false track must not live on out of sight)
     unseen_memory_s: float = 3.0
@@ -101,13 +98,13 @@ class PeopleConfig:
 
     def __post_init__(self) -> None:
         probs = (self.gate_p, self.p_detect, self.p_clutter, self.exist_birth, self.exist_confirm, self.exist_drop,
-                 self.moving_on, self.moving_off, self.evidence_moving, self.evidence_standing, self.dynamic_prior)
+                 self.moving_on, self.moving_off, self.evidence_moving, self.evidence_standing)
         if not all(0.0 < p < 1.0 for p in probs):
             raise ValueError("the people tracker's probabilities must lie in (0, 1)")
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
         if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m, self.leg_memory_s,
-               self.leg_max_speed_mps, self.leg_travel_m, self.leg_travel_s) <= 0.0 or self.max_tracks < 1:
+               self.leg_max_speed_mps, self.leg_travel_m) <= 0.0 or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
 
 
@@ -136,7 +133,7 @@ class LegTrack:
     seen_s: float
     #: this cycle's detection (None: unseen)
     det: LegDetection | None = None
-    #: (stamp_s, x_m, y_m) of its detections over the last ``PeopleConfig.leg_travel_s``
+    #: (stamp_s, x_m, y_m) of its detections over the last ``PeopleConfig.leg_memory_s``
     path: list[tuple[float, float, float]] = field(default_factory=list)
     #: how far its newest detection lies from the furthest of ``path``, and that point
     travel_m: float = 0.0
@@ -162,7 +159,8 @@ class PersonTrack:
     legs: tuple[tuple[float, float], ...] = ()
     moving: bool = False
     confirmed: bool = False
-    #: probability that it is a body that moves at all (a person), not a static thing taken for legs
+    #: probability that it is a body that moves at all (a person), not a static thing taken for legs; a new
+    #: track's is even (nothing known)
     p_dynamic: float = 0.5
 
     @property
@@ -277,12 +275,12 @@ class PeopleTracker:
                 vmax = c.leg_max_speed_mps
                 lt.vx_mps = 0.5 * lt.vx_mps + 0.5 * float(np.clip((d.x_m - lt.x_m) / dt, -vmax, vmax))
                 lt.vy_mps = 0.5 * lt.vy_mps + 0.5 * float(np.clip((d.y_m - lt.y_m) / dt, -vmax, vmax))
-            lt.seen(stamp_s, d, c.leg_travel_s)
+            lt.seen(stamp_s, d, c.leg_memory_s)
         taken = set(got.values())
         for j, d in enumerate(detections):
             if j not in taken:
                 self.legs[self._next_leg] = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s)
-                self.legs[self._next_leg].seen(stamp_s, d, c.leg_travel_s)
+                self.legs[self._next_leg].seen(stamp_s, d, c.leg_memory_s)
                 self._next_leg += 1
         gone = {k for k, lt in self.legs.items() if stamp_s - lt.seen_s > c.leg_memory_s}
         if len(self.legs) - len(gone) > 2 * c.max_tracks:  # the longest unseen go first
@@ -366,7 +364,7 @@ class PeopleTracker:
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
 
     def _travelled(self, lt: LegTrack) -> bool:
-        """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_travel_s``, and that
+        """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
         place is seen empty now."""
         if lt.travel_m < self.config.leg_travel_m or lt.det is None or lt.det.occluded:
             return False
@@ -416,7 +414,7 @@ class PeopleTracker:
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
             t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
-                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), p_dynamic=c.dynamic_prior)
+                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g))
             self._next_id += 1
             self.tracks.append(t)
             out.append(t)

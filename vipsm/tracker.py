@@ -4,8 +4,8 @@ Tracks are born from moving-body candidates (:mod:`vipsm.bodies`) and reported o
 **confirmed**: seen in ``confirm_hits`` cycles, with motion evidence (free-space violation or camera)
 in ``confirm_evidence`` of them, and displaced at least ``confirm_displacement_m`` from where it was
 born. Furniture never moves, so a camera flow error or a stray return on it never confirms. A track
-dies after ``max_missed`` cycles without a detection (``tentative_max_missed`` before it is confirmed,
-and unconfirmed at ``tentative_max_age``), or at once when a beam of the current scan passes through
+dies after ``max_missed_s`` without a detection (``tentative_max_missed_s`` before it is confirmed, and
+unconfirmed at ``tentative_max_age_s``), or at once when a beam of the current scan passes through
 where it should be (its space is seen free). At most ``max_tracks`` live at once (the least
 supported are dropped first), so the cost is bounded however cluttered the room.
 
@@ -41,8 +41,8 @@ from numba import njit
 class TrackerConfig:
     #: process noise of each constant-velocity model of the IMM: steady walking, manoeuvring
     accel_sigmas_mps2: tuple[float, ...] = (0.2, 2.0)
-    #: probability per cycle of switching from one model to another (mean stay 2 s at 0.1 s cycles)
-    mode_switch_prob: float = 0.05
+    #: rate of switching from one model to another (0.05 per 0.1 s; a manoeuvre every 2 s or so)
+    mode_switch_per_s: float = 0.5129
     meas_sigma_m: float = 0.03  # position measurement noise
     #: a detection's smaller noise across the direction of motion (``Detection.sigma_across_m``)
     #: applies from this speed on (below it the direction is not known well, and a standing person's
@@ -51,15 +51,15 @@ class TrackerConfig:
     init_speed_sigma_mps: float = 1.0
     #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
     gate_m: float = 0.35
-    max_missed: int = 10  # cycles without a detection before a track is dropped
-    #: ... before an unconfirmed one is dropped (its covariance, and so its gate, grows fast: coasting
-    #: longer it would take a detection a metre away as its own)
-    tentative_max_missed: int = 3
-    #: an unconfirmed track older than this many cycles is dropped: in 1 s the slowest body of interest
-    #: (0.15 m/s) moves 0.15 m, far more than confirmation needs; what has not moved is static, and
-    #: left alive it would grab a neighbour's detection one day and "move"
-    tentative_max_age: int = 10
-    report_missed: int = 2  # tracks coasting for at most this many cycles are still reported
+    max_missed_s: float = 1.0  # a track unseen longer than this is dropped
+    #: ... an unconfirmed one (its covariance, and so its gate, grows fast: coasting longer it would take
+    #: a detection a metre away as its own)
+    tentative_max_missed_s: float = 0.3
+    #: an unconfirmed track this old is dropped: in 1 s the slowest body of interest (0.15 m/s) moves
+    #: 0.15 m, far more than confirmation needs; what has not moved is static, and left alive it would
+    #: grab a neighbour's detection one day and "move"
+    tentative_max_age_s: float = 1.0
+    report_missed_s: float = 0.2  # tracks unseen for at most this long are still reported
     default_radius_m: float = 0.30  # used before any fit gave a radius
     min_radius_m: float = 0.05
     max_radius_m: float = 1.50
@@ -68,7 +68,8 @@ class TrackerConfig:
     merge_m: float = 0.25  # a younger track this close to an older one is dropped
     confirm_hits: int = 3
     confirm_evidence: int = 2
-    #: over the last ``confirm_window`` detections the body moved at least this far ...
+    #: over the last ``confirm_window`` detections (a path needs so many points, however often they come)
+    #: the body moved at least this far ...
     confirm_displacement_m: float = 0.06
     #: ... or this far when every detection of the window (at least 4) showed motion evidence
     confirm_displacement_sustained_m: float = 0.03
@@ -120,22 +121,24 @@ class TrackerConfig:
     #: half still shows the walk)
     report_recent: int = 5
     max_tracks: int = 24
-    #: a track born from motion evidence starts at its body's detections in up to this many earlier
-    #: cycles that no confirmed track holds (chained back nearest first within a walker's step): a slow
+    #: a track born from motion evidence starts at its body's detections of up to this long before that
+    #: no confirmed track holds (chained back nearest first within a walker's step): a slow
     #: body is seen before its motion is (the camera's flow needs frames 0.3 s apart, the free-space grid
     #: a cell's width of motion), and that stretch already shows whether it moves. They are remembered,
     #: not judged: confirmation comes at the earliest with the next cycle's detection.
-    retro_cycles: int = 5
+    retro_s: float = 0.5
 
     def __post_init__(self) -> None:
         if not self.accel_sigmas_mps2 or min(self.accel_sigmas_mps2) <= 0.0:
             raise ValueError(f"accel_sigmas_mps2 needs at least one positive value, got {self.accel_sigmas_mps2}")
-        if not 0.0 <= self.mode_switch_prob < 1.0:
-            raise ValueError(f"mode_switch_prob must be in [0, 1), got {self.mode_switch_prob}")
+        if self.mode_switch_per_s < 0.0:
+            raise ValueError(f"mode_switch_per_s must be >= 0, got {self.mode_switch_per_s}")
         if min(self.report_window, self.report_recent) < 2 or self.confirm_window < 3:
             raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
-        if self.max_tracks < 1 or self.retro_cycles < 0 or self.confirm_vacated_m < 0.0:
-            raise ValueError("need max_tracks >= 1, retro_cycles >= 0 and confirm_vacated_m >= 0")
+        if min(self.max_missed_s, self.tentative_max_missed_s, self.tentative_max_age_s, self.report_missed_s) < 0.0:
+            raise ValueError("the tracker's durations must be >= 0")
+        if self.max_tracks < 1 or self.retro_s < 0.0 or self.confirm_vacated_m < 0.0:
+            raise ValueError("need max_tracks >= 1, retro_s >= 0 and confirm_vacated_m >= 0")
         if self.confirm_onset_rows < 2 or not self.confirm_onset_step_m > 0.0:
             raise ValueError("need confirm_onset_rows >= 2 and confirm_onset_step_m > 0")
         if not self.anisotropic_min_speed_mps > 0.0:  # a standing track has no direction of motion
@@ -272,6 +275,10 @@ def _combine(track: Track) -> None:
     track.cov = np.einsum("i,ikl->kl", mu, track.model_covs + d[:, :, None] * d[:, None, :])
 
 
+#: durations are compared with differences of scan stamps, which carry rounding: this much is equal
+_STAMP_TOL_S = 1e-3
+
+
 #: detection kinds as numbers in a track's history
 _KIND_CODE = {"body": 0.0, "leg": 1.0, "person": 2.0}
 
@@ -322,8 +329,11 @@ class Track:
     radius_known: bool
     stamp_s: float
     hits: int = 1
-    missed: int = 0
+    missed: int = 0  # cycles since its last detection
     age_cycles: int = 1
+    #: stamps of its first (chained) and its last detection
+    born_s: float = 0.0
+    seen_s: float = 0.0
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
     #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``, the
     #: radius of a circle fitted to a partly occluded view, else NaN; the fitted radius, else NaN; the
@@ -354,9 +364,18 @@ class Tracker:
         self.config = config or TrackerConfig()
         self.tracks: list[Track] = []
         self._next_id = 1
-        #: the last ``retro_cycles`` cycles' detections that no confirmed track took and that started no
-        #: track: (stamp_s, [(detection, id of the unconfirmed track that took it or None)])
-        self._past: deque[tuple[float, list[tuple[Detection, int | None]]]] = deque(maxlen=self.config.retro_cycles)
+        #: the detections of the cycles of the last ``retro_s`` that no confirmed track took and that started
+        #: no track: (stamp_s, [(detection, id of the unconfirmed track that took it or None)])
+        self._past: deque[tuple[float, list[tuple[Detection, int | None]]]] = deque()
+
+    @staticmethod
+    def unseen_s(track: Track) -> float:
+        """How long the track has gone without a detection (at its last prediction's stamp)."""
+        return track.stamp_s - track.seen_s
+
+    def recently_seen(self, track: Track) -> bool:
+        """Unseen for at most ``report_missed_s``: a coasting track still reported."""
+        return self.unseen_s(track) <= self.config.report_missed_s + _STAMP_TOL_S
 
     def predict_position(self, track: Track, stamp_s: float) -> tuple[float, float]:
         dt = max(stamp_s - track.stamp_s, 0.0)
@@ -370,7 +389,7 @@ class Tracker:
             return
         xs, ps, mu = track.model_states, track.model_covs, track.model_probs
         n = mu.shape[0]
-        sw = self.config.mode_switch_prob if n > 1 else 0.0
+        sw = 1.0 - math.exp(-self.config.mode_switch_per_s * dt) if n > 1 else 0.0
         trans = np.full((n, n), sw / max(n - 1, 1))
         np.fill_diagonal(trans, 1.0 - sw)
         prior = trans.T @ mu
@@ -482,6 +501,7 @@ class Tracker:
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
+        t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
                           float(not reliable or (det.occluded and not det.radius_fitted and det.kind != "person")),
                           det.radius_m if det.occluded and det.radius_fitted else math.nan,
@@ -584,7 +604,7 @@ class Tracker:
     def reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
         c = self.config
-        if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
+        if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
         rec = np.array(t.recent)
         if not self._steady(rec, rec[:, 3], t.seen_as_person):
@@ -651,7 +671,7 @@ class Tracker:
     def _chain_back(self, stamp_s: float, det: Detection) -> list[tuple[float, Detection]]:
         """The body's detections in the kept earlier cycles, oldest first: from ``det`` back, the
         nearest one within a walker's step of the last found, each taken out of the memory (it starts
-        no other track). Up to ``tentative_max_missed`` cycles without one are passed over (a table leg
+        no other track). Up to ``tentative_max_missed_s`` without one are passed over (a table leg
         unseen for two scans), as a coasting track would, but the reach stays one cycle's step: what
         jumped further in the gap is not known to be the same body. A partly occluded detection ends the
         chain: a body's or a lone leg's centre, placed behind the visible part, follows the occluder's
@@ -680,7 +700,7 @@ class Tracker:
                     near.append((dist, i))
             if not near:
                 missed += 1
-                if blocked or missed > c.tentative_max_missed:
+                if blocked or head_s - past_s > c.tentative_max_missed_s + _STAMP_TOL_S:
                     break
                 continue
             missed = 0
@@ -696,7 +716,7 @@ class Tracker:
         sigma = self.config.meas_sigma_m if d0.sigma_m is None else d0.sigma_m
         p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
         track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
-                      evidence=int(d0.evidence), kind=d0.kind)
+                      evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s)
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
         track.model_states, track.model_covs = np.tile(track.state, (n, 1)), np.tile(track.cov, (n, 1, 1))
@@ -714,6 +734,8 @@ class Tracker:
     def step(self, stamp_s: float, detections: list[Detection]) -> list[tuple[Track, Detection | None]]:
         """Advance all tracks to ``stamp_s`` and fold in the detections. Returns the live tracks with
         the detection each received (None when coasting)."""
+        while self._past and stamp_s - self._past[0][0] > self.config.retro_s + _STAMP_TOL_S:
+            self._past.popleft()
         for t in self.tracks:
             self._predict(t, stamp_s)
         got = self._associate(detections)
@@ -776,8 +798,9 @@ class Tracker:
         keep: list[Track] = []
         c = self.config
         for ti, t in enumerate(self.tracks):
-            too_old = not t.confirmed and t.age_cycles > c.tentative_max_age
-            if t.missed > (c.max_missed if t.confirmed else c.tentative_max_missed) or too_old or self._stale(t):
+            too_old = not t.confirmed and t.stamp_s - t.born_s >= c.tentative_max_age_s - _STAMP_TOL_S
+            max_missed_s = c.max_missed_s if t.confirmed else c.tentative_max_missed_s
+            if self.unseen_s(t) > max_missed_s + _STAMP_TOL_S or too_old or self._stale(t):
                 continue
             if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < c.merge_m for k in keep):
                 continue  # a duplicate of an older track (tracks are kept oldest first)
