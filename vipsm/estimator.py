@@ -379,11 +379,16 @@ class Estimator:
         self._last_cov = match.cov
         alive = {id(t) for t in self._tracker.tracks}
         at = self._tracker.predict_position
-        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tracked
-                          if id(t) in alive and self._tracker.reported(t))
+        tr = self._tracker
+        # the body tracker's confirmed bodies seen lately, moving or not: a person near one is that body,
+        # and whether it moves is judged once (a walker the body tracker saw stop is not reported by the
+        # people model's slower stop)
+        held = [(t, d) for t, d in tracked if id(t) in alive and t.confirmed and tr.recently_seen(t)]
+        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held if tr.reported(t))
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
         if self._people is not None:
-            obstacles += self._people.obstacles(people, obstacles, laser)
+            bodies = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held)
+            obstacles += self._people.obstacles(people, bodies, laser)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,

@@ -444,7 +444,8 @@ class PeopleTracker:
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
                   ) -> tuple[Obstacle, ...]:
         """The moving ``people`` seen this cycle as moving obstacles, but those within a leg pair's reach
-        (plus its radius) of one of ``others`` (the body tracker's): the same body, reported once. A
+        (plus its radius) of one of ``others`` (the body tracker's confirmed bodies, reported or not): the
+        same body, reported once and judged once. A
         walker no leg of whom was seen may have stopped or turned: it stays in ``people`` while its
         position is known, but it is no obstacle (the protective field on the raw scan still guards the
         robot). The bearing interval is the person's radius seen from ``laser``; scan indices -1 (a
