@@ -82,6 +82,31 @@ def test_tracks_coast_then_drop() -> None:
     assert tr.step(0.8, []) == [] and tr.tracks == []
 
 
+@pytest.mark.parametrize("period_s", [0.1, 0.4 / 3.0, 0.05])
+def test_coasting_reporting_and_dropping_take_seconds_whatever_the_scan_rate(period_s: float) -> None:
+    """A confirmed track is reported while unseen for up to ``report_missed_s`` and dropped once unseen
+    for more than ``max_missed_s``, in seconds: at 7.5 Hz counted cycles stretched both by 1.33."""
+    cfg = TrackerConfig()
+    tr = Tracker(cfg)
+    k = 0
+    while not (tr.tracks and tr.reported(tr.tracks[0])):
+        tr.step(period_s * k, [Detection(1.0 + period_s * k, 0.0, 0.3, True, 0, 1, 0.0, 0.1)])
+        k += 1
+        assert k < 100
+    last_seen_s = period_s * (k - 1)
+    while tr.tracks:
+        t_s = period_s * k
+        tr.step(t_s, [])
+        unseen = t_s - last_seen_s
+        if tr.tracks:
+            assert unseen <= cfg.max_missed_s + 1e-6
+            assert tr.reported(tr.tracks[0]) == (unseen <= cfg.report_missed_s + 1e-6)
+        else:
+            assert unseen > cfg.max_missed_s
+        k += 1
+    assert unseen <= cfg.max_missed_s + period_s + 1e-6
+
+
 # ------------------------------------------------------------------ confirmation (issue 11)
 def _det(x: float, y: float, evidence: bool = True, kind: str = "person") -> Detection:
     return Detection(x, y, 0.25, False, 0, 3, 0.0, 0.1, evidence=evidence, sigma_m=0.06, kind=kind)
