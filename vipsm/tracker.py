@@ -74,14 +74,14 @@ class TrackerConfig:
     #: ... or this far when every detection of the window (at least 4) showed motion evidence
     confirm_displacement_sustained_m: float = 0.03
     #: ... or, between lone legs, this far: a static leg's centre placed from 4-5 returns drifts up to
-    #: 7 cm in half a second as the robot drives past (a table leg, cylinder_clutter seed 84); a walker
+    #: 7 cm in half a second as the robot drives past (a table leg); a walker
     #: covers 10 cm in 0.1-0.3 s
     confirm_displacement_leg_m: float = 0.10
     confirm_window: int = 6
     #: ... from a place the body left: no other detection came within this much of the window's first
     #: position after it (a leg's width plus its centre's jitter). A track that hopped between two
-    #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were
-    #: (cylinder_clutter seed 178); a walker's old place is empty, a stance foot there is part of it
+    #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were; a
+    #: walker's old place is empty, a stance foot there is part of it
     confirm_vacated_m: float = 0.15
     #: ... or, for a body that stood and started to move, from its last standing place: at least this
     #: many newest detections with motion evidence, each step advancing at least ``confirm_onset_step_m``
@@ -167,14 +167,13 @@ class Detection:
     #: partly hidden by something nearer: a centre placed an assumed radius behind the visible points
     #: follows the occluder's edge and does not count as displacement for confirmation; a circle fitted
     #: to a round body's visible part keeps the body's radius, one fitted to a box's does not (a box
-    #: uncovered by the passing cylinder: its fit moved 11 cm as the radius went 0.33 -> 0.24 m,
-    #: cylinder_clutter seed 19), so it counts only with its radius within confirm_occluded_radius_tol
+    #: uncovered by a passing body: its fit moved 11 cm as the radius went 0.33 -> 0.24 m), so it counts
+    #: only with its radius within confirm_occluded_radius_tol
     occluded: bool = False
     #: world-frame direction from the laser to the centre (NaN: unknown). A fitted circle's centre lies
     #: its radius behind the visible surface along this line, so a change of the fitted radius moves the
     #: centre along it with nothing moving: confirmation takes that out (a box 4.3 m away whose fit grew
-    #: 0.19 -> 0.26 m as more of a face showed "moved" 5.5 cm away from the robot, its front 1.3 cm:
-    #: cylinder_clutter seed 179)
+    #: 0.19 -> 0.26 m as more of a face showed "moved" 5.5 cm away from the robot, its front 1.3 cm)
     view_rad: float = math.nan
 
 
@@ -495,8 +494,7 @@ class Tracker:
         leg pair's midpoint with one leg partly hidden is not: that leg is placed a leg's radius behind
         its nearest visible point, at most 1.4 leg radii from its centre, so the midpoint is off by at
         most 0.7 leg radius (4 cm), less than the displacement confirmation needs (a walker stepping out
-        from behind a box was held until its three partly hidden pairs left the window, 0.4 s: recorded
-        zara01 walker 11, seed 510)."""
+        from behind a box was held until its three partly hidden pairs left the window, 0.4 s)."""
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
@@ -627,11 +625,11 @@ class Tracker:
         """The report window's positions (kinds aligned) and its newest part, and its velocity; None when
         a person's newest leg-pair midpoints do not cover a walker's speed. For a person (``person``),
         a lone leg is either leg, ahead of the pelvis or behind it: no point of a path (two lone legs in
-        a row, front then back, read as a step back: stand_then_walk seed 127). The pair's midpoints
+        a row, front then back, read as a step back). The pair's midpoints
         alone while the pair is what is seen now (3 of the newest detections; a person who stopped with
         the legs apart and is seen by one leg keeps the kinds aligned); they must also cover the
         window's speed (a few centimetres of midpoint jitter after the person stopped are "straight"
-        too: curve_crossing seed 5)."""
+        too)."""
         c = self.config
         xy, v = kind_aligned(rec)
         parts = [xy, xy[-c.report_recent :]]
@@ -653,7 +651,7 @@ class Tracker:
         a confirmed person's while one of the scan's returns (``returns_xy``, world frame, k x 2) lies
         where a leg could stand: a person's centre lies between the legs, where beams pass, and a leg
         split by a dropped return is no body but still there (a walker missed for one scan was dropped
-        and started afresh, unreported for 3 cycles: cross_60 and curve_crossing seed 163)."""
+        and started afresh, unreported for 3 cycles)."""
         pts = np.zeros((0, 2)) if returns_xy is None else returns_xy[np.all(np.isfinite(returns_xy), axis=1)]
 
         def gone(t: Track) -> bool:
@@ -661,7 +659,7 @@ class Tracker:
             if not seen_free(x, y):
                 return False
             if not (t.confirmed and t.seen_as_person):
-                return True  # (kept near returns, a chair's legs taken for a person confirmed: seed 7)
+                return True  # (kept near returns, a chair's legs taken for a person would live on)
             # a person's legs stand up to half the widest pair from the centre
             reach = max(t.radius_m, self.config.kind_change_m)
             return not bool(np.any(np.hypot(pts[:, 0] - x, pts[:, 1] - y) <= reach))
@@ -677,8 +675,7 @@ class Tracker:
         chain: a body's or a lone leg's centre, placed behind the visible part, follows the occluder's
         edge (a leg pair's is good to 4 cm, ``_remember``, but ends it too: not re-measured). A
         detection a live track took is that track's body, not this one's past (a post's, tracked, when a
-        table leg 0.26 m from it came out from behind the passing cylinder: the leg "walked" from the
-        post, `cylinder_clutter` seed 165)."""
+        table leg 0.26 m from it came out from behind a passing body: the leg "walked" from the post)."""
         c = self.config
         chain: list[tuple[float, Detection]] = []
         head_s, head = stamp_s, det
@@ -774,8 +771,8 @@ class Tracker:
                     # a coasting track's covariance grows with the manoeuvres the body might have made; a
                     # detection that far off is the body only if it shows motion (else it is likely the
                     # furniture the track's prediction drifted onto), and only for a track that has shown
-                    # it moves: an unconfirmed one (a table leg a passer-by uncovered, recorded path
-                    # ucy_zara01 13) took the next table leg 0.6 m away and "walked" at 1.7 m/s
+                    # it moves: an unconfirmed one (a table leg a passer-by uncovered) took the next
+                    # table leg 0.6 m away and "walked" at 1.7 m/s
                     gate += 2.0 * math.sqrt(max(t.cov[0, 0] + t.cov[1, 1], 0.0))
                 if dist < gate:
                     pairs.append((dist, ti, di))
