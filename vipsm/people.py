@@ -33,6 +33,7 @@ Positions in the world frame (the odometry frame, placed with the matched laser 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -195,6 +196,9 @@ def detect_legs(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, m
     return legs
 
 
+#: a yes/no question about a world point (x_m, y_m) asked of this cycle's scan
+PointTest = Callable[[float, float], bool]
+
 #: people's track ids start here, apart from the body tracker's (both appear in ``Estimate.obstacles``)
 FIRST_ID = 1 << 20
 
@@ -208,10 +212,11 @@ class PeopleTracker:
         self._next_id = FIRST_ID
         self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
-        self._seen_free = None
+        self._seen_free: PointTest | None = None
 
     # ------------------------------------------------------------------ one cycle
-    def step(self, stamp_s: float, detections: list[LegDetection], visible=None, seen_free=None) -> None:
+    def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
+             seen_free: PointTest | None = None) -> None:
         """Predict every person to ``stamp_s``, track the legs ``detections``, measure each person from
         its legs, start people from free legs, update existence and motion state. ``visible(x, y) ->
         bool`` (optional): whether the scan could have seen a person there (a miss elsewhere, e.g.
