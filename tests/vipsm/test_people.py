@@ -129,6 +129,17 @@ def test_imm_velocity_of_a_steady_walker() -> None:
     assert np.all(np.linalg.eigvalsh(filt.cov) > 0.0)
 
 
+def test_imm_unobserved_weighs_standing_and_walking_alike() -> None:
+    """A track seen by nobody for a long time tends to P(moving) 1/2, whatever the number of walking
+    models (sharing switches evenly among all models gave two walking models 2/3 of it, and a standing
+    person's P(moving) hovered at a third)."""
+    for walks in ((0.3,), (0.3, 2.0), (0.3, 1.0, 2.0)):
+        f = Imm(0.0, 0.0, 0.05, ImmConfig(walk_accel_mps2=walks))
+        for _ in range(400):
+            f.predict(0.1)
+        assert f.p_moving == pytest.approx(0.5, abs=1e-3)
+
+
 def test_imm_config_rejects_nonsense() -> None:
     with pytest.raises(ValueError):
         ImmConfig(switch_per_s=0.0)
