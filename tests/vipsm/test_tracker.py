@@ -433,7 +433,7 @@ def test_an_occluded_detection_ends_the_chain_of_earlier_detections() -> None:
 
 def test_a_track_born_where_an_unconfirmed_one_died_sees_its_static_past() -> None:
     """A box with camera evidence now and then (the cylinder passing beside it, cylinder_clutter seed 3):
-    its unconfirmed track dies at ``tentative_max_age``; the next one, born there, must not judge the
+    its unconfirmed track dies at ``tentative_max_age_s``; the next one, born there, must not judge the
     box's motion from three fresh detections when its fit then slides 10 cm along the occluder's edge."""
     tr = Tracker(TrackerConfig())
     xs = {12: 7.26, 13: 7.20}
