@@ -67,15 +67,14 @@ class BodiesConfig:
     #: wider than this: a moving body and the background it uncovers in the flow's 0.3 s baseline (a
     #: person 0.6 m wide crossing at 1.4 m/s: 1.0 m). A wider one is not about this segment: the flow
     #: merged the passing cylinder with the far side of the image (47 deg, 3.6 m wide at a box 4.3 m
-    #: away, which became a track: cylinder_clutter seed 240)
+    #: away, which became a track)
     camera_interval_max_m: float = 2.0
     person_radius_m: float = 0.25
     #: a leg-sized segment whose returns lie in cells the laser has seen occupied in at least this many
     #: (decayed) scans has stood there (15 is ~1.7 s at 10 scans a second under the grid's 6 s memory; a
     #: walker's stance leg stays ~0.6 s, and the cells of a tracked mover get no occupancy); one that
     #: stood alone is a fixture (a post): no motion evidence, never one leg of a person's pair (a post
-    #: beside a passer-by made a "person" between them whose track followed the post, recorded path
-    #: eth_hotel 20). See ``_fixtures``
+    #: beside a passer-by made a "person" between them whose track followed the post). See ``_fixtures``
     fixture_occupied: float = 15.0
     #: ... its own cells: within this of its points' mean (a long-occupied cell further away, within
     #: ``leg_pair_max_m``, where this scan's beam no longer ends was another leg that stood there)
@@ -288,7 +287,7 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
     """Half the segment's beams (those with a return) lie in camera intervals, not counting an
     interval that also holds one of its occluders: the camera sees motion of the front surface, and a
     nearer body moving beside a partly hidden one covers and uncovers it at its edge (a box behind the
-    passing cylinder, ``cylinder_clutter`` seed 107), which the flow sees as motion there."""
+    passing cylinder), which the flow sees as motion there."""
     own = [m for m in in_camera if not any(m[k] for k in occluders)]
     return bool(own) and float(np.mean(np.logical_or.reduce(own)[beams])) >= 0.5
 

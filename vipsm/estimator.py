@@ -41,7 +41,7 @@ from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
 from .legs import LegModel
 from .motion import ConstantVelocity, Twist2D, deskew, laser_twist
-from .people import PeopleConfig, PeopleTracker, PersonDetection, detect_people
+from .people import LegDetection, PeopleConfig, PeopleTracker, detect_legs
 from .prefilter import PrefilterConfig, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
@@ -237,9 +237,9 @@ class Estimator:
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
         if self._people is not None:
-            people = _with_evidence(detect_people(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
-                                                  self.config.people, self.config.bodies, dropped), bodies)
-            self._people.step(scan.stamp_s, people, _visibility(scan, laser))
+            legs = _with_evidence(detect_legs(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
+                                              self.config.people, self.config.bodies, dropped), bodies)
+            self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -379,11 +379,16 @@ class Estimator:
         self._last_cov = match.cov
         alive = {id(t) for t in self._tracker.tracks}
         at = self._tracker.predict_position
-        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tracked
-                          if id(t) in alive and self._tracker.reported(t))
+        tr = self._tracker
+        # the body tracker's confirmed bodies seen lately, moving or not: a person near one is that body,
+        # and whether it moves is judged once (a walker the body tracker saw stop is not reported by the
+        # people model's slower stop)
+        held = [(t, d) for t, d in tracked if id(t) in alive and t.confirmed and tr.recently_seen(t)]
+        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held if tr.reported(t))
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
         if self._people is not None:
-            obstacles += self._people.obstacles(people, obstacles, laser)
+            bodies = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held)
+            obstacles += self._people.obstacles(people, bodies, laser)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
@@ -431,20 +436,25 @@ class Estimator:
 
     def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
-        margin around where it is now): a body that pauses in the candidate test for a cycle must not
-        write itself into the static map."""
-        live = [t for t in self._tracker.tracks
-                if (self._tracker.reported(t) or (not t.confirmed and t.evidence >= 1)) and t.missed <= 2]
+        margin around where it is now), or on a person who walks (the IMM's walking models more likely
+        than standing): a body that moves, or pauses in the candidate test for a cycle, must not write
+        itself into the static map (its trail of occupied cells would hide its next steps' evidence)."""
+        tr = self._tracker
+        live = [(float(t.state[0]), float(t.state[1]), t.radius_m) for t in tr.tracks
+                if (tr.reported(t) or (not t.confirmed and t.evidence >= 1)) and tr.recently_seen(t)]
+        if self._people is not None:
+            live += [(float(t.filt.mean[0]), float(t.filt.mean[1]), self.config.people.person_radius_m)
+                     for t in self._people.tracks if t.filt.p_moving >= 0.5 and t.legs]
         out = np.zeros(scan.ranges_m.size, bool)
         if not live:
             return out
         r = np.where(np.isfinite(scan.ranges_m), scan.ranges_m, np.inf)
         ang = laser.theta_rad + scan.bearings_rad
         x, y = laser.x_m + r * np.cos(ang), laser.y_m + r * np.sin(ang)
-        for t in live:
-            reach = t.radius_m + self.config.track_mask_margin_m
+        for tx, ty, radius in live:
+            reach = radius + self.config.track_mask_margin_m
             with np.errstate(invalid="ignore"):
-                out |= np.hypot(x - t.state[0], y - t.state[1]) <= reach
+                out |= np.hypot(x - tx, y - ty) <= reach
         return out
 
     def _laser_to_robot_points(self, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
@@ -462,11 +472,11 @@ def _checked(scan: Scan) -> tuple[Scan, bool]:
     return Scan(np.full(b.size, np.nan), np.linspace(-1.0, 1.0, b.size), scan.stamp_s, scan.seq), False
 
 
-def _with_evidence(people: list[PersonDetection], bodies: list[Body]) -> list[PersonDetection]:
-    """Each person detection marked with the motion evidence of a body on any of its beams."""
+def _with_evidence(legs: list[LegDetection], bodies: list[Body]) -> list[LegDetection]:
+    """Each leg marked with the motion evidence of a body on any of its beams."""
     spans = [(b.scan_index_start, b.scan_index_stop) for b in bodies if b.evidence]
     return [replace(p, evidence=any(a < p.scan_index_stop and p.scan_index_start < z for a, z in spans))
-            for p in people]
+            for p in legs]
 
 
 def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
@@ -484,6 +494,22 @@ def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
         return not (np.isfinite(r[k]) and r[k] < math.hypot(dx, dy) - margin_m)
 
     return visible
+
+
+def _seen_through(scan: Scan, laser: Pose2D, margin_m: float = 0.15):
+    """``seen_free(x, y)``: the beam towards that world point returned at least ``margin_m`` beyond it
+    (a leg's width: nothing stands there now)."""
+    b, r = scan.bearings_rad, scan.ranges_m
+
+    def seen_free(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+        if b.size < 2 or not b[0] <= bearing <= b[-1]:
+            return False
+        k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
+        return bool(np.isfinite(r[k]) and r[k] >= math.hypot(dx, dy) + margin_m)
+
+    return seen_free
 
 
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:

@@ -10,9 +10,10 @@ Two motion models on the state (x, y, vx, vy), world frame, SI units:
   the gait's wobble out) and manoeuvring (2 m/s^2: starting, stopping, turning, stepping aside take
   about half a second).
 
-The models switch with rate ``switch_per_s`` (a Markov chain: the probability of leaving a model in
-one step of ``dt`` is ``1 - exp(-rate dt)``, shared evenly among the others). The walking models'
-probability is P(moving); the combined
+The models switch with rate ``switch_per_s`` (a Markov chain: with ``leave = 1 - exp(-rate dt)`` in a
+step of ``dt``, standing starts a walk with probability ``leave``, shared by the walking models, and a
+walking model stops, or changes pace to each other walking model, with ``leave`` each: standing and
+walking weigh alike in the long run). The walking models' probability is P(moving); the combined
 state gives position, velocity and covariance. Standard IMM (Blom and Bar-Shalom): mixing, per-model
 Kalman prediction and update, model probabilities from the measurement likelihoods.
 """
@@ -43,6 +44,26 @@ class ImmConfig:
             raise ValueError("the IMM's noise, switch rate and initial speed sigma must be positive")
         if not 0.0 < self.init_p_moving < 1.0:
             raise ValueError(f"init_p_moving must be in (0, 1), got {self.init_p_moving}")
+
+
+def _transitions(n: int, leave: float) -> np.ndarray:
+    """trans[i, j] = P(model j next | model i now) over a step in which a model is left with probability
+    ``leave``: standing starts a walk (either walking model alike); a walking model stops (to standing)
+    or changes its pace (to each other walking model) with that probability each. Standing and walking
+    then weigh alike in the long run (without it, two walking models against one standing gave every
+    unobserved track P(walking) 2/3, and a standing person's P(walking) hovered at a third)."""
+    trans = np.zeros((n, n))
+    if n == 1:
+        return np.ones((1, 1))
+    trans[0, 1:] = leave / (n - 1)
+    trans[0, 0] = 1.0 - leave
+    for j in range(1, n):
+        trans[j, 0] = leave
+        others = [k for k in range(1, n) if k != j]
+        for k in others:
+            trans[j, k] = leave / len(others)
+        trans[j, j] = 1.0 - trans[j].sum()
+    return trans
 
 
 _H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
@@ -100,9 +121,7 @@ class Imm:
         if dt <= 0.0:
             return
         n = self.probs.size
-        stay = math.exp(-self.cfg.switch_per_s * dt)
-        trans = np.full((n, n), (1.0 - stay) / (n - 1))
-        np.fill_diagonal(trans, stay)
+        trans = _transitions(n, 1.0 - math.exp(-self.cfg.switch_per_s * dt))
         c = trans.T @ self.probs  # predicted model probabilities
         mix = trans * self.probs[:, None] / np.maximum(c[None, :], 1e-300)  # mix[i, j] = P(i | j)
         means = mix.T @ self.means
@@ -138,3 +157,4 @@ class Imm:
         if total > 0.0 and math.isfinite(total):
             self.probs = np.clip(post / total, 1e-6, 1.0 - 1e-6)
             self.probs /= self.probs.sum()
+

@@ -1,24 +1,31 @@
 """People as people: every person-like body tracked from its first detection, walking or standing.
 
-Each obstacle cycle:
+Each obstacle cycle (after leg_tracker, Leigh et al. ICRA 2015: legs are tracked one by one, a person
+is a pair of leg tracks):
 
 1. **legs** (:mod:`vipsm.legs`): every leg-sized segment of the pre-filtered scan gets a leg probability
    from the learned detector; those at or above its operating point are legs, placed at their returns'
    centroid pushed back by a leg's radius along the viewing ray;
-2. **people detections**: legs paired greedily, nearest first, within ``leg_pair_max_m`` (a stride at
-   the laser's height); a pair is a person at the legs' midpoint, an unpaired leg a person seen by one
-   leg (the other hidden or merged with it) at that leg, with the larger noise of a hip's half-width;
-3. **association**: global nearest neighbour (:func:`vipsm.assignment.assign`) on the
-   Mahalanobis distance of each detection to each track's predicted position, gated at the chi-square
-   ``gate_p`` quantile of two degrees of freedom;
-4. **motion state** (:mod:`vipsm.imm`): per track an IMM of a standing and a walking model gives the
-   velocity and P(moving); a track is *moving* once P(moving) reaches ``moving_on`` and until it falls
-   below ``moving_off`` (hysteresis);
-5. **existence**: each track's existence probability follows Bayes' rule with the detection
-   probability ``p_detect`` of a person in view and the chance ``p_clutter`` that a gate holds a
-   non-person leg detection (weighted by the detection's leg probability); a track is confirmed (in
-   ``Estimate.people``) from ``exist_confirm``, dropped below ``exist_drop``. A person seen nowhere in
-   a cycle counts as missed only where the scan could have seen it (a return in that direction beyond it).
+2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
+   tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
+   ``leg_max_speed_mps`` per second); a leg track unseen for ``leg_memory_s`` ends. A static leg's
+   detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint;
+3. **people from leg tracks**: a person keeps its leg tracks (at most two) for as long as they live.
+   Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg was
+   last seen while the person stands, the visible leg alone with a hip's half-width of noise while it
+   walks). A person short of a leg adopts the nearest free leg within ``leg_pair_max_m`` of its own; a
+   person with none takes a free pair or leg in its gate; the other free legs pair greedily into new
+   people. A measurement outside the person's gate frees the legs instead of moving the person (two
+   legs that drifted apart are not one body);
+4. **motion state** (:mod:`vipsm.imm`): per person an IMM of a standing and a walking model gives the
+   velocity and P(moving), weighed each cycle by the motion evidence of its legs (a return where the
+   laser had seen free space, :mod:`vipsm.bodies`) as a likelihood: ``evidence_moving`` of a walker's
+   detections show it, ``evidence_standing`` of a standing body's. A person is *moving* once P(moving)
+   reaches ``moving_on`` and until it falls below ``moving_off`` (hysteresis);
+5. **existence**: Bayes' rule with the detection probability ``p_detect`` of a person in view and the
+   chance ``p_clutter`` that a gate holds a non-person leg (weighted by the leg probability); confirmed
+   (in ``Estimate.people``) from ``exist_confirm``, dropped below ``exist_drop``. A miss counts only
+   where the scan could have seen the person (a return in that direction beyond it).
 
 Positions in the world frame (the odometry frame, placed with the matched laser pose), SI units.
 """
@@ -26,6 +33,7 @@ Positions in the world frame (the odometry frame, placed with the matched laser 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,7 +42,7 @@ from .assignment import assign
 from .bodies import BodiesConfig, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
-from .legs import LegConfig, LegModel, segment_features
+from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
 from .types import Obstacle, Person, Pose2D
 
 
@@ -44,6 +52,17 @@ class PeopleConfig:
     imm: ImmConfig = field(default_factory=ImmConfig)
     #: a leg's radius at the laser's height (shin): the centre lies this far behind the returns
     leg_radius_m: float = 0.06
+    #: a leg moves at most this fast (a swing leg: about twice the walking speed) ...
+    leg_max_speed_mps: float = 3.0
+    #: ... plus this (its centre's noise) between two detections
+    leg_step_m: float = 0.1
+    #: a leg track unseen this long ends (a walker's leg hidden behind the other for a stride)
+    leg_memory_s: float = 0.5
+    #: a leg seen this far from where it was within ``leg_memory_s`` has left its own footprint (a leg's
+    #: width and its centre's drift with the viewpoint; a walker's swing leg moves 0.3-0.6 m in a swing
+    #: of about 0.4 s): motion evidence, like a return where the laser saw free space. Over a short time
+    #: only: a static leg's position drifts with the robot's pose error
+    leg_travel_m: float = 0.2
     #: two legs of one person: centres at most this far apart (stride at the laser's height)
     leg_pair_max_m: float = 0.65
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
@@ -60,48 +79,75 @@ class PeopleConfig:
     #: P(moving) from which a track is moving, and below which it is standing again
     moving_on: float = 0.8
     moving_off: float = 0.4
+    #: share of a walker's / a still body's detections with motion evidence (the likelihood of it): a
+    #: track that walks by its kinematics but shows none is a static thing whose detections drift
+    evidence_moving: float = 0.2
+    evidence_standing: float = 0.02
     #: a track nowhere the scan could see it loses existence with this time constant (a person hidden
     #: behind another is still there for a few seconds; a false track must not live on out of sight)
     unseen_memory_s: float = 3.0
     #: a track is in ``Estimate.people`` only while its position is known to within this (one standard
-    #: deviation, along its least certain direction): about a person's half-width. A walker who vanished
-    #: coasts out of it in about half a second; a standing one hidden behind another keeps it for seconds
+    #: deviation, along its least certain direction): about a person's half-width
     max_position_sigma_m: float = 0.3
-    #: a moving person is a moving obstacle too (``Estimate.obstacles``, the safety stop's input) once one
-    #: of its detections since it started moving had motion evidence (it stood where the laser had seen
-    #: free space, or the camera saw it move: furniture legs whose centres drift as the robot drives by
-    #: never do), unless the body tracker already reports one within a leg pair's reach of it. Off by
-    #: default: on the real recordings it adds walkers the body tracker misses but also reports on the
-    #: static background (docs/estimator.md, stage 6b)
-    report_moving: bool = False
-    #: a person's radius as an obstacle (shoulders seen from above)
+    #: moving people are moving obstacles too (``Estimate.obstacles``, the safety stop's input)
+    report_moving: bool = True
+    #: a person's radius as an obstacle (shoulders seen from above); two people stand at least twice
+    #: this apart, so a track takes no detection further than that from its prediction
     person_radius_m: float = 0.25
-    #: bound on the number of tracks (the least likely to exist go first)
+    #: bound on the number of person tracks (the least likely to exist go first); leg tracks: twice it
     max_tracks: int = 40
 
     def __post_init__(self) -> None:
         probs = (self.gate_p, self.p_detect, self.p_clutter, self.exist_birth, self.exist_confirm, self.exist_drop,
-                 self.moving_on, self.moving_off)
+                 self.moving_on, self.moving_off, self.evidence_moving, self.evidence_standing)
         if not all(0.0 < p < 1.0 for p in probs):
             raise ValueError("the people tracker's probabilities must lie in (0, 1)")
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
-        if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m) <= 0.0 or self.max_tracks < 1:
-            raise ValueError("need positive leg_pair_max_m, pair_sigma_m, leg_sigma_m and max_tracks >= 1")
+        if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m, self.leg_memory_s,
+               self.leg_max_speed_mps, self.leg_travel_m) <= 0.0 or self.max_tracks < 1:
+            raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
 
 
 @dataclass(frozen=True)
-class PersonDetection:
+class LegDetection:
     x_m: float
     y_m: float
-    sigma_m: float
-    p_leg: float  # the legs' highest leg probability
-    legs: tuple[tuple[float, float], ...]
+    p_leg: float
     scan_index_start: int
     scan_index_stop: int
     #: motion evidence of the body stage (:mod:`vipsm.bodies`: its returns lie where the laser saw free
     #: space, or the camera saw it move) on these beams
     evidence: bool = False
+    #: a nearer return right beside it: only part of it is seen, and its centre moves with the edge of
+    #: what hides it (a wall piece behind a table leg slides along the wall as the robot drives by)
+    occluded: bool = False
+
+
+@dataclass
+class LegTrack:
+    leg_id: int
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    seen_s: float
+    #: this cycle's detection (None: unseen)
+    det: LegDetection | None = None
+    #: (stamp_s, x_m, y_m) of its detections over the last ``PeopleConfig.leg_memory_s``
+    path: list[tuple[float, float, float]] = field(default_factory=list)
+    #: how far its newest detection lies from the furthest of ``path``, and that point
+    travel_m: float = 0.0
+    left_xy: tuple[float, float] = (0.0, 0.0)
+
+    def seen(self, stamp_s: float, det: LegDetection, window_s: float) -> None:
+        self.x_m, self.y_m, self.seen_s, self.det = det.x_m, det.y_m, stamp_s, det
+        self.path = [p for p in self.path if stamp_s - p[0] <= window_s] + [(stamp_s, det.x_m, det.y_m)]
+        self.travel_m, self.left_xy = max((math.hypot(det.x_m - x, det.y_m - y), (x, y)) for _, x, y in self.path)
+
+    def predicted(self, stamp_s: float, cap_s: float) -> tuple[float, float]:
+        dt = min(max(stamp_s - self.seen_s, 0.0), cap_s)
+        return self.x_m + self.vx_mps * dt, self.y_m + self.vy_mps * dt
 
 
 @dataclass
@@ -110,19 +156,23 @@ class PersonTrack:
     filt: Imm
     existence: float
     stamp_s: float
+    leg_ids: list[int] = field(default_factory=list)
     legs: tuple[tuple[float, float], ...] = ()
     moving: bool = False
     confirmed: bool = False
-    hits: int = 1
-    missed: int = 0
-    #: a detection with motion evidence since the track last became moving
-    evidence: bool = False
+    #: probability that it is a body that moves at all (a person), not a static thing taken for legs; a new
+    #: track's is even (nothing known)
+    p_dynamic: float = 0.5
+
+    @property
+    def p_moving(self) -> float:
+        """P(moving): a body that moves (``p_dynamic``), walking now (the IMM's walking models)."""
+        return self.p_dynamic * self.filt.p_moving
 
 
-def detect_people(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, model: LegModel,
-                  cfg: PeopleConfig, bodies_cfg: BodiesConfig, dropped: np.ndarray | None = None
-                  ) -> list[PersonDetection]:
-    """People in one pre-filtered scan (world frame, laser at ``laser``)."""
+def detect_legs(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, model: LegModel,
+                cfg: PeopleConfig, bodies_cfg: BodiesConfig, dropped: np.ndarray | None = None) -> list[LegDetection]:
+    """Legs in one pre-filtered scan (world frame, laser at ``laser``)."""
     spans = segments(ranges_m, bearings_rad, bodies_cfg, dropped)
     kept, x = segment_features(ranges_m, bearings_rad, spans, cfg.legs)
     if not kept:
@@ -130,34 +180,24 @@ def detect_people(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D,
     p = model.predict(x)
     thr = cfg.legs.threshold or model.threshold_p
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
+    # how far the returns beside each segment lie behind it (negative: in front): nearer on both sides
+    # is background seen between two things, nearer on one side a partly hidden segment
+    front = x[:, [FEATURE_NAMES.index("front_left_m"), FEATURE_NAMES.index("front_right_m")]]
+    nearer = front < -bodies_cfg.foreground_m
     legs = []
-    for (a, z, pts), q in zip(kept, p, strict=True):
-        if q < thr:
+    for (a, z, pts), q, near in zip(kept, p, nearer, strict=True):
+        if q < thr or near.all():
             continue
         cx, cy = (float(v) for v in pts.mean(axis=0))
         d = max(math.hypot(cx, cy), 1e-6)
         lx, ly = cx + cfg.leg_radius_m * cx / d, cy + cfg.leg_radius_m * cy / d
-        legs.append((laser.x_m + c * lx - s * ly, laser.y_m + s * lx + c * ly, float(q), a, z))
-    return _pair(legs, cfg)
+        legs.append(LegDetection(laser.x_m + c * lx - s * ly, laser.y_m + s * lx + c * ly, float(q), a, z,
+                                 occluded=bool(near.any())))
+    return legs
 
 
-def _pair(legs: list[tuple[float, float, float, int, int]], cfg: PeopleConfig) -> list[PersonDetection]:
-    pairs = sorted((math.hypot(legs[i][0] - legs[j][0], legs[i][1] - legs[j][1]), i, j)
-                   for i in range(len(legs)) for j in range(i + 1, len(legs)))
-    used: set[int] = set()
-    out = []
-    for d, i, j in pairs:
-        if d > cfg.leg_pair_max_m or i in used or j in used:
-            continue
-        used |= {i, j}
-        a, b = legs[i], legs[j]
-        out.append(PersonDetection(0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), cfg.pair_sigma_m, max(a[2], b[2]),
-                                   ((a[0], a[1]), (b[0], b[1])), min(a[3], b[3]), max(a[4], b[4])))
-    for i, a in enumerate(legs):
-        if i not in used:
-            out.append(PersonDetection(a[0], a[1], cfg.leg_sigma_m, a[2], ((a[0], a[1]),), a[3], a[4]))
-    return out
-
+#: a yes/no question about a world point (x_m, y_m) asked of this cycle's scan
+PointTest = Callable[[float, float], bool]
 
 #: people's track ids start here, apart from the body tracker's (both appear in ``Estimate.obstacles``)
 FIRST_ID = 1 << 20
@@ -168,71 +208,231 @@ class PeopleTracker:
         self.config = config
         self.model = model
         self.tracks: list[PersonTrack] = []
+        self.legs: dict[int, LegTrack] = {}
         self._next_id = FIRST_ID
+        self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
+        self._seen_free: PointTest | None = None
 
-    def step(self, stamp_s: float, detections: list[PersonDetection], visible=None) -> None:
-        """Predict every track to ``stamp_s``, associate ``detections`` (GNN), update, start tracks from
-        the unassociated, and update existence. ``visible(x, y) -> bool`` (optional): whether the scan
-        could have seen a person there (a miss elsewhere, e.g. behind something nearer, is no evidence)."""
+    # ------------------------------------------------------------------ one cycle
+    def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
+             seen_free: PointTest | None = None) -> None:
+        """Predict every person to ``stamp_s``, track the legs ``detections``, measure each person from
+        its legs, start people from free legs, update existence and motion state. ``visible(x, y) ->
+        bool`` (optional): whether the scan could have seen a person there (a miss elsewhere, e.g.
+        behind something nearer, is no evidence). ``seen_free(x, y) -> bool`` (optional): the scan saw
+        through that point: a leg that travelled counts as motion evidence only when the place it left
+        is seen empty (a leg track that hopped to a neighbouring table leg left one standing there)."""
         c = self.config
+        self._seen_free = seen_free
         for t in self.tracks:
             dt = stamp_s - t.stamp_s
             t.filt.predict(dt)
             t.stamp_s = stamp_s
-            t.existence *= math.exp(-max(dt, 0.0) / c.unseen_memory_s) if dt > 0 else 1.0
-        got = self._associate(detections)
-        for ti, t in enumerate(self.tracks):
-            if ti in got:
-                d = detections[got[ti]]
-                t.filt.update(np.array([d.x_m, d.y_m]), np.eye(2) * d.sigma_m**2)
-                t.legs, t.hits, t.missed = d.legs, t.hits + 1, 0
-                t.evidence = t.evidence or d.evidence
-                t.existence = _bayes(t.existence, c.p_detect * d.p_leg, c.p_clutter * (1.0 - d.p_leg))
-            else:
-                t.missed += 1
+            if dt > 0:
+                t.existence *= math.exp(-dt / c.unseen_memory_s)
+        self._track_legs(stamp_s, detections)
+        self._adopt(stamp_s)
+        seen: set[int] = set()
+        for t in self.tracks:
+            z = self._measurement(t)
+            if z is not None and self._in_gate(t, z[0], z[1]):
+                self._update(t, z)
+                seen.add(t.track_id)
+            elif z is not None:  # legs that drifted apart from the body: free them
+                self._release(t)
+        for t in self._from_free_legs(stamp_s):
+            seen.add(t.track_id)
+        for t in self.tracks:
+            if t.track_id not in seen:
                 t.legs = ()
                 x, y = (float(v) for v in t.filt.mean[:2])
                 if visible is None or visible(x, y):
                     t.existence = _bayes(t.existence, 1.0 - c.p_detect, 1.0 - c.p_clutter)
             t.confirmed = t.confirmed or t.existence >= c.exist_confirm
-            p = t.filt.p_moving
-            was = t.moving
+            p = t.p_moving
             t.moving = p >= c.moving_on or (t.moving and p >= c.moving_off)
-            if t.moving and not was:  # evidence counts from the start of this walk
-                t.evidence = ti in got and detections[got[ti]].evidence
-        taken = set(got.values())
-        for di, d in enumerate(detections):
-            if di not in taken:
-                self.tracks.append(PersonTrack(self._next_id, Imm(d.x_m, d.y_m, d.sigma_m, c.imm),
-                                               c.exist_birth * d.p_leg / max(d.p_leg, 0.5), stamp_s, d.legs))
-                self._next_id += 1
         self._prune()
 
-    def _associate(self, detections: list[PersonDetection]) -> dict[int, int]:
-        if not self.tracks or not detections:
-            return {}
-        big = 1e6
-        cost = np.full((len(self.tracks), len(detections)), big)
-        for ti, t in enumerate(self.tracks):
-            mean, cov = t.filt.mean[:2], t.filt.cov[:2, :2]
-            for di, d in enumerate(detections):
-                y = np.array([d.x_m, d.y_m]) - mean
-                s = cov + np.eye(2) * d.sigma_m**2
-                m2 = float(y @ np.linalg.solve(s, y))
-                if m2 <= self._gate:
-                    cost[ti, di] = m2 + math.log(np.linalg.det(s))  # the likelier of two equal distances
-        rows, cols = assign(cost)
-        return {int(r): int(k) for r, k in zip(rows, cols, strict=True) if cost[r, k] < big}
+    # ------------------------------------------------------------------ legs
+    def _track_legs(self, stamp_s: float, detections: list[LegDetection]) -> None:
+        c = self.config
+        tracks = list(self.legs.values())
+        for lt in tracks:
+            lt.det = None
+        got: dict[int, int] = {}
+        if tracks and detections:
+            big = 1e6
+            cost = np.full((len(tracks), len(detections)), big)
+            for i, lt in enumerate(tracks):
+                px, py = lt.predicted(stamp_s, c.leg_memory_s)
+                reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+                for j, d in enumerate(detections):
+                    dist = math.hypot(d.x_m - px, d.y_m - py)
+                    if dist <= reach:
+                        cost[i, j] = dist
+            rows, cols = assign(cost)
+            got = {int(r): int(k) for r, k in zip(rows, cols, strict=True) if cost[r, k] < big}
+        for i, j in got.items():
+            lt, d = tracks[i], detections[j]
+            dt = stamp_s - lt.seen_s
+            if dt > 0:  # velocity: half the last one, half this step's (a leg's speed changes every stride)
+                vmax = c.leg_max_speed_mps
+                lt.vx_mps = 0.5 * lt.vx_mps + 0.5 * float(np.clip((d.x_m - lt.x_m) / dt, -vmax, vmax))
+                lt.vy_mps = 0.5 * lt.vy_mps + 0.5 * float(np.clip((d.y_m - lt.y_m) / dt, -vmax, vmax))
+            lt.seen(stamp_s, d, c.leg_memory_s)
+        taken = set(got.values())
+        for j, d in enumerate(detections):
+            if j not in taken:
+                self.legs[self._next_leg] = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s)
+                self.legs[self._next_leg].seen(stamp_s, d, c.leg_memory_s)
+                self._next_leg += 1
+        gone = {k for k, lt in self.legs.items() if stamp_s - lt.seen_s > c.leg_memory_s}
+        if len(self.legs) - len(gone) > 2 * c.max_tracks:  # the longest unseen go first
+            alive = sorted((lt for k, lt in self.legs.items() if k not in gone), key=lambda lt: -lt.seen_s)
+            gone |= {lt.leg_id for lt in alive[2 * c.max_tracks :]}
+        for k in gone:
+            del self.legs[k]
+        for t in self.tracks:
+            t.leg_ids = [k for k in t.leg_ids if k in self.legs]
+
+    def _free(self) -> list[LegTrack]:
+        """Leg tracks seen this cycle that belong to nobody."""
+        owned = {k for t in self.tracks for k in t.leg_ids}
+        return [lt for k, lt in self.legs.items() if k not in owned and lt.det is not None]
+
+    def _adopt(self, stamp_s: float) -> None:
+        """A person with one leg takes the nearest free leg within a leg pair's reach of it whose
+        midpoint with it lies in the person's gate."""
+        c = self.config
+        for t in self.tracks:
+            if len(t.leg_ids) != 1:
+                continue
+            own = self.legs[t.leg_ids[0]]
+            ox, oy = own.predicted(stamp_s, c.leg_memory_s)
+            best = None
+            for lt in self._free():
+                d = math.hypot(lt.x_m - ox, lt.y_m - oy)
+                if d <= c.leg_pair_max_m and self._in_gate(t, 0.5 * (lt.x_m + ox), 0.5 * (lt.y_m + oy), c.pair_sigma_m):
+                    if best is None or d < best[0]:
+                        best = (d, lt)
+            if best is not None:
+                t.leg_ids.append(best[1].leg_id)
+
+    def _measurement(self, t: PersonTrack) -> tuple[float, float, float, list[LegTrack]] | None:
+        """(x, y, sigma, the legs seen) from the person's legs this cycle; None when none was seen. A
+        hidden leg of the pair is where its track predicts it (a standing leg where it was seen; its
+        noise grows with how far it may have gone since); a person of one leg is that leg, known to a
+        hip's half-width, and so is a partly hidden leg."""
+        c = self.config
+        legs = [self.legs[k] for k in t.leg_ids]
+        seen = [lt for lt in legs if lt.det is not None]
+        if not seen:
+            return None
+        hidden = [lt for lt in legs if lt.det is None]
+        if len(seen) == 1 and not hidden:
+            return seen[0].x_m, seen[0].y_m, c.leg_sigma_m, seen
+        a = seen[0]
+        if hidden:
+            h = hidden[0]
+            bx, by = h.predicted(t.stamp_s, c.leg_memory_s)
+            gone = math.hypot(h.vx_mps, h.vy_mps) * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
+            sigma = min(math.hypot(c.pair_sigma_m, 0.5 * gone), c.leg_sigma_m)
+        else:
+            bx, by = seen[1].x_m, seen[1].y_m
+            sigma = c.pair_sigma_m
+        if any(lt.det.occluded for lt in seen):
+            sigma = c.leg_sigma_m
+        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
+
+    def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None) -> bool:
+        mean, cov = t.filt.mean[:2], t.filt.cov[:2, :2]
+        dv = np.array([x, y]) - mean
+        if math.hypot(*dv) > 2.0 * self.config.person_radius_m:
+            return False
+        s = cov + np.eye(2) * (sigma_m or self.config.pair_sigma_m) ** 2
+        return float(dv @ np.linalg.solve(s, dv)) <= self._gate
+
+    def _update(self, t: PersonTrack, z: tuple[float, float, float, list[LegTrack]]) -> None:
+        c = self.config
+        x, y, sigma, seen = z
+        t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
+        # motion evidence: seen on a walker's detections at rate evidence_moving, on anything standing still
+        # (a person or furniture) at rate evidence_standing; a static thing never walks
+        ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
+        pm = t.filt.p_moving
+        e_dyn = pm * c.evidence_moving + (1.0 - pm) * c.evidence_standing
+        t.p_dynamic = _bayes(t.p_dynamic, e_dyn if ev else 1.0 - e_dyn,
+                             c.evidence_standing if ev else 1.0 - c.evidence_standing)
+        p_leg = max(lt.det.p_leg for lt in seen)
+        t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
+        t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _travelled(self, lt: LegTrack) -> bool:
+        """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
+        place is seen empty now."""
+        if lt.travel_m < self.config.leg_travel_m or lt.det is None or lt.det.occluded:
+            return False
+        return self._seen_free is None or bool(self._seen_free(*lt.left_xy))
+
+    def _release(self, t: PersonTrack) -> None:
+        t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]
+
+    def _from_free_legs(self, stamp_s: float) -> list[PersonTrack]:
+        """Free legs paired greedily (nearest first, within ``leg_pair_max_m``) or alone; each such
+        detection goes to a person without legs whose gate holds it (global nearest neighbour), else
+        starts a person. Returns the people updated or started."""
+        c = self.config
+        free = self._free()
+        pairs = sorted((math.hypot(a.x_m - b.x_m, a.y_m - b.y_m), i, j)
+                       for i, a in enumerate(free) for j, b in enumerate(free) if i < j)
+        used: set[int] = set()
+        groups: list[list[LegTrack]] = []
+        for d, i, j in pairs:
+            if d <= c.leg_pair_max_m and i not in used and j not in used:
+                used |= {i, j}
+                groups.append([free[i], free[j]])
+        groups += [[lt] for i, lt in enumerate(free) if i not in used]
+        dets = [(float(np.mean([lt.x_m for lt in g])), float(np.mean([lt.y_m for lt in g])),
+                 c.pair_sigma_m if len(g) == 2 and not any(lt.det.occluded for lt in g) else c.leg_sigma_m, g)
+                for g in groups]
+        empty = [t for t in self.tracks if not t.leg_ids]
+        got: dict[int, int] = {}
+        if empty and dets:
+            big = 1e6
+            cost = np.full((len(empty), len(dets)), big)
+            for ti, t in enumerate(empty):
+                for di, (x, y, s, _) in enumerate(dets):
+                    if self._in_gate(t, x, y, s):
+                        cost[ti, di] = math.hypot(x - t.filt.mean[0], y - t.filt.mean[1])
+            rows, cols = assign(cost)
+            got = {int(r): int(k) for r, k in zip(rows, cols, strict=True) if cost[r, k] < big}
+        out = []
+        for ti, di in got.items():
+            t = empty[ti]
+            t.leg_ids = [lt.leg_id for lt in dets[di][3]]
+            self._update(t, dets[di])
+            out.append(t)
+        taken = set(got.values())
+        for di, (x, y, s, g) in enumerate(dets):
+            if di in taken:
+                continue
+            p_leg = max(lt.det.p_leg for lt in g)
+            t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
+                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g))
+            self._next_id += 1
+            self.tracks.append(t)
+            out.append(t)
+        return out
 
     def _prune(self) -> None:
         c = self.config
-        # lost: existence gone, or the position unknown beyond twice the reporting bound (its gate would
-        # then take a detection metres away as its own)
+        # lost: existence gone, or the position unknown beyond twice the reporting bound
         lost2 = (2.0 * c.max_position_sigma_m) ** 2
         alive = [t for t in self.tracks if t.existence >= c.exist_drop and np.linalg.eigvalsh(t.filt.cov[:2, :2])[-1]
                  <= lost2]
-        # a duplicate: a younger track within a leg pair's half-width of an older one
+        # a duplicate: a younger track within a leg pair's half-width of an older one (its legs go free,
+        # and the older one adopts them if they fit it)
         keep: list[PersonTrack] = []
         kept_xy = np.zeros((0, 2))
         for t in sorted(alive, key=lambda t: t.track_id):
@@ -245,25 +445,29 @@ class PeopleTracker:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
 
+    # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
                   ) -> tuple[Obstacle, ...]:
-        """The moving ``people`` as moving obstacles, but those within a leg pair's reach (plus its radius)
-        of one of ``others`` (the body tracker's): the same body, reported once. The bearing interval is
-        the person's radius seen from ``laser``; scan indices -1 (a track, not one scan's segment)."""
+        """The moving ``people`` seen this cycle as moving obstacles, but those within a leg pair's reach
+        (plus its radius) of one of ``others`` (the body tracker's confirmed bodies, reported or not): the
+        same body, reported once and judged once. A
+        walker no leg of whom was seen may have stopped or turned: it stays in ``people`` while its
+        position is known, but it is no obstacle (the protective field on the raw scan still guards the
+        robot). The bearing interval is the person's radius seen from ``laser``; scan indices -1 (a
+        track, not one scan's segment)."""
         c = self.config
         if not c.report_moving:
             return ()
         out = []
-        evidence = {t.track_id for t in self.tracks if t.evidence}
         for p in people:
             near = any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m for o in others)
-            if not p.moving or p.track_id not in evidence or near:
+            if not p.moving or not p.legs or near:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
             half = math.asin(min(c.person_radius_m / max(math.hypot(dx, dy), 1e-6), 1.0))
             out.append(Obstacle(p.track_id, p.x_m, p.y_m, p.vx_mps, p.vy_mps, c.person_radius_m, b - half, b + half,
-                                -1, -1))
+                                -1, -1, person=True))
         return tuple(out)
 
     def people(self, stamp_s: float) -> tuple[Person, ...]:
@@ -276,7 +480,7 @@ class PeopleTracker:
             dt = stamp_s - t.stamp_s
             vx, vy = (float(m[2]), float(m[3])) if t.moving else (0.0, 0.0)
             out.append(Person(t.track_id, float(m[0] + vx * dt), float(m[1] + vy * dt), float(m[2]), float(m[3]),
-                              tuple(float(v) for v in p[:2, :2].ravel()), round(t.filt.p_moving, 4), t.moving,
+                              tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
 

@@ -4,8 +4,8 @@ Tracks are born from moving-body candidates (:mod:`vipsm.bodies`) and reported o
 **confirmed**: seen in ``confirm_hits`` cycles, with motion evidence (free-space violation or camera)
 in ``confirm_evidence`` of them, and displaced at least ``confirm_displacement_m`` from where it was
 born. Furniture never moves, so a camera flow error or a stray return on it never confirms. A track
-dies after ``max_missed`` cycles without a detection (``tentative_max_missed`` before it is confirmed,
-and unconfirmed at ``tentative_max_age``), or at once when a beam of the current scan passes through
+dies after ``max_missed_s`` without a detection (``tentative_max_missed_s`` before it is confirmed, and
+unconfirmed at ``tentative_max_age_s``), or at once when a beam of the current scan passes through
 where it should be (its space is seen free). At most ``max_tracks`` live at once (the least
 supported are dropped first), so the cost is bounded however cluttered the room.
 
@@ -41,8 +41,8 @@ from numba import njit
 class TrackerConfig:
     #: process noise of each constant-velocity model of the IMM: steady walking, manoeuvring
     accel_sigmas_mps2: tuple[float, ...] = (0.2, 2.0)
-    #: probability per cycle of switching from one model to another (mean stay 2 s at 0.1 s cycles)
-    mode_switch_prob: float = 0.05
+    #: rate of switching from one model to another (0.05 per 0.1 s; a manoeuvre every 2 s or so)
+    mode_switch_per_s: float = 0.5129
     meas_sigma_m: float = 0.03  # position measurement noise
     #: a detection's smaller noise across the direction of motion (``Detection.sigma_across_m``)
     #: applies from this speed on (below it the direction is not known well, and a standing person's
@@ -51,15 +51,15 @@ class TrackerConfig:
     init_speed_sigma_mps: float = 1.0
     #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
     gate_m: float = 0.35
-    max_missed: int = 10  # cycles without a detection before a track is dropped
-    #: ... before an unconfirmed one is dropped (its covariance, and so its gate, grows fast: coasting
-    #: longer it would take a detection a metre away as its own)
-    tentative_max_missed: int = 3
-    #: an unconfirmed track older than this many cycles is dropped: in 1 s the slowest body of interest
-    #: (0.15 m/s) moves 0.15 m, far more than confirmation needs; what has not moved is static, and
-    #: left alive it would grab a neighbour's detection one day and "move"
-    tentative_max_age: int = 10
-    report_missed: int = 2  # tracks coasting for at most this many cycles are still reported
+    max_missed_s: float = 1.0  # a track unseen longer than this is dropped
+    #: ... an unconfirmed one (its covariance, and so its gate, grows fast: coasting longer it would take
+    #: a detection a metre away as its own)
+    tentative_max_missed_s: float = 0.3
+    #: an unconfirmed track this old is dropped: in 1 s the slowest body of interest (0.15 m/s) moves
+    #: 0.15 m, far more than confirmation needs; what has not moved is static, and left alive it would
+    #: grab a neighbour's detection one day and "move"
+    tentative_max_age_s: float = 1.0
+    report_missed_s: float = 0.2  # tracks unseen for at most this long are still reported
     default_radius_m: float = 0.30  # used before any fit gave a radius
     min_radius_m: float = 0.05
     max_radius_m: float = 1.50
@@ -68,19 +68,20 @@ class TrackerConfig:
     merge_m: float = 0.25  # a younger track this close to an older one is dropped
     confirm_hits: int = 3
     confirm_evidence: int = 2
-    #: over the last ``confirm_window`` detections the body moved at least this far ...
+    #: over the last ``confirm_window`` detections (a path needs so many points, however often they come)
+    #: the body moved at least this far ...
     confirm_displacement_m: float = 0.06
     #: ... or this far when every detection of the window (at least 4) showed motion evidence
     confirm_displacement_sustained_m: float = 0.03
     #: ... or, between lone legs, this far: a static leg's centre placed from 4-5 returns drifts up to
-    #: 7 cm in half a second as the robot drives past (a table leg, cylinder_clutter seed 84); a walker
+    #: 7 cm in half a second as the robot drives past (a table leg); a walker
     #: covers 10 cm in 0.1-0.3 s
     confirm_displacement_leg_m: float = 0.10
     confirm_window: int = 6
     #: ... from a place the body left: no other detection came within this much of the window's first
     #: position after it (a leg's width plus its centre's jitter). A track that hopped between two
-    #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were
-    #: (cylinder_clutter seed 178); a walker's old place is empty, a stance foot there is part of it
+    #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were; a
+    #: walker's old place is empty, a stance foot there is part of it
     confirm_vacated_m: float = 0.15
     #: ... or, for a body that stood and started to move, from its last standing place: at least this
     #: many newest detections with motion evidence, each step advancing at least ``confirm_onset_step_m``
@@ -120,22 +121,24 @@ class TrackerConfig:
     #: half still shows the walk)
     report_recent: int = 5
     max_tracks: int = 24
-    #: a track born from motion evidence starts at its body's detections in up to this many earlier
-    #: cycles that no confirmed track holds (chained back nearest first within a walker's step): a slow
+    #: a track born from motion evidence starts at its body's detections of up to this long before that
+    #: no confirmed track holds (chained back nearest first within a walker's step): a slow
     #: body is seen before its motion is (the camera's flow needs frames 0.3 s apart, the free-space grid
     #: a cell's width of motion), and that stretch already shows whether it moves. They are remembered,
     #: not judged: confirmation comes at the earliest with the next cycle's detection.
-    retro_cycles: int = 5
+    retro_s: float = 0.5
 
     def __post_init__(self) -> None:
         if not self.accel_sigmas_mps2 or min(self.accel_sigmas_mps2) <= 0.0:
             raise ValueError(f"accel_sigmas_mps2 needs at least one positive value, got {self.accel_sigmas_mps2}")
-        if not 0.0 <= self.mode_switch_prob < 1.0:
-            raise ValueError(f"mode_switch_prob must be in [0, 1), got {self.mode_switch_prob}")
+        if self.mode_switch_per_s < 0.0:
+            raise ValueError(f"mode_switch_per_s must be >= 0, got {self.mode_switch_per_s}")
         if min(self.report_window, self.report_recent) < 2 or self.confirm_window < 3:
             raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
-        if self.max_tracks < 1 or self.retro_cycles < 0 or self.confirm_vacated_m < 0.0:
-            raise ValueError("need max_tracks >= 1, retro_cycles >= 0 and confirm_vacated_m >= 0")
+        if min(self.max_missed_s, self.tentative_max_missed_s, self.tentative_max_age_s, self.report_missed_s) < 0.0:
+            raise ValueError("the tracker's durations must be >= 0")
+        if self.max_tracks < 1 or self.retro_s < 0.0 or self.confirm_vacated_m < 0.0:
+            raise ValueError("need max_tracks >= 1, retro_s >= 0 and confirm_vacated_m >= 0")
         if self.confirm_onset_rows < 2 or not self.confirm_onset_step_m > 0.0:
             raise ValueError("need confirm_onset_rows >= 2 and confirm_onset_step_m > 0")
         if not self.anisotropic_min_speed_mps > 0.0:  # a standing track has no direction of motion
@@ -164,14 +167,13 @@ class Detection:
     #: partly hidden by something nearer: a centre placed an assumed radius behind the visible points
     #: follows the occluder's edge and does not count as displacement for confirmation; a circle fitted
     #: to a round body's visible part keeps the body's radius, one fitted to a box's does not (a box
-    #: uncovered by the passing cylinder: its fit moved 11 cm as the radius went 0.33 -> 0.24 m,
-    #: cylinder_clutter seed 19), so it counts only with its radius within confirm_occluded_radius_tol
+    #: uncovered by a passing body: its fit moved 11 cm as the radius went 0.33 -> 0.24 m), so it counts
+    #: only with its radius within confirm_occluded_radius_tol
     occluded: bool = False
     #: world-frame direction from the laser to the centre (NaN: unknown). A fitted circle's centre lies
     #: its radius behind the visible surface along this line, so a change of the fitted radius moves the
     #: centre along it with nothing moving: confirmation takes that out (a box 4.3 m away whose fit grew
-    #: 0.19 -> 0.26 m as more of a face showed "moved" 5.5 cm away from the robot, its front 1.3 cm:
-    #: cylinder_clutter seed 179)
+    #: 0.19 -> 0.26 m as more of a face showed "moved" 5.5 cm away from the robot, its front 1.3 cm)
     view_rad: float = math.nan
 
 
@@ -272,6 +274,10 @@ def _combine(track: Track) -> None:
     track.cov = np.einsum("i,ikl->kl", mu, track.model_covs + d[:, :, None] * d[:, None, :])
 
 
+#: durations are compared with differences of scan stamps, which carry rounding: this much is equal
+_STAMP_TOL_S = 1e-3
+
+
 #: detection kinds as numbers in a track's history
 _KIND_CODE = {"body": 0.0, "leg": 1.0, "person": 2.0}
 
@@ -322,8 +328,11 @@ class Track:
     radius_known: bool
     stamp_s: float
     hits: int = 1
-    missed: int = 0
+    missed: int = 0  # cycles since its last detection
     age_cycles: int = 1
+    #: stamps of its first (chained) and its last detection
+    born_s: float = 0.0
+    seen_s: float = 0.0
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
     #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``, the
     #: radius of a circle fitted to a partly occluded view, else NaN; the fitted radius, else NaN; the
@@ -354,9 +363,18 @@ class Tracker:
         self.config = config or TrackerConfig()
         self.tracks: list[Track] = []
         self._next_id = 1
-        #: the last ``retro_cycles`` cycles' detections that no confirmed track took and that started no
-        #: track: (stamp_s, [(detection, id of the unconfirmed track that took it or None)])
-        self._past: deque[tuple[float, list[tuple[Detection, int | None]]]] = deque(maxlen=self.config.retro_cycles)
+        #: the detections of the cycles of the last ``retro_s`` that no confirmed track took and that started
+        #: no track: (stamp_s, [(detection, id of the unconfirmed track that took it or None)])
+        self._past: deque[tuple[float, list[tuple[Detection, int | None]]]] = deque()
+
+    @staticmethod
+    def unseen_s(track: Track) -> float:
+        """How long the track has gone without a detection (at its last prediction's stamp)."""
+        return track.stamp_s - track.seen_s
+
+    def recently_seen(self, track: Track) -> bool:
+        """Unseen for at most ``report_missed_s``: a coasting track still reported."""
+        return self.unseen_s(track) <= self.config.report_missed_s + _STAMP_TOL_S
 
     def predict_position(self, track: Track, stamp_s: float) -> tuple[float, float]:
         dt = max(stamp_s - track.stamp_s, 0.0)
@@ -370,7 +388,7 @@ class Tracker:
             return
         xs, ps, mu = track.model_states, track.model_covs, track.model_probs
         n = mu.shape[0]
-        sw = self.config.mode_switch_prob if n > 1 else 0.0
+        sw = 1.0 - math.exp(-self.config.mode_switch_per_s * dt) if n > 1 else 0.0
         trans = np.full((n, n), sw / max(n - 1, 1))
         np.fill_diagonal(trans, 1.0 - sw)
         prior = trans.T @ mu
@@ -476,12 +494,12 @@ class Tracker:
         leg pair's midpoint with one leg partly hidden is not: that leg is placed a leg's radius behind
         its nearest visible point, at most 1.4 leg radii from its centre, so the midpoint is off by at
         most 0.7 leg radius (4 cm), less than the displacement confirmation needs (a walker stepping out
-        from behind a box was held until its three partly hidden pairs left the window, 0.4 s: recorded
-        zara01 walker 11, seed 510)."""
+        from behind a box was held until its three partly hidden pairs left the window, 0.4 s)."""
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
         del t.recent[: -self.config.report_window]
+        t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
                           float(not reliable or (det.occluded and not det.radius_fitted and det.kind != "person")),
                           det.radius_m if det.occluded and det.radius_fitted else math.nan,
@@ -584,7 +602,7 @@ class Tracker:
     def reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
         c = self.config
-        if not (t.confirmed and t.missed <= c.report_missed and t.speed_mps >= c.report_min_speed_mps):
+        if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
         rec = np.array(t.recent)
         if not self._steady(rec, rec[:, 3], t.seen_as_person):
@@ -607,11 +625,11 @@ class Tracker:
         """The report window's positions (kinds aligned) and its newest part, and its velocity; None when
         a person's newest leg-pair midpoints do not cover a walker's speed. For a person (``person``),
         a lone leg is either leg, ahead of the pelvis or behind it: no point of a path (two lone legs in
-        a row, front then back, read as a step back: stand_then_walk seed 127). The pair's midpoints
+        a row, front then back, read as a step back). The pair's midpoints
         alone while the pair is what is seen now (3 of the newest detections; a person who stopped with
         the legs apart and is seen by one leg keeps the kinds aligned); they must also cover the
         window's speed (a few centimetres of midpoint jitter after the person stopped are "straight"
-        too: curve_crossing seed 5)."""
+        too)."""
         c = self.config
         xy, v = kind_aligned(rec)
         parts = [xy, xy[-c.report_recent :]]
@@ -633,7 +651,7 @@ class Tracker:
         a confirmed person's while one of the scan's returns (``returns_xy``, world frame, k x 2) lies
         where a leg could stand: a person's centre lies between the legs, where beams pass, and a leg
         split by a dropped return is no body but still there (a walker missed for one scan was dropped
-        and started afresh, unreported for 3 cycles: cross_60 and curve_crossing seed 163)."""
+        and started afresh, unreported for 3 cycles)."""
         pts = np.zeros((0, 2)) if returns_xy is None else returns_xy[np.all(np.isfinite(returns_xy), axis=1)]
 
         def gone(t: Track) -> bool:
@@ -641,7 +659,7 @@ class Tracker:
             if not seen_free(x, y):
                 return False
             if not (t.confirmed and t.seen_as_person):
-                return True  # (kept near returns, a chair's legs taken for a person confirmed: seed 7)
+                return True  # (kept near returns, a chair's legs taken for a person would live on)
             # a person's legs stand up to half the widest pair from the centre
             reach = max(t.radius_m, self.config.kind_change_m)
             return not bool(np.any(np.hypot(pts[:, 0] - x, pts[:, 1] - y) <= reach))
@@ -651,14 +669,13 @@ class Tracker:
     def _chain_back(self, stamp_s: float, det: Detection) -> list[tuple[float, Detection]]:
         """The body's detections in the kept earlier cycles, oldest first: from ``det`` back, the
         nearest one within a walker's step of the last found, each taken out of the memory (it starts
-        no other track). Up to ``tentative_max_missed`` cycles without one are passed over (a table leg
+        no other track). Up to ``tentative_max_missed_s`` without one are passed over (a table leg
         unseen for two scans), as a coasting track would, but the reach stays one cycle's step: what
         jumped further in the gap is not known to be the same body. A partly occluded detection ends the
         chain: a body's or a lone leg's centre, placed behind the visible part, follows the occluder's
         edge (a leg pair's is good to 4 cm, ``_remember``, but ends it too: not re-measured). A
         detection a live track took is that track's body, not this one's past (a post's, tracked, when a
-        table leg 0.26 m from it came out from behind the passing cylinder: the leg "walked" from the
-        post, `cylinder_clutter` seed 165)."""
+        table leg 0.26 m from it came out from behind a passing body: the leg "walked" from the post)."""
         c = self.config
         chain: list[tuple[float, Detection]] = []
         head_s, head = stamp_s, det
@@ -680,7 +697,7 @@ class Tracker:
                     near.append((dist, i))
             if not near:
                 missed += 1
-                if blocked or missed > c.tentative_max_missed:
+                if blocked or head_s - past_s > c.tentative_max_missed_s + _STAMP_TOL_S:
                     break
                 continue
             missed = 0
@@ -696,7 +713,7 @@ class Tracker:
         sigma = self.config.meas_sigma_m if d0.sigma_m is None else d0.sigma_m
         p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
         track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
-                      evidence=int(d0.evidence), kind=d0.kind)
+                      evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s)
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
         track.model_states, track.model_covs = np.tile(track.state, (n, 1)), np.tile(track.cov, (n, 1, 1))
@@ -714,6 +731,8 @@ class Tracker:
     def step(self, stamp_s: float, detections: list[Detection]) -> list[tuple[Track, Detection | None]]:
         """Advance all tracks to ``stamp_s`` and fold in the detections. Returns the live tracks with
         the detection each received (None when coasting)."""
+        while self._past and stamp_s - self._past[0][0] > self.config.retro_s + _STAMP_TOL_S:
+            self._past.popleft()
         for t in self.tracks:
             self._predict(t, stamp_s)
         got = self._associate(detections)
@@ -752,8 +771,8 @@ class Tracker:
                     # a coasting track's covariance grows with the manoeuvres the body might have made; a
                     # detection that far off is the body only if it shows motion (else it is likely the
                     # furniture the track's prediction drifted onto), and only for a track that has shown
-                    # it moves: an unconfirmed one (a table leg a passer-by uncovered, recorded path
-                    # ucy_zara01 13) took the next table leg 0.6 m away and "walked" at 1.7 m/s
+                    # it moves: an unconfirmed one (a table leg a passer-by uncovered) took the next
+                    # table leg 0.6 m away and "walked" at 1.7 m/s
                     gate += 2.0 * math.sqrt(max(t.cov[0, 0] + t.cov[1, 1], 0.0))
                 if dist < gate:
                     pairs.append((dist, ti, di))
@@ -776,8 +795,9 @@ class Tracker:
         keep: list[Track] = []
         c = self.config
         for ti, t in enumerate(self.tracks):
-            too_old = not t.confirmed and t.age_cycles > c.tentative_max_age
-            if t.missed > (c.max_missed if t.confirmed else c.tentative_max_missed) or too_old or self._stale(t):
+            too_old = not t.confirmed and t.stamp_s - t.born_s >= c.tentative_max_age_s - _STAMP_TOL_S
+            max_missed_s = c.max_missed_s if t.confirmed else c.tentative_max_missed_s
+            if self.unseen_s(t) > max_missed_s + _STAMP_TOL_S or too_old or self._stale(t):
                 continue
             if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < c.merge_m for k in keep):
                 continue  # a duplicate of an older track (tracks are kept oldest first)

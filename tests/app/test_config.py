@@ -45,7 +45,7 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("loop=3", "loop", "expected a table"),
         ("log.queue_size=10000000000", "log.queue_size", "<= 65536"),
         ("estimator.tracker.accel_sigmas_mps2=[]", "estimator.tracker", "at least one positive"),
-        ("estimator.tracker.mode_switch_prob=1.5", "estimator.tracker", "mode_switch_prob must be in [0, 1)"),
+        ("estimator.tracker.mode_switch_per_s=-1", "estimator.tracker", "mode_switch_per_s must be >= 0"),
         ("estimator.bodies.max_gap_beams=-1", "estimator.bodies", "max_gap_beams >= 0"),
         ("estimator.bodies.fixture_own_m=0.9", "estimator.bodies", "fixture_own_m < leg_pair_max_m"),
         ("estimator.bodies.camera_interval_max_m=0", "estimator.bodies", "camera_interval_max_m > 0"),

@@ -70,7 +70,7 @@ def test_constant_velocity_tracking_and_identities() -> None:
 
 
 def test_tracks_coast_then_drop() -> None:
-    cfg = TrackerConfig(max_missed=3)
+    cfg = TrackerConfig(max_missed_s=0.3)
     tr = Tracker(cfg)
     for k in range(5):
         tr.step(0.1 * k, [Detection(1.0 + 0.1 * k, 0.0, 0.3, True, 0, 1, 0.0, 0.1)])
@@ -80,6 +80,31 @@ def test_tracks_coast_then_drop() -> None:
     x_pred = tr.tracks[0].state[0]
     assert x_pred == pytest.approx(1.0 + 0.1 * 7, abs=0.1)  # coasted at ~1 m/s
     assert tr.step(0.8, []) == [] and tr.tracks == []
+
+
+@pytest.mark.parametrize("period_s", [0.1, 0.4 / 3.0, 0.05])
+def test_coasting_reporting_and_dropping_take_seconds_whatever_the_scan_rate(period_s: float) -> None:
+    """A confirmed track is reported while unseen for up to ``report_missed_s`` and dropped once unseen
+    for more than ``max_missed_s``, in seconds: at 7.5 Hz counted cycles stretched both by 1.33."""
+    cfg = TrackerConfig()
+    tr = Tracker(cfg)
+    k = 0
+    while not (tr.tracks and tr.reported(tr.tracks[0])):
+        tr.step(period_s * k, [Detection(1.0 + period_s * k, 0.0, 0.3, True, 0, 1, 0.0, 0.1)])
+        k += 1
+        assert k < 100
+    last_seen_s = period_s * (k - 1)
+    while tr.tracks:
+        t_s = period_s * k
+        tr.step(t_s, [])
+        unseen = t_s - last_seen_s
+        if tr.tracks:
+            assert unseen <= cfg.max_missed_s + 1e-6
+            assert tr.reported(tr.tracks[0]) == (unseen <= cfg.report_missed_s + 1e-6)
+        else:
+            assert unseen > cfg.max_missed_s
+        k += 1
+    assert unseen <= cfg.max_missed_s + period_s + 1e-6
 
 
 # ------------------------------------------------------------------ confirmation (issue 11)
@@ -258,7 +283,7 @@ def test_an_unconfirmed_track_that_never_moves_dies_young() -> None:
     ids = set()
     for k in range(40):  # a post with camera evidence every cycle (the moving body beside it)
         for t, _ in tr.step(0.1 * k, [_det(5.93 + rng.normal(0, 0.005), -1.2, kind="leg")]):
-            assert t.age_cycles <= cfg.tentative_max_age + 1 and not t.confirmed
+            assert t.age_cycles <= round(cfg.tentative_max_age_s / 0.1) + 1 and not t.confirmed
             ids.add(t.track_id)
     assert len(ids) >= 3  # born again and again, never old enough to take a neighbour's detection
 
@@ -370,14 +395,15 @@ def test_a_static_body_with_a_flow_error_is_not_confirmed_by_its_earlier_detecti
 
 
 def test_earlier_detections_are_bounded_and_start_one_track_only() -> None:
-    tr = Tracker(TrackerConfig(retro_cycles=3))
+    tr = Tracker(TrackerConfig(retro_s=0.3))
     for k in range(10):
         tr.step(0.1 * k, [_slow_body(1.0, evidence=False), _slow_body(3.0, evidence=False)])
-    assert len(tr._past) == 3 and all(len(dets) == 2 for _, dets in tr._past)
+    # the cycles of the last 0.3 s before the newest, and the newest
+    assert len(tr._past) == 4 and all(len(dets) == 2 for _, dets in tr._past)
     tr.step(1.0, [_slow_body(1.0, evidence=True), _slow_body(1.3, evidence=True)])
     a, b = tr.tracks
     assert (a.hits, b.hits) == (4, 1)  # the first took the chain of earlier detections, the second none
-    assert [len(dets) for _, dets in tr._past] == [1, 1, 0]
+    assert [len(dets) for _, dets in tr._past] == [1, 1, 1, 0]
 
 
 def test_the_report_window_starts_where_motion_was_first_seen() -> None:
@@ -407,7 +433,7 @@ def test_an_occluded_detection_ends_the_chain_of_earlier_detections() -> None:
 
 def test_a_track_born_where_an_unconfirmed_one_died_sees_its_static_past() -> None:
     """A box with camera evidence now and then (the cylinder passing beside it, cylinder_clutter seed 3):
-    its unconfirmed track dies at ``tentative_max_age``; the next one, born there, must not judge the
+    its unconfirmed track dies at ``tentative_max_age_s``; the next one, born there, must not judge the
     box's motion from three fresh detections when its fit then slides 10 cm along the occluder's edge."""
     tr = Tracker(TrackerConfig())
     xs = {12: 7.26, 13: 7.20}
@@ -484,7 +510,7 @@ def test_one_model_is_the_plain_constant_velocity_kalman_filter() -> None:
 
 @pytest.mark.parametrize(
     "bad",
-    [{"accel_sigmas_mps2": ()}, {"accel_sigmas_mps2": (0.2, 0.0)}, {"mode_switch_prob": 1.0}, {"report_window": 1},
+    [{"accel_sigmas_mps2": ()}, {"accel_sigmas_mps2": (0.2, 0.0)}, {"mode_switch_per_s": -1.0}, {"report_window": 1},
      {"confirm_vacated_m": -0.1}],
 )
 def test_a_wrong_tracker_setting_is_refused(bad: dict) -> None:
@@ -620,7 +646,8 @@ def test_the_chain_of_earlier_detections_passes_over_a_scan_or_two_without_the_b
         dets = [] if k not in seen else [_det(*seen[k], evidence=k in (6, 7), kind="leg")]
         for t, _ in tr.step(0.1 * k, dets):
             assert not t.confirmed, k
-    assert tr.tracks[0].hits == 10  # k = 1-3 (k = 0 is older than retro_cycles), 6, and 7-12
+        if k == 7:
+            assert tr.tracks[0].hits == 5  # k = 1-3 (k = 0 is older than retro_s), 6 and 7
 
 
 def test_a_box_uncovered_by_a_passing_body_does_not_confirm_on_its_shifting_fit() -> None:
