@@ -13,9 +13,11 @@ leg_tracker scans in ``../shared/data/real_people_laser`` (PROVENANCE.md there),
   difference of neighbours would not do); walking > 0.3 m/s, slow 0.1-0.3, standing < 0.1.
 * **Still recordings** (every recording but the drive): the laser did not move, so the estimator's odometry
   frame is the laser frame. Reports on the static background: the report's range is at least the beam's
-  ``BACKGROUND_PERCENTILE`` percentile range over the recording less ``BACKGROUND_MARGIN_M`` (a report at
-  or behind the farthest surface that beam usually sees: a wall, not a person in front of it); tracks
-  that never move: reported tracks whose reports all lie within ``STILL_TRACK_M`` of their mean.
+  ``BACKGROUND_PERCENTILE`` percentile range over the recording (no return counting as open space,
+  infinitely far) less ``BACKGROUND_MARGIN_M`` (a report at or behind the farthest surface that beam
+  usually sees: a wall, not a person in front of it); tracks that never move: reported tracks whose
+  reports all lie within ``STILL_TRACK_M`` of their mean. In a labelled scan a report within 0.5 m of a
+  labelled leg is the person, counted in neither.
 * **The drive** (``negative_2.bag``, nobody present, no odometry): every report is false (per minute);
   the matcher's path is compared with an independent scan-to-map registration of the same scans by
   ``kiss-icp`` (run here only, never in the product's loop).
@@ -27,9 +29,9 @@ A recording that is absent is listed under ``skipped`` with its name.
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
-import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -253,30 +255,50 @@ def labelled_metrics(run: Run, labels: list[tuple[float, np.ndarray]], period_s:
 # still and driving recordings
 
 
-def background_metrics(run: Run) -> dict[str, Any]:
-    """Reports on the static background and tracks that never move, per minute (laser still)."""
+def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None = None) -> dict[str, Any]:
+    """Reports on the static background and tracks that never move, per minute (laser still).
+
+    A beam's background is the ``BACKGROUND_PERCENTILE`` percentile of its ranges over the recording, a
+    scan with no return there counting as open space (infinitely far): where a walker crosses open space
+    the walker is the only thing the beam ever returns from, and is not the background. In a labelled scan
+    a report within ``max(RECALL_RADII_M)`` of a labelled leg is the labelled person, neither a background
+    report nor part of a still track."""
     assert run.bearings is not None
     stack = np.array(run.ranges)
-    with warnings.catch_warnings():  # a beam with no return in the whole recording: NaN, no background
-        warnings.simplefilter("ignore", RuntimeWarning)
-        bg = np.nanpercentile(stack, BACKGROUND_PERCENTILE, axis=0)
+    bg = np.percentile(np.where(np.isfinite(stack), stack, np.inf), BACKGROUND_PERCENTILE, axis=0)
     b = run.bearings
     on_bg = 0
     tracks: dict[int, list[tuple[float, float]]] = {}
+    on_person: set[int] = set()
     for c in run.cycles:
+        legs = _labelled_legs(labels, c.stamp_s)
         for tid, x, y in c.reports:
+            if legs is not None and float(np.hypot(*(legs - (x, y)).T).min()) <= max(RECALL_RADII_M):
+                on_person.add(tid)
+                continue
             tracks.setdefault(tid, []).append((x, y))
             i = int(np.clip(np.searchsorted(b, math.atan2(y, x)), 0, b.size - 1))
             if np.isfinite(bg[i]) and math.hypot(x, y) >= bg[i] - BACKGROUND_MARGIN_M:
                 on_bg += 1
-    still = sum(1 for p in tracks.values()
-                if np.hypot(*(np.array(p) - np.mean(p, axis=0)).T).max() <= STILL_TRACK_M)
+    still = sum(1 for tid, p in tracks.items() if tid not in on_person
+                and np.hypot(*(np.array(p) - np.mean(p, axis=0)).T).max() <= STILL_TRACK_M)
     m = run.minutes
     return {
         "background_reports_per_min": round(on_bg / m, 1) if m > 0 else None,
         "still_tracks_per_min": round(still / m, 2) if m > 0 else None,
-        "tracks": len(tracks),
+        "tracks": len(tracks.keys() | on_person),
     }
+
+
+def _labelled_legs(labels: list[tuple[float, np.ndarray]] | None, stamp_s: float) -> np.ndarray | None:
+    """The labelled legs of the scan at ``stamp_s`` (None: not a labelled scan)."""
+    if not labels:
+        return None
+    k = bisect.bisect_left(labels, stamp_s, key=lambda e: e[0])
+    for j in (k - 1, k):
+        if 0 <= j < len(labels) and abs(labels[j][0] - stamp_s) < 1e-6 and labels[j][1].size:
+            return labels[j][1]
+    return None
 
 
 def report_counts(run: Run) -> dict[str, Any]:
@@ -361,13 +383,11 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
         if not run.cycles:  # nothing on the topic (or damaged at once): nothing to score
             out.append(res)
             continue
-        if rec.kind != "drive":
-            res.update(background_metrics(run))
-        if rec.labels is not None and (data_dir / rec.labels).exists():
-            period = run.sensor["scan_period_s"] if run.sensor and run.sensor["scan_period_s"] > 0 else 0.1
-            res.update(labelled_metrics(run, read_labels(bag, data_dir / rec.labels), period))
+        labels = read_labels(bag, data_dir / rec.labels) if rec.labels and (data_dir / rec.labels).exists() else None
+        res.update(_report_metrics(run, rec, labels))
         for key, moving in (("people", False), ("moving_people", True)):
-            res[key] = _scored_as_reports(_people_run(run, moving), rec, bag, data_dir)
+            pr = _people_run(run, moving)
+            res[key] = {**report_counts(pr), **_report_metrics(pr, rec, labels)}
         if rec.kind == "drive":
             res["kiss_icp"] = _kiss(run, headings)
         out.append(res)
@@ -382,14 +402,14 @@ def _people_run(run: Run, moving_only: bool) -> Run:
     return Run(run.topic, cycles, run.ranges, run.bearings, run.sensor, run.ms_per_cycle, run.truncation)
 
 
-def _scored_as_reports(run: Run, rec: Recording, bag: Path, data_dir: Path) -> dict[str, Any]:
-    """``people`` / ``moving_people`` in the JSON: the same figures with those as the reports."""
-    res = report_counts(run)
+def _report_metrics(run: Run, rec: Recording, labels: list[tuple[float, np.ndarray]] | None) -> dict[str, Any]:
+    """The background figures (a still laser) and the labelled ones (a labelled recording) of ``run``'s reports."""
+    res: dict[str, Any] = {}
     if rec.kind != "drive":
-        res.update(background_metrics(run))
-    if rec.labels is not None and (data_dir / rec.labels).exists():
+        res.update(background_metrics(run, labels))
+    if labels is not None:
         period = run.sensor["scan_period_s"] if run.sensor and run.sensor["scan_period_s"] > 0 else 0.1
-        res.update(labelled_metrics(run, read_labels(bag, data_dir / rec.labels), period))
+        res.update(labelled_metrics(run, labels, period))
     return res
 
 

@@ -73,6 +73,27 @@ def test_background_reports_and_still_tracks() -> None:
     assert m["still_tracks_per_min"] == pytest.approx(10.0) and m["tracks"] == 2
 
 
+def test_a_walker_in_open_space_and_a_labelled_person_are_not_background() -> None:
+    """A beam with no return most of the time looks into open space: a walker it returns from now and
+    then is in front of the background, not on it (before, the percentile over returns only made the
+    walker its own background). A report on a labelled leg is the person: no still track either."""
+    b = np.linspace(-1.0, 1.0, 101)
+    ranges, cycles, labels = [], [], []
+    for i in range(60):
+        r = np.full(101, np.nan)  # open space, no return ...
+        r[50] = 3.0 if i % 10 == 0 else np.nan  # ... but the walker crossing beam 50 now and then
+        r[10] = 4.0  # and a wall on beam 10
+        ranges.append(r)
+        reports = [(1, 3.0, 0.0), (2, 2.0, 1.0)]  # the walker (labelled), and a standing thing
+        cycles.append(Cycle(i * 0.1, (0.0, 0.0, 0.0), reports, False, None))
+        labels.append((i * 0.1, np.array([[3.05, 0.1], [2.95, -0.1]])))
+    m = background_metrics(Run("/scan", cycles, ranges, b), labels)
+    assert m["background_reports_per_min"] == 0.0
+    assert m["still_tracks_per_min"] == pytest.approx(60 / 5.9, rel=1e-3) and m["tracks"] == 2  # only track 2
+    unlabelled = background_metrics(Run("/scan", cycles, ranges, b))
+    assert unlabelled["background_reports_per_min"] == 0.0 and unlabelled["still_tracks_per_min"] == pytest.approx(120 / 5.9, rel=1e-3)
+
+
 def test_refusals_and_path_comparison() -> None:
     cycles = [Cycle(i * 0.1, (0.0 if i >= 5 else 0.1 * i, 0.0, 0.0), [], i >= 5, "no_valid_shift" if i >= 5 else None)
               for i in range(10)]
