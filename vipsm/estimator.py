@@ -124,12 +124,16 @@ class EstimatorConfig:
     #: (``Scan.beam_dt_s``; the motion is the odometry's twist, without odometry the constant-velocity
     #: model's), see :func:`vipsm.motion.deskew`. "off", "no_odometry" (only without odometry) or "always"
     deskew: str = "no_odometry"
-    #: beams that see the robot itself are cut from every stage (:class:`vipsm.sensor.SelfReturns`): a
-    #: return whose range stays within ``self_returns_tol_m`` over ``self_returns_checks`` turns of
-    #: ``self_returns_turn_rad`` each moves with the robot. ``self_returns_turn_rad`` 0: off
+    #: beams that see the robot itself are cut from every stage (:class:`vipsm.sensor.SelfReturns`): the
+    #: robot's footprint along each beam, learned at checks ``self_returns_turn_rad`` of turn apart: a
+    #: (beam, range within ``self_returns_tol_m``) held in ``self_returns_share`` of the checks that could
+    #: see it, by at least ``self_returns_checks`` of them, out to ``self_returns_max_range_m`` (the robot's
+    #: reach from its laser). ``self_returns_turn_rad`` 0: off
     self_returns_turn_rad: float = math.radians(30.0)
     self_returns_tol_m: float = 0.05
     self_returns_checks: int = 2
+    self_returns_max_range_m: float = 1.0
+    self_returns_share: float = 0.5
     #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
     #: this length); scans in between publish the tracks predicted to their stamp
     obstacle_period_s: float = 0.1
@@ -137,9 +141,11 @@ class EstimatorConfig:
     def __post_init__(self) -> None:
         if self.no_odometry_refine_iterations < 0:
             raise ValueError(f"no_odometry_refine_iterations must be >= 0, got {self.no_odometry_refine_iterations}")
-        if self.self_returns_turn_rad < 0.0 or not self.self_returns_tol_m > 0.0 or self.self_returns_checks < 1:
-            raise ValueError("need self_returns_turn_rad >= 0 (0: off), self_returns_tol_m > 0 and "
-                             "self_returns_checks >= 1")
+        if (self.self_returns_turn_rad < 0.0 or not self.self_returns_tol_m > 0.0 or self.self_returns_checks < 1
+                or not self.self_returns_max_range_m > self.self_returns_tol_m
+                or not 0.0 < self.self_returns_share <= 1.0):
+            raise ValueError("need self_returns_turn_rad >= 0 (0: off), self_returns_tol_m > 0, self_returns_checks "
+                             ">= 1, self_returns_max_range_m > self_returns_tol_m and 0 < self_returns_share <= 1")
         if self.deskew not in DESKEW_MODES:
             raise ValueError(f"deskew must be one of {', '.join(DESKEW_MODES)}, got {self.deskew!r}")
         if self.motion_prior not in MOTION_PRIORS:
@@ -194,7 +200,8 @@ class Estimator:
         self._last_odo: Pose2D | None = None
         self._motion = ConstantVelocity(self.config.max_prediction_gap_s)
         c = self.config
-        self._self_returns = (SelfReturns(c.self_returns_turn_rad, c.self_returns_tol_m, c.self_returns_checks)
+        self._self_returns = (SelfReturns(c.self_returns_turn_rad, c.self_returns_tol_m, c.self_returns_checks,
+                                          max_range_m=c.self_returns_max_range_m, min_share=c.self_returns_share)
                               if c.self_returns_turn_rad > 0.0 else None)
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
