@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -205,6 +206,8 @@ class Estimator:
                               if c.self_returns_turn_rad > 0.0 else None)
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
+        self._deskew_w_radps = 0.0  # the turn rate the last de-skew assumed (0: not de-skewed)
+        self._skew_rad = 0.0  # the heading error the sweep's skew left in this cycle's scan (see _skew_left)
 
     # ------------------------------------------------------------------ the pipeline
     def step(self, scan: Scan, odometry: Odometry | None, frame: Frame | None = None) -> Estimate:
@@ -223,6 +226,8 @@ class Estimator:
         if not given and match.flags & EstimateFlag.ODOMETRY_FALLBACK:
             flags |= EstimateFlag.POSE_UNCERTAIN
         laser = compose(match.pose, self.config.laser_mount)
+        self._skew_rad = self._skew_left(scan, match)
+        self._memory.observe(laser.theta_rad, self._skew_rad)
         bodies, tracked = self._obstacles(scan, lone_m, dropped, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
         return self._estimate(scan, odometry if given else None, match, rest,
@@ -267,14 +272,29 @@ class Estimator:
         """The scan (and the lone returns) as seen from the laser's pose at the first beam (``deskew``): every
         stage of the cycle then places its beams with the one pose the matcher finds for the stamp."""
         cfg = self.config
+        self._deskew_w_radps = 0.0
         if not (cfg.deskew == "always" or (cfg.deskew == "no_odometry" and not given)):
             return scan, lone_m
         tw = Twist2D(odometry.v_mps, 0.0, odometry.w_radps) if given else self._motion.twist
         tw = laser_twist(tw, cfg.laser_mount)
+        self._deskew_w_radps = tw.w_radps
         jump, factor = cfg.psm.seg_jump_m, cfg.psm.seg_jump_range_factor
         ranges, _ = deskew(scan.ranges_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
         lone, _ = deskew(lone_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
         return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities), lone
+
+    def _skew_left(self, scan: Scan, match: MatchOutcome) -> float:
+        """The heading error the sweep's skew left in this scan: the last beam is seen ``sweep`` after the
+        first, and a turn rate the de-skew did not assume (all of it without de-skew; the change since the
+        last cycle with it) turns it by that rate times ``sweep``. The rate is the matched one since the
+        last estimate."""
+        last, since = self._last_pose, self._motion.stamp_s
+        dt = scan.stamp_s - since if since is not None else 0.0
+        if last is None or not 0.0 < dt <= self.config.max_prediction_gap_s:
+            return 0.0
+        w = math.remainder(match.pose.theta_rad - last.theta_rad, 2.0 * math.pi) / dt
+        sweep_s = abs(scan.beam_dt_s) * max(scan.ranges_m.size - 1, 0)
+        return abs(w - self._deskew_w_radps) * sweep_s
 
     def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
         """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
@@ -374,7 +394,7 @@ class Estimator:
         ranges = np.where(np.isfinite(lone_m), lone_m, scan.ranges_m)
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
-        self._memory.push(laser, ranges, scan.bearings_rad)
+        self._memory.push(laser, ranges, scan.bearings_rad, self._skew_rad)
         if any(t.missed for t in self._tracker.tracks):  # only a coasting track can be dropped
             self._tracker.drop_seen_free(self._static.seen_free_now, scan_points(laser, ranges, scan.bearings_rad))
 
@@ -407,7 +427,10 @@ class Estimator:
         """Per beam: the return stands at least ``ahead_min_m`` in front of what the keyframe (the
         reference scan, taken up to ``keyframe_dist_m`` back) saw in that direction. A static scene
         cannot do that (a new viewpoint only reveals surfaces behind what was seen); a body that
-        moved towards the laser does."""
+        moved towards the laser does. "In that direction" allows for the heading uncertainty between the
+        keyframe and this scan (:meth:`ScanMemory.relative_heading_sigma_rad`): the return must stand in
+        front of everything the keyframe saw within ``sigma_gate`` sigmas of its bearing, so the near side
+        of a depth edge, seen a fraction of a degree off, is no motion."""
         kf = self._matcher.keyframe
         if kf is None or EstimateFlag.ODOMETRY_FALLBACK in match.flags:
             return None
@@ -432,9 +455,16 @@ class Estimator:
             # a box in front of that line would look "ahead" for as long as the keyframe lives
             # (cylinder_clutter seed 91). There the measured range counts.
             kr = np.where(kf.prep.weights > 0.0, kr, kf.seen_m)
-        kr = kr[j]
+        kr = _nearest_within(kr, self._ahead_window_beams(kf.pose, match.pose, kb))[j]
         with np.errstate(invalid="ignore"):
             return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - cfg.ahead_min_m)
+
+    def _ahead_window_beams(self, kf_pose: Pose2D, pose: Pose2D, kb: np.ndarray) -> int:
+        """Keyframe beams either side that the heading uncertainty between it and ``pose`` reaches."""
+        st = self.config.seen_through
+        sigma = self._memory.relative_heading_sigma_rad(kf_pose.theta_rad, 0.0, pose.theta_rad, self._skew_rad)
+        step = float(abs(kb[-1] - kb[0]) / (kb.size - 1))
+        return min(int(math.ceil(st.sigma_gate * sigma / step)), kb.size // 4) if step > 0.0 else 0
 
     def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
@@ -458,6 +488,18 @@ class Estimator:
         ok = np.isfinite(ranges) & (ranges >= self.config.psm.min_range_m)
         r, b = ranges[ok], bearings[ok]
         return scan_points(self.config.laser_mount, r, b)
+
+
+def _nearest_within(r: np.ndarray, k: int) -> np.ndarray:
+    """Per beam: the nearest return within ``k`` beams either side; NaN where the beam itself has none (no
+    return there is no surface to stand in front of)."""
+    if k <= 0:
+        return r
+    padded = np.concatenate((np.full(k, np.nan), r, np.full(k, np.nan)))
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window: NaN
+        near = np.nanmin(np.lib.stride_tricks.sliding_window_view(padded, 2 * k + 1), axis=1)
+    return np.where(np.isfinite(r), near, np.nan)
 
 
 def _checked(scan: Scan) -> tuple[Scan, bool]:

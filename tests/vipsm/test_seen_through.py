@@ -105,3 +105,40 @@ def test_a_scan_in_falling_bearing_order_is_read_the_same() -> None:
     rev.push(A, scan.ranges_m[::-1], scan.bearings_rad[::-1])
     pts = np.array([[2.0, 0.5], [5.95, 0.0], [1.0, -1.0], [6.5, 0.0]])
     assert fwd.seen_through(pts).tolist() == rev.seen_through(pts).tolist() == [True, False, True, False]
+
+
+def test_a_heading_error_after_a_turn_is_no_evidence_but_real_motion_still_is() -> None:
+    """A post 4 m away, seen before a 90 deg turn and again after it with the heading 1 deg off: its
+    outline lands 7 cm beside itself, where the earlier scan's beams passed beyond. That is the pose's
+    error, not motion: the window widens by the heading uncertainty between the two scans (their own and
+    the drift with the turn). A body that really moved into the seen-free space is still found."""
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
+    world.circles = [Circle(4.0, 0.0, 0.10)]
+    memory = ScanMemory()
+    before = world.scan(A)
+    memory.push(A, before.ranges_m, before.bearings_rad)
+    turned = Pose2D(0.0, 0.0, math.pi / 2)
+    seen_as = Pose2D(0.0, 0.0, math.pi / 2 + math.radians(1.0))  # the matched pose, 1 deg off
+    after = world.scan(turned, UTM_BEARINGS)
+    pts = _points(after, seen_as)
+    post = pts[np.hypot(pts[:, 0] - 4.0, pts[:, 1]) < 0.25]
+    assert post.shape[0] >= 5
+    moved = np.array([[3.0, 0.6], [2.0, -1.0]])  # a body where the beams passed before the turn
+    assert memory.seen_through(post).any()  # without the pose's uncertainty: a false violation
+    memory.observe(seen_as.theta_rad, 0.0)
+    assert not memory.seen_through(post).any()
+    assert memory.seen_through(moved).all()
+    # a still laser (no turn) keeps a narrow window: the heading sigma alone
+    sigma = memory.relative_heading_sigma_rad(0.0, 0.0, 0.0, 0.0)
+    assert sigma == pytest.approx(math.sqrt(2.0) * SeenThroughConfig().heading_sigma_rad)
+    assert memory.relative_heading_sigma_rad(0.0, 0.0, math.pi / 2, 0.0) > 2.0 * sigma
+
+
+def test_a_skewed_scan_widens_the_window_and_bad_settings_are_refused() -> None:
+    memory = ScanMemory()
+    plain = memory.relative_heading_sigma_rad(0.0, 0.0, 0.0, 0.0)
+    assert memory.relative_heading_sigma_rad(0.0, 0.02, 0.0, 0.0) > plain
+    with pytest.raises(ValueError):
+        memory.observe(0.0, -0.1)
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(heading_drift_per_rad=-0.01))

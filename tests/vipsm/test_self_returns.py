@@ -41,7 +41,7 @@ def test_a_return_fixed_in_the_laser_frame_over_turns_is_masked_and_walls_are_no
     # the part taken off: the beams see the room from then on, and the footprint is forgotten once the part
     # is held in fewer than half the checks that could have seen it
     heading = _pose(6.0).theta_rad
-    for k in range(1, 40):
+    for _ in range(1, 40):
         heading += math.radians(35.0)
         r = world.scan(Pose2D(0.0, 0.0, heading), BEARINGS).ranges_m
         sr.update(r, heading)
