@@ -457,7 +457,16 @@ class Estimator:
             kr = np.where(kf.prep.weights > 0.0, kr, kf.seen_m)
         kr = _nearest_within(kr, self._ahead_window_beams(kf.pose, match.pose, kb))[j]
         with np.errstate(invalid="ignore"):
-            return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - cfg.ahead_min_m)
+            return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - self._ahead_margin_m(match))
+
+    def _ahead_margin_m(self, match: MatchOutcome) -> float:
+        """How far in front of the keyframe a return must stand: ``ahead_min_m`` beyond what the two scans'
+        range differences scatter by after this match (its mean absolute residual, 0.8 sigma for Gaussian
+        noise, times ``seen_through.sigma_gate``): a noisier scanner, or a match that fits worse, needs a
+        clearer step towards the laser."""
+        res = match.result
+        spread = res.residual_m / 0.8 if res is not None and math.isfinite(res.residual_m) else 0.0
+        return self.config.ahead_min_m + self.config.seen_through.sigma_gate * spread
 
     def _ahead_window_beams(self, kf_pose: Pose2D, pose: Pose2D, kb: np.ndarray) -> int:
         """Keyframe beams either side that the heading uncertainty between it and ``pose`` reaches."""

@@ -4,6 +4,7 @@ another was never seen through, though its 10 cm grid cell was crossed)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -142,3 +143,27 @@ def test_a_skewed_scan_widens_the_window_and_bad_settings_are_refused() -> None:
         memory.observe(0.0, -0.1)
     with pytest.raises(ValueError):
         ScanMemory(SeenThroughConfig(heading_drift_per_rad=-0.01))
+
+
+def test_ahead_of_the_keyframe_allows_for_the_scanners_range_noise() -> None:
+    """A still laser with 4 cm range noise before a room: two scans' ranges differ by more than the fixed
+    5 cm now and then on every wall; a step towards the laser counts only beyond the scatter the match's
+    own residual shows. A box put 0.4 m in front of the wall still stands ahead."""
+    from vipsm.estimator import Estimator, EstimatorConfig
+    from vipsm.types import Odometry
+
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
+    rng = np.random.default_rng(11)
+    est = Estimator(EstimatorConfig())
+    odo = Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    for k in range(4):
+        est.step(world.scan(A, noise_m=0.04, rng=rng, stamp_s=0.1 * k), replace(odo, stamp_s=0.1 * k))
+    scan = world.scan(A, noise_m=0.04, rng=rng, stamp_s=0.4)
+    r = scan.ranges_m.copy()
+    box = np.abs(scan.bearings_rad) < math.radians(3.0)
+    r[box] -= 0.4
+    scan = replace(scan, ranges_m=r)
+    est.step(scan, replace(odo, stamp_s=0.4))
+    ahead = est._ahead_of_keyframe(scan, est.last_debug.match)  # noqa: SLF001 - the evidence stage's input
+    assert ahead is not None and ahead[box].mean() > 0.9
+    assert ahead[~box].mean() < 0.002  # a fixed 5 cm margin flags 1.6 % of the wall beams here
