@@ -208,6 +208,7 @@ class Estimator:
         self.last_debug: StepDebug | None = None
         self._deskew_w_radps = 0.0  # the turn rate the last de-skew assumed (0: not de-skewed)
         self._skew_rad = 0.0  # the heading error the sweep's skew left in this cycle's scan (see _skew_left)
+        self._heading_sigma_rad: float | None = None  # this cycle's own heading error (see _heading_sigma)
 
     # ------------------------------------------------------------------ the pipeline
     def step(self, scan: Scan, odometry: Odometry | None, frame: Frame | None = None) -> Estimate:
@@ -227,7 +228,8 @@ class Estimator:
             flags |= EstimateFlag.POSE_UNCERTAIN
         laser = compose(match.pose, self.config.laser_mount)
         self._skew_rad = self._skew_left(scan, match)
-        self._memory.observe(laser.theta_rad, self._skew_rad)
+        self._heading_sigma_rad = self._heading_sigma(match)
+        self._memory.observe(laser, self._heading_sigma_rad)
         bodies, tracked = self._obstacles(scan, lone_m, dropped, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
         return self._estimate(scan, odometry if given else None, match, rest,
@@ -295,6 +297,16 @@ class Estimator:
         w = math.remainder(match.pose.theta_rad - last.theta_rad, 2.0 * math.pi) / dt
         sweep_s = abs(scan.beam_dt_s) * max(scan.ranges_m.size - 1, 0)
         return abs(w - self._deskew_w_radps) * sweep_s
+
+    def _heading_sigma(self, match: MatchOutcome) -> float | None:
+        """This cycle's own heading error (1 sigma) beyond what the evidence tests' fixed tolerances hold
+        (``seen_through.lateral_tol_m``, ``ahead_min_m`` already allow for a matched pose's few centimetres):
+        the skew the sweep left; None where no match measured the pose (the evidence stages then take
+        ``seen_through.heading_sigma_rad``)."""
+        res = match.result
+        if res is None or res.refused or EstimateFlag.ODOMETRY_FALLBACK in match.flags:
+            return None
+        return self._skew_rad
 
     def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
         """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
@@ -394,7 +406,7 @@ class Estimator:
         ranges = np.where(np.isfinite(lone_m), lone_m, scan.ranges_m)
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
-        self._memory.push(laser, ranges, scan.bearings_rad, self._skew_rad)
+        self._memory.push(laser, ranges, scan.bearings_rad, self._heading_sigma_rad)
         if any(t.missed for t in self._tracker.tracks):  # only a coasting track can be dropped
             self._tracker.drop_seen_free(self._static.seen_free_now, scan_points(laser, ranges, scan.bearings_rad))
 
@@ -471,7 +483,9 @@ class Estimator:
     def _ahead_window_beams(self, kf_pose: Pose2D, pose: Pose2D, kb: np.ndarray) -> int:
         """Keyframe beams either side that the heading uncertainty between it and ``pose`` reaches."""
         st = self.config.seen_through
-        sigma = self._memory.relative_heading_sigma_rad(kf_pose.theta_rad, 0.0, pose.theta_rad, self._skew_rad)
+        own = self._heading_sigma_rad if self._heading_sigma_rad is not None else st.heading_sigma_rad
+        mount = self.config.laser_mount
+        sigma = self._memory.relative_heading_sigma_rad(compose(kf_pose, mount), own, compose(pose, mount), own)
         step = float(abs(kb[-1] - kb[0]) / (kb.size - 1))
         return min(int(math.ceil(st.sigma_gate * sigma / step)), kb.size // 4) if step > 0.0 else 0
 

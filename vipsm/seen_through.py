@@ -19,11 +19,16 @@ surface), so it makes the point unknown for that scan.
 **The pose's uncertainty.** The points asked about are placed with the current matched pose, the kept scans
 with theirs. A heading error between the two moves a return at range r sideways by r times it: a beam that
 passed that close beside the point is no evidence (the point may be the edge of the very surface that beam
-passed). So the lateral window is ``lateral_tol_m + sigma_gate * r * sigma_rel`` with the two scans'
-relative heading uncertainty ``sigma_rel^2 = s_now^2 + s_kept^2 + (heading_drift_per_rad * turn)^2``: each
-scan's own heading error (``heading_sigma_rad``, the match's, plus what the sweep's skew left, given per scan:
-:meth:`ScanMemory.observe`, :meth:`ScanMemory.push`) and the drift that grows with the turn between them. A
-still or straight-driving laser keeps a window of about ``lateral_tol_m``; a fast turn widens it.
+passed). So the lateral window is ``lateral_tol_m + max(sigma_gate * r * sigma_rel - pose_tol_m, 0)``
+(``lateral_tol_m`` already holds ``pose_tol_m`` for the matched pose's error) with the two scans' relative
+heading uncertainty ``sigma_rel^2 = s_now^2 + s_kept^2 + heading_sigma_rad^2 * steps``: each scan's own
+heading error beyond a match's (given per scan, :meth:`ScanMemory.observe`, :meth:`ScanMemory.push`: what
+the sweep's skew left; ``heading_sigma_rad`` for a pose no match measured) and a random walk of one match
+error per keyframe step between them (``steps`` = turn / ``step_angle_rad`` + distance / ``step_dist_m``:
+the estimator's keyframe spacing). A still laser keeps its window of ``lateral_tol_m`` (its scans'
+heading noise, 0.01-0.06 deg on the shared still recordings, moves a return by less than ``pose_tol_m``);
+driving and turning widen it for the older scans. The window is sharp: 1-2 cm more on a still laser cut
+the walking recall of positive_3 from 0.75 to 0.60.
 """
 
 from __future__ import annotations
@@ -45,14 +50,18 @@ class SeenThroughConfig:
     #: a beam this close beside the point could have hit it (the matched pose's error, ~2 cm, plus a
     #: thin leg's half-width and the beam's own footprint)
     lateral_tol_m: float = 0.05
+    #: the part of ``lateral_tol_m`` that allows for the matched pose's error: the heading uncertainty widens
+    #: the window only where it moves a return further than this
+    pose_tol_m: float = 0.02
     #: the beam went at least this far beyond the point (UTM-30LX range noise +-3 cm x 3, pose error)
     range_margin_m: float = 0.15
-    #: one matched pose's own heading error (1 sigma; the matcher's median rotation error on the real Intel
-    #: and CSAIL pairs is 0.29-0.32 deg)
+    #: one scan-to-keyframe match's heading error (1 sigma; the matcher's median rotation error on the real
+    #: Intel and CSAIL pairs is 0.29-0.32 deg), also a pose's own where no match measured it
     heading_sigma_rad: float = math.radians(0.3)
-    #: relative heading error per radian turned between two scans (the leg_tracker drive's three rigidly
-    #: mounted lasers end a ~6.5 rad loop up to 4 deg apart: ~1 %)
-    heading_drift_per_rad: float = 0.01
+    #: the keyframe spacing (the estimator's ``keyframe_angle_rad`` / ``keyframe_dist_m``): one match error
+    #: is added per step between two scans
+    step_angle_rad: float = math.radians(10.0)
+    step_dist_m: float = 0.30
     #: a sideways displacement within this many sigmas of the heading uncertainty is no evidence
     sigma_gate: float = 2.0
 
@@ -65,43 +74,46 @@ class ScanMemory:
         c = self.config
         if c.scans < 1:
             raise ValueError(f"SeenThroughConfig.scans must be >= 1, got {c.scans}")
-        if min(c.heading_sigma_rad, c.heading_drift_per_rad, c.sigma_gate) < 0.0:
-            raise ValueError("SeenThroughConfig: heading_sigma_rad, heading_drift_per_rad and sigma_gate must be >= 0")
+        if (min(c.heading_sigma_rad, c.sigma_gate) < 0.0 or not (c.step_angle_rad > 0.0 and c.step_dist_m > 0.0)
+                or not 0.0 <= c.pose_tol_m <= c.lateral_tol_m):
+            raise ValueError("SeenThroughConfig: need heading_sigma_rad >= 0, sigma_gate >= 0, step_angle_rad > 0, "
+                             "step_dist_m > 0 and 0 <= pose_tol_m <= lateral_tol_m")
         self._scans: deque[tuple[Pose2D, np.ndarray, np.ndarray, float]] = deque(maxlen=c.scans)
-        #: the pose the asked points are placed with: its heading and its own extra heading sigma (None:
-        #: no pose uncertainty is accounted for, the plain lateral window)
-        self._observer: tuple[float, float] | None = None
+        #: the pose the asked points are placed with and its own heading sigma (None: no pose uncertainty is
+        #: accounted for, the plain lateral window)
+        self._observer: tuple[Pose2D, float] | None = None
 
     def __len__(self) -> int:
         return len(self._scans)
 
-    def observe(self, heading_rad: float, skew_sigma_rad: float = 0.0) -> None:
-        """The points asked about next are placed with a pose of this world heading, whose heading carries,
-        besides the match's ``heading_sigma_rad``, ``skew_sigma_rad`` (what the sweep's skew left)."""
-        if not (math.isfinite(heading_rad) and math.isfinite(skew_sigma_rad) and skew_sigma_rad >= 0.0):
-            raise ValueError("observe needs a finite heading and a finite skew sigma >= 0")
-        self._observer = (heading_rad, skew_sigma_rad)
+    def observe(self, laser: Pose2D, sigma_rad: float | None = None) -> None:
+        """The points asked about next are placed with the laser pose ``laser`` (world frame) whose own
+        heading error is ``sigma_rad`` (1 sigma beyond ``lateral_tol_m``; None: ``heading_sigma_rad``)."""
+        sigma = self.config.heading_sigma_rad if sigma_rad is None else sigma_rad
+        if not (math.isfinite(laser.theta_rad) and math.isfinite(sigma) and sigma >= 0.0):
+            raise ValueError("observe needs a finite heading and a finite heading sigma >= 0")
+        self._observer = (laser, sigma)
 
-    def relative_heading_sigma_rad(self, heading_a_rad: float, skew_a_rad: float, heading_b_rad: float,
-                                   skew_b_rad: float) -> float:
-        """The heading uncertainty between two matched scans (1 sigma): each one's own and the drift with the
-        turn between them."""
+    def relative_heading_sigma_rad(self, a: Pose2D, sigma_a_rad: float, b: Pose2D, sigma_b_rad: float) -> float:
+        """The heading uncertainty between two scans taken from laser poses ``a`` and ``b`` (1 sigma): each
+        one's own and one match error per keyframe step between them."""
         c = self.config
-        turn = abs(math.remainder(heading_a_rad - heading_b_rad, 2.0 * math.pi))
-        return math.sqrt(2.0 * c.heading_sigma_rad**2 + skew_a_rad**2 + skew_b_rad**2
-                         + (c.heading_drift_per_rad * turn) ** 2)
+        turn = abs(math.remainder(a.theta_rad - b.theta_rad, 2.0 * math.pi))
+        steps = turn / c.step_angle_rad + math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) / c.step_dist_m
+        return math.sqrt(sigma_a_rad**2 + sigma_b_rad**2 + c.heading_sigma_rad**2 * steps)
 
-    def push(self, laser: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray, skew_sigma_rad: float = 0.0
+    def push(self, laser: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray, sigma_rad: float | None = None
              ) -> None:
-        """Keep a scan (copied, in bearing order) taken from ``laser`` (world frame), its heading carrying
-        ``skew_sigma_rad`` besides the match's own error; the oldest falls out. A scan without beams is kept
-        too (it saw nothing through)."""
+        """Keep a scan (copied, in bearing order) taken from ``laser`` (world frame) whose own heading error is
+        ``sigma_rad`` (None: ``heading_sigma_rad``); the oldest falls out. A scan without beams is kept too (it
+        saw nothing through)."""
         r = np.array(ranges_m, dtype=np.float64)
         b = np.array(bearings_rad, dtype=np.float64)
         if r.shape != b.shape or r.ndim != 1:
             raise ValueError("ranges and bearings must be 1-D arrays of one length")
         order = np.argsort(b, kind="stable")
-        self._scans.append((laser, r[order], b[order], float(skew_sigma_rad)))
+        sigma = self.config.heading_sigma_rad if sigma_rad is None else float(sigma_rad)
+        self._scans.append((laser, r[order], b[order], sigma))
 
     def seen_through(self, points_xy: np.ndarray) -> np.ndarray:
         """Per point (world frame, k x 2): some kept scan's beams all passed beyond it (within the lateral
@@ -109,31 +121,31 @@ class ScanMemory:
         pts = np.ascontiguousarray(np.asarray(points_xy, dtype=np.float64).reshape(-1, 2))
         out = np.zeros(pts.shape[0], bool)
         c = self.config
-        for laser, r, b, skew in self._scans:
+        for laser, r, b, sigma in self._scans:
             todo = ~out
             if not todo.any():
                 break
             per_m = 0.0
             if self._observer is not None:
-                heading, own = self._observer
-                per_m = c.sigma_gate * self.relative_heading_sigma_rad(heading, own, laser.theta_rad, skew)
+                pose, own = self._observer
+                per_m = c.sigma_gate * self.relative_heading_sigma_rad(pose, own, laser, sigma)
             out[todo] = _passed_beyond(pts[todo, 0], pts[todo, 1], laser.x_m, laser.y_m, laser.theta_rad, r, b,
-                                       c.lateral_tol_m, c.range_margin_m, per_m)
+                                       c.lateral_tol_m, c.range_margin_m, per_m, c.pose_tol_m)
         return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m):  # pragma: no cover - compiled
+def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m, pose_tol_m):  # pragma: no cover
     """Per point: every beam of the scan (bearings ``b`` ascending) whose ray passes within
-    ``lateral_m + lateral_per_m * range`` of the point returned at least ``margin_m`` beyond it (and there
-    is such a beam)."""
+    ``lateral_m + max(lateral_per_m * range - pose_tol_m, 0)`` of the point returned at least ``margin_m``
+    beyond it (and there is such a beam)."""
     out = np.zeros(px.size, np.bool_)
     ct, st = math.cos(lth), math.sin(lth)
     for k in range(px.size):
         dx, dy = px[k] - lx, py[k] - ly
         xl, yl = ct * dx + st * dy, -st * dx + ct * dy
         dist = math.hypot(xl, yl)
-        lateral = lateral_m + lateral_per_m * dist
+        lateral = lateral_m + max(lateral_per_m * dist - pose_tol_m, 0.0)
         if dist <= lateral:
             continue  # the point is at the laser (or the heading is unknown): nothing to say
         bearing = math.atan2(yl, xl)

@@ -111,13 +111,14 @@ def test_a_scan_in_falling_bearing_order_is_read_the_same() -> None:
 def test_a_heading_error_after_a_turn_is_no_evidence_but_real_motion_still_is() -> None:
     """A post 4 m away, seen before a 90 deg turn and again after it with the heading 1 deg off: its
     outline lands 7 cm beside itself, where the earlier scan's beams passed beyond. That is the pose's
-    error, not motion: the window widens by the heading uncertainty between the two scans (their own and
-    the drift with the turn). A body that really moved into the seen-free space is still found."""
+    error, not motion: the window widens by the heading uncertainty between the two scans (one match error
+    per keyframe step of turn between them). A body that really moved into the seen-free space is still
+    found."""
     world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
     world.circles = [Circle(4.0, 0.0, 0.10)]
     memory = ScanMemory()
     before = world.scan(A)
-    memory.push(A, before.ranges_m, before.bearings_rad)
+    memory.push(A, before.ranges_m, before.bearings_rad, 0.0)
     turned = Pose2D(0.0, 0.0, math.pi / 2)
     seen_as = Pose2D(0.0, 0.0, math.pi / 2 + math.radians(1.0))  # the matched pose, 1 deg off
     after = world.scan(turned, UTM_BEARINGS)
@@ -126,23 +127,42 @@ def test_a_heading_error_after_a_turn_is_no_evidence_but_real_motion_still_is() 
     assert post.shape[0] >= 5
     moved = np.array([[3.0, 0.6], [2.0, -1.0]])  # a body where the beams passed before the turn
     assert memory.seen_through(post).any()  # without the pose's uncertainty: a false violation
-    memory.observe(seen_as.theta_rad, 0.0)
+    memory.observe(seen_as, 0.0)
     assert not memory.seen_through(post).any()
     assert memory.seen_through(moved).all()
-    # a still laser (no turn) keeps a narrow window: the heading sigma alone
-    sigma = memory.relative_heading_sigma_rad(0.0, 0.0, 0.0, 0.0)
-    assert sigma == pytest.approx(math.sqrt(2.0) * SeenThroughConfig().heading_sigma_rad)
-    assert memory.relative_heading_sigma_rad(0.0, 0.0, math.pi / 2, 0.0) > 2.0 * sigma
+    # a still laser keeps the plain window; the uncertainty grows with the turn and the distance between
+    assert memory.relative_heading_sigma_rad(A, 0.0, A, 0.0) == 0.0
+    step = SeenThroughConfig().heading_sigma_rad
+    assert memory.relative_heading_sigma_rad(A, 0.0, turned, 0.0) == pytest.approx(step * math.sqrt(9.0))
+    assert memory.relative_heading_sigma_rad(A, 0.0, Pose2D(1.2, 0.0, 0.0), 0.0) == pytest.approx(2.0 * step)
 
 
 def test_a_skewed_scan_widens_the_window_and_bad_settings_are_refused() -> None:
     memory = ScanMemory()
-    plain = memory.relative_heading_sigma_rad(0.0, 0.0, 0.0, 0.0)
-    assert memory.relative_heading_sigma_rad(0.0, 0.02, 0.0, 0.0) > plain
+    plain = memory.relative_heading_sigma_rad(A, 0.0, A, 0.0)
+    assert memory.relative_heading_sigma_rad(A, 0.02, A, 0.0) > plain
     with pytest.raises(ValueError):
-        memory.observe(0.0, -0.1)
+        memory.observe(A, -0.1)
     with pytest.raises(ValueError):
-        ScanMemory(SeenThroughConfig(heading_drift_per_rad=-0.01))
+        ScanMemory(SeenThroughConfig(step_angle_rad=0.0))
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(pose_tol_m=0.06))
+
+
+def test_a_still_laser_keeps_the_plain_window() -> None:
+    """Heading noise that moves a return by less than pose_tol_m (held in lateral_tol_m) widens nothing: the
+    answers with the observer's pose given equal those without, point for point."""
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=True)
+    world.circles = [Circle(3.0, 0.5, 0.06), Circle(2.0, -1.0, 0.03)]
+    memory = ScanMemory()
+    scan = world.scan(A)
+    memory.push(A, scan.ranges_m, scan.bearings_rad, math.radians(0.05))
+    grid = np.stack(np.meshgrid(np.linspace(0.5, 5.5, 60), np.linspace(-2.5, 2.5, 60)), axis=-1).reshape(-1, 2)
+    plain = memory.seen_through(grid)
+    memory.observe(Pose2D(0.002, 0.0, math.radians(0.02)), math.radians(0.05))
+    assert np.array_equal(memory.seen_through(grid), plain)
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(heading_sigma_rad=-0.01))
 
 
 def test_ahead_of_the_keyframe_allows_for_the_scanners_range_noise() -> None:
