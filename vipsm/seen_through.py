@@ -19,9 +19,11 @@ surface), so it makes the point unknown for that scan.
 **The pose's uncertainty.** The points asked about are placed with the current matched pose, the kept scans
 with theirs. A heading error between the two moves a return at range r sideways by r times it: a beam that
 passed that close beside the point is no evidence (the point may be the edge of the very surface that beam
-passed). So the lateral window is ``lateral_tol_m + max(sigma_gate * r * sigma_rel - pose_tol_m, 0)``
-(``lateral_tol_m`` already holds ``pose_tol_m`` for the matched pose's error) with the two scans' relative
-heading uncertainty ``sigma_rel^2 = s_now^2 + s_kept^2 + heading_sigma_rad^2 * steps``: each scan's own
+passed); so does a position error. The lateral window is
+``lateral_tol_m + max(sigma_gate * hypot(r * sigma_rel, sigma_pos) - pose_tol_m, 0)`` (``lateral_tol_m``
+already holds ``pose_tol_m`` for the matched pose's error) with the two scans' relative heading uncertainty
+``sigma_rel^2 = s_now^2 + s_kept^2 + heading_sigma_rad^2 * steps`` and position uncertainty
+``sigma_pos = translation_sigma_m * sqrt(steps)``: each scan's own
 heading error beyond a match's (given per scan, :meth:`ScanMemory.observe`, :meth:`ScanMemory.push`: what
 the sweep's skew left; ``heading_sigma_rad`` for a pose no match measured) and a random walk of one match
 error per keyframe step between them (``steps`` = turn / ``step_angle_rad`` + distance / ``step_dist_m``:
@@ -62,6 +64,9 @@ class SeenThroughConfig:
     #: is added per step between two scans
     step_angle_rad: float = math.radians(10.0)
     step_dist_m: float = 0.30
+    #: one scan-to-keyframe match's position error (1 sigma; the matcher's median translation error on the
+    #: real Intel and CSAIL pairs is 0.022-0.023 m), a random walk over the keyframe steps like the heading's
+    translation_sigma_m: float = 0.02
     #: a sideways displacement within this many sigmas of the heading uncertainty is no evidence
     sigma_gate: float = 2.0
 
@@ -74,10 +79,10 @@ class ScanMemory:
         c = self.config
         if c.scans < 1:
             raise ValueError(f"SeenThroughConfig.scans must be >= 1, got {c.scans}")
-        if (min(c.heading_sigma_rad, c.sigma_gate) < 0.0 or not (c.step_angle_rad > 0.0 and c.step_dist_m > 0.0)
-                or not 0.0 <= c.pose_tol_m <= c.lateral_tol_m):
-            raise ValueError("SeenThroughConfig: need heading_sigma_rad >= 0, sigma_gate >= 0, step_angle_rad > 0, "
-                             "step_dist_m > 0 and 0 <= pose_tol_m <= lateral_tol_m")
+        if (min(c.heading_sigma_rad, c.sigma_gate, c.translation_sigma_m) < 0.0
+                or not (c.step_angle_rad > 0.0 and c.step_dist_m > 0.0) or not 0.0 <= c.pose_tol_m <= c.lateral_tol_m):
+            raise ValueError("SeenThroughConfig: need heading_sigma_rad, translation_sigma_m and sigma_gate >= 0, "
+                             "step_angle_rad > 0, step_dist_m > 0 and 0 <= pose_tol_m <= lateral_tol_m")
         self._scans: deque[tuple[Pose2D, np.ndarray, np.ndarray, float]] = deque(maxlen=c.scans)
         #: the pose the asked points are placed with and its own heading sigma (None: no pose uncertainty is
         #: accounted for, the plain lateral window)
@@ -102,6 +107,14 @@ class ScanMemory:
         steps = turn / c.step_angle_rad + math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) / c.step_dist_m
         return math.sqrt(sigma_a_rad**2 + sigma_b_rad**2 + c.heading_sigma_rad**2 * steps)
 
+    def relative_position_sigma_m(self, a: Pose2D, b: Pose2D) -> float:
+        """The position uncertainty between two scans taken from laser poses ``a`` and ``b`` (1 sigma): one
+        match's translation error per keyframe step between them."""
+        c = self.config
+        turn = abs(math.remainder(a.theta_rad - b.theta_rad, 2.0 * math.pi))
+        steps = turn / c.step_angle_rad + math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) / c.step_dist_m
+        return c.translation_sigma_m * math.sqrt(steps)
+
     def push(self, laser: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray, sigma_rad: float | None = None
              ) -> None:
         """Keep a scan (copied, in bearing order) taken from ``laser`` (world frame) whose own heading error is
@@ -125,27 +138,29 @@ class ScanMemory:
             todo = ~out
             if not todo.any():
                 break
-            per_m = 0.0
+            per_m = shift_m = 0.0
             if self._observer is not None:
                 pose, own = self._observer
                 per_m = c.sigma_gate * self.relative_heading_sigma_rad(pose, own, laser, sigma)
+                shift_m = c.sigma_gate * self.relative_position_sigma_m(pose, laser)
             out[todo] = _passed_beyond(pts[todo, 0], pts[todo, 1], laser.x_m, laser.y_m, laser.theta_rad, r, b,
-                                       c.lateral_tol_m, c.range_margin_m, per_m, c.pose_tol_m)
+                                       c.lateral_tol_m, c.range_margin_m, per_m, shift_m, c.pose_tol_m)
         return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m, pose_tol_m):  # pragma: no cover
+def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m, shift_m, pose_tol_m
+                   ):  # pragma: no cover - compiled
     """Per point: every beam of the scan (bearings ``b`` ascending) whose ray passes within
-    ``lateral_m + max(lateral_per_m * range - pose_tol_m, 0)`` of the point returned at least ``margin_m``
-    beyond it (and there is such a beam)."""
+    ``lateral_m + max(hypot(lateral_per_m * range, shift_m) - pose_tol_m, 0)`` of the point returned at
+    least ``margin_m`` beyond it (and there is such a beam)."""
     out = np.zeros(px.size, np.bool_)
     ct, st = math.cos(lth), math.sin(lth)
     for k in range(px.size):
         dx, dy = px[k] - lx, py[k] - ly
         xl, yl = ct * dx + st * dy, -st * dx + ct * dy
         dist = math.hypot(xl, yl)
-        lateral = lateral_m + max(lateral_per_m * dist - pose_tol_m, 0.0)
+        lateral = lateral_m + max(math.hypot(lateral_per_m * dist, shift_m) - pose_tol_m, 0.0)
         if dist <= lateral:
             continue  # the point is at the laser (or the heading is unknown): nothing to say
         bearing = math.atan2(yl, xl)

@@ -187,3 +187,25 @@ def test_ahead_of_the_keyframe_allows_for_the_scanners_range_noise() -> None:
     ahead = est._ahead_of_keyframe(scan, est.last_debug.match)  # noqa: SLF001 - the evidence stage's input
     assert ahead is not None and ahead[box].mean() > 0.9
     assert ahead[~box].mean() < 0.002  # a fixed 5 cm margin flags 1.6 % of the wall beams here
+
+
+def test_a_position_error_after_driving_is_no_evidence() -> None:
+    """The robot drove 1.2 m past a post 1.3 m beside its path and the match placed it 7 cm too far along:
+    the post's outline lands where the earlier scan's beams passed beside it. One match's position error per
+    keyframe step (a random walk, here 2 sigma = 8 cm) widens the window; a body 0.5 m into the seen-free
+    space still counts."""
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
+    world.circles = [Circle(0.0, 1.3, 0.05)]
+    memory = ScanMemory()
+    before = world.scan(A)
+    memory.push(A, before.ranges_m, before.bearings_rad, 0.0)
+    there = Pose2D(1.2, 0.0, 0.0)
+    seen_as = Pose2D(1.27, 0.0, 0.0)  # the matched pose, 7 cm too far along the path
+    pts = _points(world.scan(there), seen_as)
+    post = pts[np.hypot(pts[:, 0] - 0.07, pts[:, 1] - 1.3) < 0.08]
+    assert post.shape[0] >= 3
+    assert memory.seen_through(post).any()  # without the position's uncertainty: a false violation
+    memory.observe(seen_as, 0.0)
+    assert memory.relative_position_sigma_m(A, seen_as) == pytest.approx(0.02 * math.sqrt(1.27 / 0.3))
+    assert not memory.seen_through(post).any()
+    assert memory.seen_through(np.array([[0.6, 1.3]])).all()
