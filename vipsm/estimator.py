@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -124,12 +125,16 @@ class EstimatorConfig:
     #: (``Scan.beam_dt_s``; the motion is the odometry's twist, without odometry the constant-velocity
     #: model's), see :func:`vipsm.motion.deskew`. "off", "no_odometry" (only without odometry) or "always"
     deskew: str = "no_odometry"
-    #: beams that see the robot itself are cut from every stage (:class:`vipsm.sensor.SelfReturns`): a
-    #: return whose range stays within ``self_returns_tol_m`` over ``self_returns_checks`` turns of
-    #: ``self_returns_turn_rad`` each moves with the robot. ``self_returns_turn_rad`` 0: off
+    #: beams that see the robot itself are cut from every stage (:class:`vipsm.sensor.SelfReturns`): the
+    #: robot's footprint along each beam, learned at checks ``self_returns_turn_rad`` of turn apart: a
+    #: (beam, range within ``self_returns_tol_m``) held in ``self_returns_share`` of the checks that could
+    #: see it, by at least ``self_returns_checks`` of them, out to ``self_returns_max_range_m`` (the robot's
+    #: reach from its laser). ``self_returns_turn_rad`` 0: off
     self_returns_turn_rad: float = math.radians(30.0)
     self_returns_tol_m: float = 0.05
     self_returns_checks: int = 2
+    self_returns_max_range_m: float = 1.0
+    self_returns_share: float = 0.5
     #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
     #: this length); scans in between publish the tracks predicted to their stamp
     obstacle_period_s: float = 0.1
@@ -137,9 +142,11 @@ class EstimatorConfig:
     def __post_init__(self) -> None:
         if self.no_odometry_refine_iterations < 0:
             raise ValueError(f"no_odometry_refine_iterations must be >= 0, got {self.no_odometry_refine_iterations}")
-        if self.self_returns_turn_rad < 0.0 or not self.self_returns_tol_m > 0.0 or self.self_returns_checks < 1:
-            raise ValueError("need self_returns_turn_rad >= 0 (0: off), self_returns_tol_m > 0 and "
-                             "self_returns_checks >= 1")
+        if (self.self_returns_turn_rad < 0.0 or not self.self_returns_tol_m > 0.0 or self.self_returns_checks < 1
+                or not self.self_returns_max_range_m > self.self_returns_tol_m
+                or not 0.0 < self.self_returns_share <= 1.0):
+            raise ValueError("need self_returns_turn_rad >= 0 (0: off), self_returns_tol_m > 0, self_returns_checks "
+                             ">= 1, self_returns_max_range_m > self_returns_tol_m and 0 < self_returns_share <= 1")
         if self.deskew not in DESKEW_MODES:
             raise ValueError(f"deskew must be one of {', '.join(DESKEW_MODES)}, got {self.deskew!r}")
         if self.motion_prior not in MOTION_PRIORS:
@@ -194,10 +201,14 @@ class Estimator:
         self._last_odo: Pose2D | None = None
         self._motion = ConstantVelocity(self.config.max_prediction_gap_s)
         c = self.config
-        self._self_returns = (SelfReturns(c.self_returns_turn_rad, c.self_returns_tol_m, c.self_returns_checks)
+        self._self_returns = (SelfReturns(c.self_returns_turn_rad, c.self_returns_tol_m, c.self_returns_checks,
+                                          max_range_m=c.self_returns_max_range_m, min_share=c.self_returns_share)
                               if c.self_returns_turn_rad > 0.0 else None)
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
+        self._deskew_w_radps = 0.0  # the turn rate the last de-skew assumed (0: not de-skewed)
+        self._skew_rad = 0.0  # the heading error the sweep's skew left in this cycle's scan (see _skew_left)
+        self._heading_sigma_rad: float | None = None  # this cycle's own heading error (see _heading_sigma)
 
     # ------------------------------------------------------------------ the pipeline
     def step(self, scan: Scan, odometry: Odometry | None, frame: Frame | None = None) -> Estimate:
@@ -216,6 +227,9 @@ class Estimator:
         if not given and match.flags & EstimateFlag.ODOMETRY_FALLBACK:
             flags |= EstimateFlag.POSE_UNCERTAIN
         laser = compose(match.pose, self.config.laser_mount)
+        self._skew_rad = self._skew_left(scan, match)
+        self._heading_sigma_rad = self._heading_sigma(match)
+        self._memory.observe(laser, self._heading_sigma_rad)
         bodies, tracked = self._obstacles(scan, lone_m, dropped, laser, camera, match)
         self.last_debug = StepDebug(tuple(masks), rest, match, tuple(bodies))
         return self._estimate(scan, odometry if given else None, match, rest,
@@ -260,14 +274,39 @@ class Estimator:
         """The scan (and the lone returns) as seen from the laser's pose at the first beam (``deskew``): every
         stage of the cycle then places its beams with the one pose the matcher finds for the stamp."""
         cfg = self.config
+        self._deskew_w_radps = 0.0
         if not (cfg.deskew == "always" or (cfg.deskew == "no_odometry" and not given)):
             return scan, lone_m
         tw = Twist2D(odometry.v_mps, 0.0, odometry.w_radps) if given else self._motion.twist
         tw = laser_twist(tw, cfg.laser_mount)
+        self._deskew_w_radps = tw.w_radps
         jump, factor = cfg.psm.seg_jump_m, cfg.psm.seg_jump_range_factor
         ranges, _ = deskew(scan.ranges_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
         lone, _ = deskew(lone_m, scan.bearings_rad, scan.beam_dt_s, tw, jump, factor)
         return Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities), lone
+
+    def _skew_left(self, scan: Scan, match: MatchOutcome) -> float:
+        """The heading error the sweep's skew left in this scan: the last beam is seen ``sweep`` after the
+        first, and a turn rate the de-skew did not assume (all of it without de-skew; the change since the
+        last cycle with it) turns it by that rate times ``sweep``. The rate is the matched one since the
+        last estimate."""
+        last, since = self._last_pose, self._motion.stamp_s
+        dt = scan.stamp_s - since if since is not None else 0.0
+        if last is None or not 0.0 < dt <= self.config.max_prediction_gap_s:
+            return 0.0
+        w = math.remainder(match.pose.theta_rad - last.theta_rad, 2.0 * math.pi) / dt
+        sweep_s = abs(scan.beam_dt_s) * max(scan.ranges_m.size - 1, 0)
+        return abs(w - self._deskew_w_radps) * sweep_s
+
+    def _heading_sigma(self, match: MatchOutcome) -> float | None:
+        """This cycle's own heading error (1 sigma) beyond what the evidence tests' fixed tolerances hold
+        (``seen_through.lateral_tol_m``, ``ahead_min_m`` already allow for a matched pose's few centimetres):
+        the skew the sweep left; None where no match measured the pose (the evidence stages then take
+        ``seen_through.heading_sigma_rad``)."""
+        res = match.result
+        if res is None or res.refused or EstimateFlag.ODOMETRY_FALLBACK in match.flags:
+            return None
+        return self._skew_rad
 
     def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
         """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
@@ -367,7 +406,7 @@ class Estimator:
         ranges = np.where(np.isfinite(lone_m), lone_m, scan.ranges_m)
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
-        self._memory.push(laser, ranges, scan.bearings_rad)
+        self._memory.push(laser, ranges, scan.bearings_rad, self._heading_sigma_rad)
         if any(t.missed for t in self._tracker.tracks):  # only a coasting track can be dropped
             self._tracker.drop_seen_free(self._static.seen_free_now, scan_points(laser, ranges, scan.bearings_rad))
 
@@ -405,7 +444,10 @@ class Estimator:
         """Per beam: the return stands at least ``ahead_min_m`` in front of what the keyframe (the
         reference scan, taken up to ``keyframe_dist_m`` back) saw in that direction. A static scene
         cannot do that (a new viewpoint only reveals surfaces behind what was seen); a body that
-        moved towards the laser does."""
+        moved towards the laser does. "In that direction" allows for the heading uncertainty between the
+        keyframe and this scan (:meth:`ScanMemory.relative_heading_sigma_rad`): the return must stand in
+        front of everything the keyframe saw within ``sigma_gate`` sigmas of its bearing, so the near side
+        of a depth edge, seen a fraction of a degree off, is no motion."""
         kf = self._matcher.keyframe
         if kf is None or EstimateFlag.ODOMETRY_FALLBACK in match.flags:
             return None
@@ -430,9 +472,27 @@ class Estimator:
             # a box in front of that line would look "ahead" for as long as the keyframe lives
             # (cylinder_clutter seed 91). There the measured range counts.
             kr = np.where(kf.prep.weights > 0.0, kr, kf.seen_m)
-        kr = kr[j]
+        kr = _nearest_within(kr, self._ahead_window_beams(kf.pose, match.pose, kb))[j]
         with np.errstate(invalid="ignore"):
-            return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - cfg.ahead_min_m)
+            return valid & (phi >= kb[0]) & (phi <= kb[-1]) & (rho < kr - self._ahead_margin_m(match))
+
+    def _ahead_margin_m(self, match: MatchOutcome) -> float:
+        """How far in front of the keyframe a return must stand: ``ahead_min_m`` beyond what the two scans'
+        range differences scatter by after this match (its mean absolute residual, 0.8 sigma for Gaussian
+        noise, times ``seen_through.sigma_gate``): a noisier scanner, or a match that fits worse, needs a
+        clearer step towards the laser."""
+        res = match.result
+        spread = res.residual_m / 0.8 if res is not None and math.isfinite(res.residual_m) else 0.0
+        return self.config.ahead_min_m + self.config.seen_through.sigma_gate * spread
+
+    def _ahead_window_beams(self, kf_pose: Pose2D, pose: Pose2D, kb: np.ndarray) -> int:
+        """Keyframe beams either side that the heading uncertainty between it and ``pose`` reaches."""
+        st = self.config.seen_through
+        own = self._heading_sigma_rad if self._heading_sigma_rad is not None else st.heading_sigma_rad
+        mount = self.config.laser_mount
+        sigma = self._memory.relative_heading_sigma_rad(compose(kf_pose, mount), own, compose(pose, mount), own)
+        step = float(abs(kb[-1] - kb[0]) / (kb.size - 1))
+        return min(int(math.ceil(st.sigma_gate * sigma / step)), kb.size // 4) if step > 0.0 else 0
 
     def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
@@ -461,6 +521,18 @@ class Estimator:
         ok = np.isfinite(ranges) & (ranges >= self.config.psm.min_range_m)
         r, b = ranges[ok], bearings[ok]
         return scan_points(self.config.laser_mount, r, b)
+
+
+def _nearest_within(r: np.ndarray, k: int) -> np.ndarray:
+    """Per beam: the nearest return within ``k`` beams either side; NaN where the beam itself has none (no
+    return there is no surface to stand in front of)."""
+    if k <= 0:
+        return r
+    padded = np.concatenate((np.full(k, np.nan), r, np.full(k, np.nan)))
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window: NaN
+        near = np.nanmin(np.lib.stride_tricks.sliding_window_view(padded, 2 * k + 1), axis=1)
+    return np.where(np.isfinite(r), near, np.nan)
 
 
 def _checked(scan: Scan) -> tuple[Scan, bool]:

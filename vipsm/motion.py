@@ -42,6 +42,11 @@ class ConstantVelocity:
         self._stamp_s = 0.0
         self.twist = Twist2D()
 
+    @property
+    def stamp_s(self) -> float | None:
+        """The stamp of the last estimate given (None before the first)."""
+        return self._stamp_s if self._pose is not None else None
+
     def reset(self) -> None:
         self._pose = None
         self.twist = Twist2D()

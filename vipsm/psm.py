@@ -262,6 +262,9 @@ class PsmResult:
     #: its small eigenvalues show directions the scene does not constrain (corridors), which the
     #: range-residual Jacobian (cos, sin) of PSM does not reveal
     info_xy: np.ndarray | None = None
+    #: the heading's standard deviation the match itself measured (the orientation cost's curvature against
+    #: its noise), before the heuristic floor of ``covariance``; NaN when refused
+    heading_sigma_rad: float = math.nan
 
     @property
     def pose(self) -> Pose2D:
@@ -541,7 +544,7 @@ def match_prepared(
         corridor, corr_angle = _is_corridor(cur, config.corridor_threshold_rad)
     cov = _covariance(info, sw, sigma2, var_th, residual, corridor, corr_angle, config)
     return PsmResult(x, y, th, cov, it, n_used, residual, converged, False, PsmRefusal.NONE, corridor,
-                     np.array([[i11, i12], [i12, i22]]))
+                     np.array([[i11, i12], [i12, i22]]), math.sqrt(var_th))
 
 
 def _refine(ref: PreparedScan, cur: PreparedScan, x: float, y: float, th: float, min_pairs: int, c: PsmConfig

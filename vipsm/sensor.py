@@ -54,61 +54,91 @@ def scan_period_from_stamps(stamps_s: np.ndarray) -> float:
 
 
 class SelfReturns:
-    """Beams that see the robot itself (its frame, a mast, another sensor at the edge of the field of view).
+    """A model of the robot's own body as its laser sees it: per beam, the range at which a part of the robot
+    stands (its frame, a mast, another sensor at the edge of the field of view), learned online.
 
-    A static surface seen by one beam changes range when the laser turns: the beam then points elsewhere.
-    A return that keeps its range, within ``tol_m``, across ``checks`` successive turns of at least
-    ``turn_rad`` each is fixed in the laser frame: it moves with the robot, and left in the scan it pulls
-    every match towards no motion and looks like a body moving with the robot. Checks are made only on
-    turns, so a still laser (or one that only drives straight, past a parallel wall) never finds any.
-    A found beam is masked only while its return stays at that range (within ``tol_m``): whatever shows
-    up beyond it is the world again. It stays found while later checks see it there or further (a part
-    seen only now and then as the robot shakes) and is forgotten when a return shows in front of it.
-    ``edge_beams`` either side of a found beam are masked at or in front of its range: the body's outline
-    gives mixed returns that flicker between it and what lies behind, never holding still long enough to
-    be found themselves. The laser's world heading is the estimated one: a match error of a few degrees
-    changes nothing in a turn of ``turn_rad``."""
+    A static surface seen by one beam changes range when the laser turns: the beam then points elsewhere. A
+    part of the robot does not: it stays at one (beam, range) however the robot moves. The model keeps, per
+    beam and per range bin of ``tol_m`` out to ``max_range_m`` (the robot's reach from its laser: the
+    footprint is bounded, ``beams x max_range_m / tol_m`` counts), how often a return fell in that bin at the
+    *checks*: the scans at which the laser has turned at least ``turn_rad`` since the last check (only turns:
+    a still laser, or one driving straight past a parallel wall, sees the world at fixed ranges too). A bin
+    counts as looked at when the beam's return lies in it or beyond it (a return in front hides it; no
+    return is no evidence). Counts decay by ``1 - 1/memory_checks`` a check, so the model follows a robot
+    that changes (a door of the robot opened, a load put on). A bin held in at least ``min_share`` of the
+    checks that looked at it, by at least ``checks`` of them, is the robot's body; the nearest such bin is
+    the beam's footprint. Parts seen only now and then (vibration, a dark surface, a thin rod that one beam
+    hits every other scan) are found as long as they are seen in ``min_share`` of the looks, which an exact
+    repeat test misses.
+
+    Masked: every return at or in front of its beam's footprint (+ ``tol_m``: inside the robot's outline),
+    and in the ``edge_beams`` either side of a footprint beam the returns at or in front of its range (the
+    body's outline gives mixed returns that flicker between it and what lies behind). The laser's world
+    heading is the estimated one: a match error of a few degrees changes nothing in a turn of ``turn_rad``.
+    Not told apart: a person walking beside a turning robot at one bearing and one range (within ``tol_m``)
+    over ``checks`` turns, within ``max_range_m``."""
 
     def __init__(self, turn_rad: float = math.radians(30.0), tol_m: float = 0.05, checks: int = 2,
-                 edge_beams: int = 3) -> None:
-        if not (turn_rad > 0.0 and tol_m > 0.0 and checks >= 1 and edge_beams >= 0):
-            raise ValueError("need turn_rad > 0, tol_m > 0, checks >= 1 and edge_beams >= 0")
+                 edge_beams: int = 3, max_range_m: float = 1.0, min_share: float = 0.5,
+                 memory_checks: int = 20) -> None:
+        if not (turn_rad > 0.0 and tol_m > 0.0 and checks >= 1 and edge_beams >= 0 and max_range_m > tol_m
+                and 0.0 < min_share <= 1.0 and memory_checks >= 1):
+            raise ValueError("need turn_rad > 0, tol_m > 0, checks >= 1, edge_beams >= 0, max_range_m > tol_m, "
+                             "0 < min_share <= 1 and memory_checks >= 1")
         self.turn_rad, self.tol_m, self.checks, self.edge_beams = turn_rad, tol_m, checks, edge_beams
-        self._anchor_m: np.ndarray | None = None
-        self._anchor_heading_rad = 0.0
-        self._count = np.zeros(0, dtype=np.int64)
-        self._own_m = np.zeros(0)  # per beam: the range the robot is seen at (valid where found)
+        self.max_range_m, self.min_share, self.memory_checks = max_range_m, min_share, memory_checks
+        self._bins = int(math.ceil(max_range_m / tol_m))
+        self._anchor_heading_rad: float | None = None
+        self._hits = np.zeros((0, self._bins))
+        self._looks = np.zeros((0, self._bins))
+        self._own_m = np.zeros(0)  # per beam: the footprint's range (NaN: no part of the robot found)
 
     def found(self) -> np.ndarray:
-        """Per beam: found to see the robot (empty before the first scan)."""
-        return self._count >= self.checks
+        """Per beam: a part of the robot found on it (empty before the first scan)."""
+        return np.isfinite(self._own_m)
+
+    def footprint_m(self) -> np.ndarray:
+        """Per beam: the range of the robot's body along it (NaN where none was found)."""
+        return self._own_m.copy()
 
     def update(self, ranges_m: np.ndarray, heading_rad: float) -> np.ndarray:
         """One scan's ranges (a fixed beam table) at the laser's world heading; returns the beams to mask."""
         r = np.asarray(ranges_m, dtype=np.float64)
-        if self._anchor_m is None or self._anchor_m.size != r.size:
-            self._anchor_m, self._anchor_heading_rad = r.copy(), heading_rad
-            self._count, self._own_m = np.zeros(r.size, dtype=np.int64), np.full(r.size, np.nan)
+        if self._anchor_heading_rad is None or self._own_m.size != r.size:
+            self._anchor_heading_rad = heading_rad
+            self._hits, self._looks = np.zeros((r.size, self._bins)), np.zeros((r.size, self._bins))
+            self._own_m = np.full(r.size, np.nan)
             return np.zeros(r.size, dtype=bool)
         if abs(math.remainder(heading_rad - self._anchor_heading_rad, 2.0 * math.pi)) >= self.turn_rad:
-            d = np.abs(r - self._anchor_m)
-            seen = np.isfinite(d)  # no return on either side (a flickering edge, a dark part): no evidence
-            same = seen & (d <= self.tol_m)
-            with np.errstate(invalid="ignore"):
-                # a found beam whose return is now further: the body hidden by vibration, or out of the way
-                # for a moment; it is forgotten only when something shows in front of it (then it was no body)
-                keep = self.found() & (r > self._own_m - self.tol_m)
-            self._count = np.where(seen & ~keep, np.where(same, self._count + 1, 0), self._count + same)
-            self._own_m = np.where(same, r, self._own_m)
-            self._anchor_m, self._anchor_heading_rad = r.copy(), heading_rad
+            self._check(r)
+            self._anchor_heading_rad = heading_rad
         return self._mask(r)
+
+    def _check(self, r: np.ndarray) -> None:
+        """Count one check's returns into the (beam, range bin) model and take the footprint again. A return
+        hits the bins whose centre lies within ``tol_m`` of it (two bins: noise across a bin edge splits
+        nothing) and is a look at every bin up to there."""
+        keep = 1.0 - 1.0 / self.memory_checks
+        self._hits *= keep
+        self._looks *= keep
+        seen = np.isfinite(r)
+        rr = np.where(seen, r, -np.inf)[:, None]
+        centre = (np.arange(self._bins) + 0.5) * self.tol_m
+        self._looks += centre[None, :] <= rr + self.tol_m
+        self._hits += np.abs(centre[None, :] - rr) <= self.tol_m
+        body = (self._hits >= self.min_share * self._looks) & (self._hits >= self.checks - 0.5)
+        # the footprint: the far end of the first run of body bins (one part spans two bins)
+        first = np.argmax(body, axis=1)
+        past = ~body & (np.arange(self._bins)[None, :] > first[:, None])
+        last = np.where(past.any(axis=1), np.argmax(past, axis=1) - 1, self._bins - 1)
+        self._own_m = np.where(body.any(axis=1), centre[last], np.nan)
 
     def _mask(self, r: np.ndarray) -> np.ndarray:
         own = self.found()
         if not own.any():
             return own
         with np.errstate(invalid="ignore"):
-            mask = own & (np.abs(r - self._own_m) <= self.tol_m)
+            mask = own & (r <= self._own_m + self.tol_m)
             k = self.edge_beams
             if k:
                 body = np.where(own, self._own_m, -np.inf)

@@ -360,7 +360,18 @@ def path_comparison(run: Run, ref: np.ndarray) -> dict[str, Any]:
         "final_heading_diff_deg": round(math.degrees(dyaw), 2),
         "lost_after_s": round(float(t[lost[0]]), 2) if lost.size else None,
         "frozen_while_moving_share": round(float(frozen.mean()), 3) if frozen.size else None,
+        # the loop's closure, one definition for both: how far the last pose lies from the first (the drive
+        # ends where it started, so a path that drifted ends away from its start)
+        "end_to_start_m": round(end_to_start_m(est), 3),
+        "kiss_icp_end_to_start_m": round(end_to_start_m(ref), 3),
     }
+
+
+def end_to_start_m(path: np.ndarray) -> float:
+    """Distance of a path's last position from its first ((n, >=2) poses; 0 for fewer than two)."""
+    if path.shape[0] < 2:
+        return 0.0
+    return float(np.hypot(*(path[-1, :2] - path[0, :2])))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from app.evaluation.real_data import (
     Cycle,
     Run,
     background_metrics,
+    end_to_start_m,
     labelled_metrics,
     path_comparison,
     person_speeds,
@@ -104,6 +105,14 @@ def test_refusals_and_path_comparison() -> None:
     m = path_comparison(run, ref)
     assert m["kiss_icp_path_m"] == pytest.approx(0.9) and m["max_offset_m"] == pytest.approx(0.9)
     assert m["lost_after_s"] == pytest.approx(0.6)  # 0.5 m behind at 0.6 s
+    assert m["end_to_start_m"] == pytest.approx(0.0) and m["kiss_icp_end_to_start_m"] == pytest.approx(0.9)
+
+
+def test_end_to_start_closes_a_loop_and_measures_a_gap() -> None:
+    loop = np.array([[math.cos(a), math.sin(a), a] for a in np.linspace(0.0, 2 * math.pi, 50)])
+    assert end_to_start_m(loop) == pytest.approx(0.0, abs=1e-9)
+    assert end_to_start_m(loop + np.linspace(0.0, 0.3, 50)[:, None] * [1.0, 0.0, 0.0]) == pytest.approx(0.3)
+    assert end_to_start_m(loop[:1]) == 0.0
 
 
 def test_suite_on_one_recording_skips_the_absent(shared_data: Path, tmp_path: Path,
@@ -147,4 +156,5 @@ def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture
         k = r["kiss_icp"]
         assert k["done"] and k["kiss_icp_path_m"] > 0.5  # the robot drove
         assert k["heading_vs_other_lasers_max_deg"] < 5.0
+        assert k["end_to_start_m"] >= 0.0 and k["kiss_icp_end_to_start_m"] > 0.0
         assert r["reports_per_min"] is not None and "background_reports_per_min" not in r  # not a still laser

@@ -103,3 +103,28 @@ def test_a_turning_drive_without_odometry_keeps_its_heading_only_when_deskewed(m
 def test_deskew_mode_is_checked() -> None:
     with pytest.raises(ValueError, match="deskew"):
         EstimatorConfig(deskew="sometimes")
+
+
+def test_the_skew_left_in_a_scan_is_the_turn_rate_the_deskew_did_not_assume() -> None:
+    """The motion evidence allows for the heading error the sweep's skew leaves (vipsm.seen_through): all of
+    w x sweep without de-skew, only the change of turn rate since the last cycle with it."""
+    world = box_room(8.0, 7.0, x0=-3.0, y0=-3.5)
+    scans = [_swept(world, k * PERIOD_S) for k in range(15)]
+    sweep_s = BEAM_DT_S * (BEARINGS.size - 1)
+    left = {}
+    for mode in ("off", "no_odometry"):
+        est = Estimator(EstimatorConfig(deskew=mode))
+        for s in scans:
+            est.step(s, None)
+        left[mode] = est._skew_rad  # noqa: SLF001 - the cycle's skew, as the evidence stages got it
+    assert left["off"] == pytest.approx(W_RADPS * sweep_s, rel=0.1)
+    assert left["no_odometry"] < 0.1 * left["off"]
+
+
+def test_nearest_return_within_a_window() -> None:
+    from vipsm.estimator import _nearest_within
+
+    r = np.array([5.0, np.nan, 2.0, 5.0, 5.0, 5.0])
+    assert np.array_equal(_nearest_within(r, 0), r, equal_nan=True)
+    got = _nearest_within(r, 1)
+    assert np.isnan(got[1]) and got.tolist()[2:] == [2.0, 2.0, 5.0, 5.0] and got[0] == 5.0

@@ -4,6 +4,7 @@ another was never seen through, though its 10 cm grid cell was crossed)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -105,3 +106,106 @@ def test_a_scan_in_falling_bearing_order_is_read_the_same() -> None:
     rev.push(A, scan.ranges_m[::-1], scan.bearings_rad[::-1])
     pts = np.array([[2.0, 0.5], [5.95, 0.0], [1.0, -1.0], [6.5, 0.0]])
     assert fwd.seen_through(pts).tolist() == rev.seen_through(pts).tolist() == [True, False, True, False]
+
+
+def test_a_heading_error_after_a_turn_is_no_evidence_but_real_motion_still_is() -> None:
+    """A post 4 m away, seen before a 90 deg turn and again after it with the heading 1 deg off: its
+    outline lands 7 cm beside itself, where the earlier scan's beams passed beyond. That is the pose's
+    error, not motion: the window widens by the heading uncertainty between the two scans (one match error
+    per keyframe step of turn between them). A body that really moved into the seen-free space is still
+    found."""
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
+    world.circles = [Circle(4.0, 0.0, 0.10)]
+    memory = ScanMemory()
+    before = world.scan(A)
+    memory.push(A, before.ranges_m, before.bearings_rad, 0.0)
+    turned = Pose2D(0.0, 0.0, math.pi / 2)
+    seen_as = Pose2D(0.0, 0.0, math.pi / 2 + math.radians(1.0))  # the matched pose, 1 deg off
+    after = world.scan(turned, UTM_BEARINGS)
+    pts = _points(after, seen_as)
+    post = pts[np.hypot(pts[:, 0] - 4.0, pts[:, 1]) < 0.25]
+    assert post.shape[0] >= 5
+    moved = np.array([[3.0, 0.6], [2.0, -1.0]])  # a body where the beams passed before the turn
+    assert memory.seen_through(post).any()  # without the pose's uncertainty: a false violation
+    memory.observe(seen_as, 0.0)
+    assert not memory.seen_through(post).any()
+    assert memory.seen_through(moved).all()
+    # a still laser keeps the plain window; the uncertainty grows with the turn and the distance between
+    assert memory.relative_heading_sigma_rad(A, 0.0, A, 0.0) == 0.0
+    step = SeenThroughConfig().heading_sigma_rad
+    assert memory.relative_heading_sigma_rad(A, 0.0, turned, 0.0) == pytest.approx(step * math.sqrt(9.0))
+    assert memory.relative_heading_sigma_rad(A, 0.0, Pose2D(1.2, 0.0, 0.0), 0.0) == pytest.approx(2.0 * step)
+
+
+def test_a_skewed_scan_widens_the_window_and_bad_settings_are_refused() -> None:
+    memory = ScanMemory()
+    plain = memory.relative_heading_sigma_rad(A, 0.0, A, 0.0)
+    assert memory.relative_heading_sigma_rad(A, 0.02, A, 0.0) > plain
+    with pytest.raises(ValueError):
+        memory.observe(A, -0.1)
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(step_angle_rad=0.0))
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(pose_tol_m=0.06))
+
+
+def test_a_still_laser_keeps_the_plain_window() -> None:
+    """Heading noise that moves a return by less than pose_tol_m (held in lateral_tol_m) widens nothing: the
+    answers with the observer's pose given equal those without, point for point."""
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=True)
+    world.circles = [Circle(3.0, 0.5, 0.06), Circle(2.0, -1.0, 0.03)]
+    memory = ScanMemory()
+    scan = world.scan(A)
+    memory.push(A, scan.ranges_m, scan.bearings_rad, math.radians(0.05))
+    grid = np.stack(np.meshgrid(np.linspace(0.5, 5.5, 60), np.linspace(-2.5, 2.5, 60)), axis=-1).reshape(-1, 2)
+    plain = memory.seen_through(grid)
+    memory.observe(Pose2D(0.002, 0.0, math.radians(0.02)), math.radians(0.05))
+    assert np.array_equal(memory.seen_through(grid), plain)
+    with pytest.raises(ValueError):
+        ScanMemory(SeenThroughConfig(heading_sigma_rad=-0.01))
+
+
+def test_ahead_of_the_keyframe_allows_for_the_scanners_range_noise() -> None:
+    """A still laser with 4 cm range noise before a room: two scans' ranges differ by more than the fixed
+    5 cm now and then on every wall; a step towards the laser counts only beyond the scatter the match's
+    own residual shows. A box put 0.4 m in front of the wall still stands ahead."""
+    from vipsm.estimator import Estimator, EstimatorConfig
+    from vipsm.types import Odometry
+
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
+    rng = np.random.default_rng(11)
+    est = Estimator(EstimatorConfig())
+    odo = Odometry(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    for k in range(4):
+        est.step(world.scan(A, noise_m=0.04, rng=rng, stamp_s=0.1 * k), replace(odo, stamp_s=0.1 * k))
+    scan = world.scan(A, noise_m=0.04, rng=rng, stamp_s=0.4)
+    r = scan.ranges_m.copy()
+    box = np.abs(scan.bearings_rad) < math.radians(3.0)
+    r[box] -= 0.4
+    scan = replace(scan, ranges_m=r)
+    est.step(scan, replace(odo, stamp_s=0.4))
+    ahead = est._ahead_of_keyframe(scan, est.last_debug.match)  # noqa: SLF001 - the evidence stage's input
+    assert ahead is not None and ahead[box].mean() > 0.9
+    assert ahead[~box].mean() < 0.002  # a fixed 5 cm margin flags 1.6 % of the wall beams here
+
+
+def test_a_position_error_after_driving_is_no_evidence() -> None:
+    """The robot drove 1.2 m past a post 1.3 m beside its path and the match placed it 7 cm too far along:
+    the post's outline lands where the earlier scan's beams passed beside it. One match's position error per
+    keyframe step (a random walk, here 2 sigma = 8 cm) widens the window; a body 0.5 m into the seen-free
+    space still counts."""
+    world = box_room(8.0, 6.0, x0=-2.0, y0=-3.0, pillars=False)
+    world.circles = [Circle(0.0, 1.3, 0.05)]
+    memory = ScanMemory()
+    before = world.scan(A)
+    memory.push(A, before.ranges_m, before.bearings_rad, 0.0)
+    there = Pose2D(1.2, 0.0, 0.0)
+    seen_as = Pose2D(1.27, 0.0, 0.0)  # the matched pose, 7 cm too far along the path
+    pts = _points(world.scan(there), seen_as)
+    post = pts[np.hypot(pts[:, 0] - 0.07, pts[:, 1] - 1.3) < 0.08]
+    assert post.shape[0] >= 3
+    assert memory.seen_through(post).any()  # without the position's uncertainty: a false violation
+    memory.observe(seen_as, 0.0)
+    assert memory.relative_position_sigma_m(A, seen_as) == pytest.approx(0.02 * math.sqrt(1.27 / 0.3))
+    assert not memory.seen_through(post).any()
+    assert memory.seen_through(np.array([[0.6, 1.3]])).all()

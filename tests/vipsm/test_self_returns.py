@@ -38,12 +38,48 @@ def test_a_return_fixed_in_the_laser_frame_over_turns_is_masked_and_walls_are_no
     assert not masks[0].any()
     assert sr.found()[BODY].all() and not sr.found()[20:].any()  # no wall beam is found
     assert all(not m[BODY.stop + 3 :].any() for m in masks)  # masked: the body and its outline only
-    # something in front of the found range: no body there, forgotten at the next check
-    r = world.scan(_pose(6.0), BEARINGS).ranges_m
-    r[BODY] = 0.2
-    sr.update(r, _pose(6.0).theta_rad)
-    assert not sr.update(r, _pose(6.0).theta_rad + math.radians(40.0))[BODY].any()
+    # the part taken off: the beams see the room from then on, and the footprint is forgotten once the part
+    # is held in fewer than half the checks that could have seen it
+    heading = _pose(6.0).theta_rad
+    for _ in range(1, 40):
+        heading += math.radians(35.0)
+        r = world.scan(Pose2D(0.0, 0.0, heading), BEARINGS).ranges_m
+        sr.update(r, heading)
     assert not sr.found()[BODY].any()
+
+
+def _scan_at(world, heading: float, part_m: float | None) -> np.ndarray:
+    r = world.scan(Pose2D(0.0, 0.0, heading), BEARINGS).ranges_m
+    if part_m is not None:
+        r[BODY] = part_m
+    return r
+
+
+def test_a_part_seen_only_at_every_other_check_is_found() -> None:
+    """A part seen now and then (vibration, a thin rod): at every other check the beams pass it and see the
+    room. An exact repeat over two checks in a row never happens; its share of the looks is 1/2."""
+    world = box_room(8.0, 7.0, x0=-3.0, y0=-3.5)
+    sr = SelfReturns()
+    for k in range(11):  # the first scan anchors; 10 checks, the part at 5 of them
+        heading = math.radians(35.0) * k
+        sr.update(_scan_at(world, heading, 0.6 if k % 2 == 0 else None), heading)
+    assert sr.found()[BODY].all() and not sr.found()[BODY.stop :].any()
+    assert sr.footprint_m()[BODY] == pytest.approx(0.6, abs=0.05)
+    heading = math.radians(35.0) * 10.5  # no check: the mask only
+    assert sr.update(_scan_at(world, heading, 0.6), heading)[BODY].all()  # the part: masked
+    assert not sr.update(_scan_at(world, heading, None), heading)[BODY].any()  # the room behind it: kept
+    assert not sr.update(_scan_at(world, heading, 0.9), heading)[BODY].any()  # beyond the footprint: the world
+
+
+def test_the_footprint_is_bounded_by_the_robots_reach() -> None:
+    """A return fixed in the laser frame beyond ``max_range_m`` (a person walking along at 1.5 m) is not the
+    robot's body."""
+    world = box_room(8.0, 7.0, x0=-3.0, y0=-3.5)
+    sr = SelfReturns(max_range_m=1.0)
+    for k in range(12):
+        heading = math.radians(35.0) * k
+        sr.update(_scan_at(world, heading, 1.5), heading)
+    assert not sr.found().any()
 
 
 def test_a_still_or_straight_driving_laser_finds_nothing() -> None:
@@ -76,4 +112,10 @@ def test_self_returns_settings_are_checked() -> None:
         SelfReturns(turn_rad=0.0)
     with pytest.raises(ValueError, match="self_returns"):
         EstimatorConfig(self_returns_tol_m=0.0)
+    with pytest.raises(ValueError, match="self_returns"):
+        EstimatorConfig(self_returns_max_range_m=0.01)
+    with pytest.raises(ValueError, match="self_returns"):
+        EstimatorConfig(self_returns_share=0.0)
+    with pytest.raises(ValueError):
+        SelfReturns(min_share=1.5)
     assert BEAM_DT_S > 0.0
