@@ -221,6 +221,40 @@ def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> N
             assert person.p_moving < PeopleConfig().moving_off
 
 
+def test_two_walkers_side_by_side_each_seen_by_one_leg_are_two_people() -> None:
+    """Two people walking side by side 0.4 m apart, the laser seeing one leg of each (the other hidden
+    behind it): the two legs lie within a stride of each other, but across the line of walking, where a
+    walker's feet are at most a hip's width apart: two people, each where it walks. Paired as one
+    person's legs, they were one track between the two."""
+    rng = np.random.default_rng(RNG_SEED)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(25):
+        t = 0.1 * k
+        y = 2.0 - 1.0 * t
+        legs = [LegDetection(x + rng.normal(0, 0.02), y + rng.normal(0, 0.02), 0.9, 2 * i, 2 * i + 1,
+                             evidence=k % 2 == 0) for i, x in enumerate((2.9, 3.3))]
+        tr.step(t, legs)
+    people = tr.people(2.4)
+    assert len(people) == 2
+    for x in (2.9, 3.3):
+        p = min(people, key=lambda p: abs(p.x_m - x))
+        assert math.hypot(p.x_m - x, p.y_m - (2.0 - 2.4)) < 0.1 and p.moving
+
+
+def test_a_walkers_legs_a_stride_apart_along_its_path_stay_one_person() -> None:
+    """One walker's legs, 0.2 m apart across its path and up to half a metre apart along it, the front
+    leg alternating: one person, moving with the walker."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(25):
+        t = 0.1 * k
+        x, along = 1.0 + 1.0 * t, 0.25 * math.sin(math.pi * t / 0.5)
+        legs = [LegDetection(x + along, 2.1, 0.9, 0, 1, evidence=k % 2 == 0),
+                LegDetection(x - along, 1.9, 0.9, 2, 3, evidence=k % 2 == 1)]
+        tr.step(t, legs)
+    (person,) = tr.people(2.4)
+    assert person.moving and math.hypot(person.x_m - 3.4, person.y_m - 2.0) < 0.15 and len(person.legs) == 2
+
+
 def test_a_chairs_legs_seen_in_changing_subsets_are_standing_people() -> None:
     """Four legs of a chair 0.45 m apart, each seen or missed at random (viewpoint, dropouts): leg tracks
     keep each leg, so people made of them stand still. Pairing the legs afresh every scan moved the
