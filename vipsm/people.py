@@ -509,20 +509,22 @@ class PeopleTracker:
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
                   ) -> tuple[Obstacle, ...]:
-        """The moving ``people`` seen this cycle as moving obstacles, but those within a leg pair's reach
-        (plus its radius) of one of ``others`` (the body tracker's confirmed bodies, reported or not): the
-        same body, reported once and judged once. A
-        walker no leg of whom was seen may have stopped or turned: it stays in ``people`` while its
-        position is known, but it is no obstacle (the protective field on the raw scan still guards the
-        robot). The bearing interval is the person's radius seen from ``laser``; scan indices -1 (a
-        track, not one scan's segment)."""
+        """The moving ``people`` seen this cycle as moving obstacles, but those a body of ``others`` (the
+        body tracker's confirmed bodies, reported or not) stands for: each body is the nearest moving
+        person within a leg pair's reach (plus its radius) if the body tracker saw it as a leg pair, within
+        a person's radius (plus its own) otherwise (:func:`_explained`): the same body, reported once and
+        judged once. A second person beside it, or the person pushing a cart the body tracker holds, is
+        another body. A walker no leg of whom was seen may have stopped or turned: it stays in ``people``
+        while its position is known, but it is no obstacle (the protective field on the raw scan still
+        guards the robot). The bearing interval is the person's radius seen from ``laser``; scan indices
+        -1 (a track, not one scan's segment)."""
         c = self.config
         if not c.report_moving:
             return ()
         out = []
-        for p in people:
-            near = any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m for o in others)
-            if not p.moving or not p.legs or near:
+        moving = [p for p in people if p.moving and p.legs]
+        for p, k in zip(moving, _explained(moving, others, c.leg_pair_max_m, c.person_radius_m), strict=True):
+            if k is not None:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
@@ -544,6 +546,29 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float, radius_m: float) -> list[int | None]:
+    """Per person, the index of the body of ``bodies`` that stands for it, or None: each body is one person,
+    the nearest (global nearest neighbour) within its radius plus ``pair_m`` (a leg pair's reach) for a
+    body seen as a person, plus ``radius_m`` (a person's) for any other body: a person overlapping it.
+    Two people side by side near one body (the body tracker held them as one, or holds one of them)
+    leave the other unexplained, and a person pushing a cart is not the cart."""
+    out: list[int | None] = [None] * len(people)
+    if not people or not bodies:
+        return out
+    big = 1e6
+    cost = np.full((len(people), len(bodies)), big)
+    for i, p in enumerate(people):
+        for j, o in enumerate(bodies):
+            d = math.hypot(o.x_m - p.x_m, o.y_m - p.y_m)
+            if d <= o.radius_m + (pair_m if o.person else radius_m):
+                cost[i, j] = d
+    rows, cols = assign(cost)
+    for r, k in zip(rows, cols, strict=True):
+        if cost[r, k] < big:
+            out[int(r)] = int(k)
+    return out
 
 
 def _bayes(prior: float, like_true: float, like_false: float) -> float:

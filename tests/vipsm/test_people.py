@@ -205,6 +205,39 @@ def test_moving_people_become_obstacles_unless_the_body_tracker_has_them() -> No
     assert off.obstacles(people, (), laser) == ()
 
 
+def test_a_body_of_the_body_tracker_stands_for_one_person_only() -> None:
+    """Two walkers side by side and one body-tracker body on one of them (or between them): that body
+    is one person, the nearest; the other walker is still a moving obstacle. Suppressing every person
+    within the body's reach hid the second walker."""
+    laser = Pose2D(0.0, 0.0, 0.0)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(20):
+        t = 0.1 * k
+        tr.step(t, _pair(1.0 + t, 2.0, evidence=k % 3 == 0) + _pair(1.0 + t, 2.45, evidence=k % 3 == 1))
+    people = tr.people(1.9)
+    assert len(people) == 2 and all(p.moving for p in people)
+    near = min(people, key=lambda p: p.y_m)
+    body = Obstacle(1, near.x_m, near.y_m - 0.05, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5)
+    (ob,) = tr.obstacles(people, (body,), laser)
+    assert ob.track_id == max(people, key=lambda p: p.y_m).track_id
+
+
+def test_a_cart_ahead_of_its_pusher_does_not_stand_for_the_pusher() -> None:
+    """A body the body tracker never saw as a person (a cart, round body) stands for a person only where
+    the two overlap; the cart 0.85 m ahead of the person pushing it is another body. A body seen as a
+    leg pair there may be the same person placed from other legs."""
+    laser = Pose2D(0.0, 0.0, 0.0)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(20):
+        tr.step(0.1 * k, _pair(1.0 + 0.1 * k, 2.0, evidence=k % 3 == 0))
+    people = tr.people(1.9)
+    (p,) = people
+    cart = Obstacle(1, p.x_m + 0.85, p.y_m, 1.0, 0.0, 0.4, 0.0, 0.1, 0, 5)
+    assert [o.track_id for o in tr.obstacles(people, (cart,), laser)] == [p.track_id]
+    legs = Obstacle(2, p.x_m + 0.85, p.y_m, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5, person=True)
+    assert tr.obstacles(people, (legs,), laser) == ()
+
+
 def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> None:
     """Legs whose centres drift steadily (a wall piece beside a table leg sliding as the robot drives
     by, where the place it "left" is still a wall) walk by their kinematics, but a walker's legs stand
