@@ -65,6 +65,10 @@ class PeopleConfig:
     leg_travel_m: float = 0.2
     #: two legs of one person: centres at most this far apart (stride at the laser's height)
     leg_pair_max_m: float = 0.65
+    #: ... and, while it walks, at most this far apart across its line of walking: the feet swing along
+    #: it a hip's width apart (0.1-0.2 m at the laser's height) plus each centre's few cm of noise. Two
+    #: people walking side by side, each seen by one leg, are two people, not one person's stride
+    leg_across_max_m: float = 0.3
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
     pair_sigma_m: float = 0.06
     leg_sigma_m: float = 0.15
@@ -104,8 +108,9 @@ class PeopleConfig:
             raise ValueError("the people tracker's probabilities must lie in (0, 1)")
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
-        if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m, self.leg_memory_s,
-               self.leg_max_speed_mps, self.leg_travel_m) <= 0.0 or self.max_tracks < 1:
+        if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m,
+               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m) <= 0.0 \
+                or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
 
 
@@ -199,6 +204,10 @@ def detect_legs(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, m
 #: a yes/no question about a world point (x_m, y_m) asked of this cycle's scan
 PointTest = Callable[[float, float], bool]
 
+#: from this speed on the velocity gives a walker's line of walking (a standing person's legs and centre
+#: wander by a few cm/s; the slowest walk is about 0.3 m/s)
+WALK_DIR_MPS = 0.3
+
 #: people's track ids start here, apart from the body tracker's (both appear in ``Estimate.obstacles``)
 FIRST_ID = 1 << 20
 
@@ -232,6 +241,7 @@ class PeopleTracker:
             if dt > 0:
                 t.existence *= math.exp(-dt / c.unseen_memory_s)
         self._track_legs(stamp_s, detections)
+        self._split()
         self._adopt(stamp_s)
         seen: set[int] = set()
         for t in self.tracks:
@@ -296,6 +306,52 @@ class PeopleTracker:
         for t in self.tracks:
             t.leg_ids = [k for k in t.leg_ids if k in self.legs]
 
+    def _one_body(self, a: tuple[float, float], b: tuple[float, float], v: tuple[float, float]) -> bool:
+        """Two leg centres ``a``, ``b`` can be one person's whose body moves at velocity ``v``: within a
+        stride (``leg_pair_max_m``) and, once it walks (from ``WALK_DIR_MPS``), within
+        ``leg_across_max_m`` across its line of walking (the feet swing along that line)."""
+        c = self.config
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        if math.hypot(dx, dy) > c.leg_pair_max_m:
+            return False
+        speed = math.hypot(*v)
+        return speed < WALK_DIR_MPS or abs(dx * v[1] - dy * v[0]) / speed <= c.leg_across_max_m
+
+    def _split(self) -> None:
+        """A walking person whose two legs, both seen this cycle, lay side by side across its line of
+        walking (further apart than ``leg_across_max_m``) in each of at least 3 of their common detections
+        of the last ``leg_memory_s`` holds two people's legs (two walkers side by
+        side, each seen by one leg, paired when neither had a velocity yet): it keeps the leg nearer its
+        prediction and frees the other. A hidden leg's predicted place is no measurement: not judged."""
+        for t in self.tracks:
+            legs = [self.legs[k] for k in t.leg_ids]
+            if len(legs) != 2 or any(lt.det is None for lt in legs):
+                continue
+            # over the legs' common detections of the last ``leg_memory_s`` (about a stride): a walker's
+            # swing leg steps aside of its line only briefly, two walkers' legs stay side by side
+            a_at = {round(st, 3): (x, y) for st, x, y in legs[0].path}
+            common = [(a_at[round(st, 3)], (x, y)) for st, x, y in legs[1].path if round(st, 3) in a_at]
+            if len(common) < 3 or any(self._across_ok(t, bx - ax, by - ay) for (ax, ay), (bx, by) in common):
+                continue
+            mx, my = float(t.filt.mean[0]), float(t.filt.mean[1])
+            far = max(range(2), key=lambda i: math.hypot(legs[i].x_m - mx, legs[i].y_m - my))
+            t.leg_ids = [lt.leg_id for i, lt in enumerate(legs) if i != far]
+
+    def _across_ok(self, t: PersonTrack, dx: float, dy: float) -> bool:
+        """Two legs ``(dx, dy)`` apart can be the walking person ``t``'s: not walking (slower than
+        ``WALK_DIR_MPS``), or within ``leg_across_max_m`` across its line of walking, widened by how
+        uncertain that line is (the velocity's sigma across it over the speed, times the legs' separation
+        along it, two sigma: a walker turning or stepping aside)."""
+        v = t.filt.mean[2:4]
+        speed = float(math.hypot(*v))
+        if speed < WALK_DIR_MPS:
+            return True
+        ux, uy = float(v[0]) / speed, float(v[1]) / speed
+        across, along = abs(dx * uy - dy * ux), abs(dx * ux + dy * uy)
+        side = np.array([-uy, ux])
+        sigma_dir = math.sqrt(max(float(side @ t.filt.cov[2:4, 2:4] @ side), 0.0)) / speed
+        return across <= self.config.leg_across_max_m + 2.0 * along * sigma_dir
+
     def _free(self) -> list[LegTrack]:
         """Leg tracks seen this cycle that belong to nobody."""
         owned = {k for t in self.tracks for k in t.leg_ids}
@@ -310,10 +366,12 @@ class PeopleTracker:
                 continue
             own = self.legs[t.leg_ids[0]]
             ox, oy = own.predicted(stamp_s, c.leg_memory_s)
+            v = (float(t.filt.mean[2]), float(t.filt.mean[3]))
             best = None
             for lt in self._free():
                 d = math.hypot(lt.x_m - ox, lt.y_m - oy)
-                if d <= c.leg_pair_max_m and self._in_gate(t, 0.5 * (lt.x_m + ox), 0.5 * (lt.y_m + oy), c.pair_sigma_m):
+                if self._one_body((ox, oy), (lt.x_m, lt.y_m), v) and self._in_gate(
+                        t, 0.5 * (lt.x_m + ox), 0.5 * (lt.y_m + oy), c.pair_sigma_m):
                     if best is None or d < best[0]:
                         best = (d, lt)
             if best is not None:
@@ -379,7 +437,8 @@ class PeopleTracker:
         t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]
 
     def _from_free_legs(self, stamp_s: float) -> list[PersonTrack]:
-        """Free legs paired greedily (nearest first, within ``leg_pair_max_m``) or alone; each such
+        """Free legs paired greedily (nearest first, those that can be one body's: ``_one_body`` with the
+        legs' mean velocity) or alone; each such
         detection goes to a person without legs whose gate holds it (global nearest neighbour), else
         starts a person. Returns the people updated or started."""
         c = self.config
@@ -388,8 +447,10 @@ class PeopleTracker:
                        for i, a in enumerate(free) for j, b in enumerate(free) if i < j)
         used: set[int] = set()
         groups: list[list[LegTrack]] = []
-        for d, i, j in pairs:
-            if d <= c.leg_pair_max_m and i not in used and j not in used:
+        for _, i, j in pairs:
+            a, b = free[i], free[j]
+            v = (0.5 * (a.vx_mps + b.vx_mps), 0.5 * (a.vy_mps + b.vy_mps))
+            if i not in used and j not in used and self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), v):
                 used |= {i, j}
                 groups.append([free[i], free[j]])
         groups += [[lt] for i, lt in enumerate(free) if i not in used]
@@ -448,20 +509,22 @@ class PeopleTracker:
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
                   ) -> tuple[Obstacle, ...]:
-        """The moving ``people`` seen this cycle as moving obstacles, but those within a leg pair's reach
-        (plus its radius) of one of ``others`` (the body tracker's confirmed bodies, reported or not): the
-        same body, reported once and judged once. A
-        walker no leg of whom was seen may have stopped or turned: it stays in ``people`` while its
-        position is known, but it is no obstacle (the protective field on the raw scan still guards the
-        robot). The bearing interval is the person's radius seen from ``laser``; scan indices -1 (a
-        track, not one scan's segment)."""
+        """The moving ``people`` seen this cycle as moving obstacles, but those a body of ``others`` (the
+        body tracker's confirmed bodies, reported or not) stands for: each body is the nearest moving
+        person within a leg pair's reach (plus its radius) if the body tracker saw it as a leg pair, within
+        a person's radius (plus its own) otherwise (:func:`_explained`): the same body, reported once and
+        judged once. A second person beside it, or the person pushing a cart the body tracker holds, is
+        another body. A walker no leg of whom was seen may have stopped or turned: it stays in ``people``
+        while its position is known, but it is no obstacle (the protective field on the raw scan still
+        guards the robot). The bearing interval is the person's radius seen from ``laser``; scan indices
+        -1 (a track, not one scan's segment)."""
         c = self.config
         if not c.report_moving:
             return ()
         out = []
-        for p in people:
-            near = any(math.hypot(o.x_m - p.x_m, o.y_m - p.y_m) <= o.radius_m + c.leg_pair_max_m for o in others)
-            if not p.moving or not p.legs or near:
+        moving = [p for p in people if p.moving and p.legs]
+        for p, k in zip(moving, _explained(moving, others, c.leg_pair_max_m, c.person_radius_m), strict=True):
+            if k is not None:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
@@ -483,6 +546,29 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float, radius_m: float) -> list[int | None]:
+    """Per person, the index of the body of ``bodies`` that stands for it, or None: each body is one person,
+    the nearest (global nearest neighbour) within its radius plus ``pair_m`` (a leg pair's reach) for a
+    body seen as a person, plus ``radius_m`` (a person's) for any other body: a person overlapping it.
+    Two people side by side near one body (the body tracker held them as one, or holds one of them)
+    leave the other unexplained, and a person pushing a cart is not the cart."""
+    out: list[int | None] = [None] * len(people)
+    if not people or not bodies:
+        return out
+    big = 1e6
+    cost = np.full((len(people), len(bodies)), big)
+    for i, p in enumerate(people):
+        for j, o in enumerate(bodies):
+            d = math.hypot(o.x_m - p.x_m, o.y_m - p.y_m)
+            if d <= o.radius_m + (pair_m if o.person else radius_m):
+                cost[i, j] = d
+    rows, cols = assign(cost)
+    for r, k in zip(rows, cols, strict=True):
+        if cost[r, k] < big:
+            out[int(r)] = int(k)
+    return out
 
 
 def _bayes(prior: float, like_true: float, like_false: float) -> float:

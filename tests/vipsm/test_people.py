@@ -205,6 +205,39 @@ def test_moving_people_become_obstacles_unless_the_body_tracker_has_them() -> No
     assert off.obstacles(people, (), laser) == ()
 
 
+def test_a_body_of_the_body_tracker_stands_for_one_person_only() -> None:
+    """Two walkers side by side and one body-tracker body on one of them (or between them): that body
+    is one person, the nearest; the other walker is still a moving obstacle. Suppressing every person
+    within the body's reach hid the second walker."""
+    laser = Pose2D(0.0, 0.0, 0.0)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(20):
+        t = 0.1 * k
+        tr.step(t, _pair(1.0 + t, 2.0, evidence=k % 3 == 0) + _pair(1.0 + t, 2.45, evidence=k % 3 == 1))
+    people = tr.people(1.9)
+    assert len(people) == 2 and all(p.moving for p in people)
+    near = min(people, key=lambda p: p.y_m)
+    body = Obstacle(1, near.x_m, near.y_m - 0.05, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5)
+    (ob,) = tr.obstacles(people, (body,), laser)
+    assert ob.track_id == max(people, key=lambda p: p.y_m).track_id
+
+
+def test_a_cart_ahead_of_its_pusher_does_not_stand_for_the_pusher() -> None:
+    """A body the body tracker never saw as a person (a cart, round body) stands for a person only where
+    the two overlap; the cart 0.85 m ahead of the person pushing it is another body. A body seen as a
+    leg pair there may be the same person placed from other legs."""
+    laser = Pose2D(0.0, 0.0, 0.0)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(20):
+        tr.step(0.1 * k, _pair(1.0 + 0.1 * k, 2.0, evidence=k % 3 == 0))
+    people = tr.people(1.9)
+    (p,) = people
+    cart = Obstacle(1, p.x_m + 0.85, p.y_m, 1.0, 0.0, 0.4, 0.0, 0.1, 0, 5)
+    assert [o.track_id for o in tr.obstacles(people, (cart,), laser)] == [p.track_id]
+    legs = Obstacle(2, p.x_m + 0.85, p.y_m, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5, person=True)
+    assert tr.obstacles(people, (legs,), laser) == ()
+
+
 def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> None:
     """Legs whose centres drift steadily (a wall piece beside a table leg sliding as the robot drives
     by, where the place it "left" is still a wall) walk by their kinematics, but a walker's legs stand
@@ -219,6 +252,40 @@ def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> N
         assert tr.tracks[0].filt.p_moving > 0.8  # the kinematics alone say walking
         if not moving:
             assert person.p_moving < PeopleConfig().moving_off
+
+
+def test_two_walkers_side_by_side_each_seen_by_one_leg_are_two_people() -> None:
+    """Two people walking side by side 0.4 m apart, the laser seeing one leg of each (the other hidden
+    behind it): the two legs lie within a stride of each other, but across the line of walking, where a
+    walker's feet are at most a hip's width apart: two people, each where it walks. Paired as one
+    person's legs, they were one track between the two."""
+    rng = np.random.default_rng(RNG_SEED)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(25):
+        t = 0.1 * k
+        y = 2.0 - 1.0 * t
+        legs = [LegDetection(x + rng.normal(0, 0.02), y + rng.normal(0, 0.02), 0.9, 2 * i, 2 * i + 1,
+                             evidence=k % 2 == 0) for i, x in enumerate((2.9, 3.3))]
+        tr.step(t, legs)
+    people = tr.people(2.4)
+    assert len(people) == 2
+    for x in (2.9, 3.3):
+        p = min(people, key=lambda p: abs(p.x_m - x))
+        assert math.hypot(p.x_m - x, p.y_m - (2.0 - 2.4)) < 0.1 and p.moving
+
+
+def test_a_walkers_legs_a_stride_apart_along_its_path_stay_one_person() -> None:
+    """One walker's legs, 0.2 m apart across its path and up to half a metre apart along it, the front
+    leg alternating: one person, moving with the walker."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(25):
+        t = 0.1 * k
+        x, along = 1.0 + 1.0 * t, 0.25 * math.sin(math.pi * t / 0.5)
+        legs = [LegDetection(x + along, 2.1, 0.9, 0, 1, evidence=k % 2 == 0),
+                LegDetection(x - along, 1.9, 0.9, 2, 3, evidence=k % 2 == 1)]
+        tr.step(t, legs)
+    (person,) = tr.people(2.4)
+    assert person.moving and math.hypot(person.x_m - 3.4, person.y_m - 2.0) < 0.15 and len(person.legs) == 2
 
 
 def test_a_chairs_legs_seen_in_changing_subsets_are_standing_people() -> None:
