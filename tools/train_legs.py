@@ -6,7 +6,7 @@
 
 Samples: every segment of a scan (pre-filtered and segmented as the estimator does) that
 :func:`vipsm.legs.segment_features` keeps. Positives: in the labelled scans of ``positive_N_extracted``,
-segments whose centroid lies within ``LABEL_M`` of a labelled leg cluster (a segment holding two
+segments whose centroid lies within ``app.legmodel.LABEL_M`` of a labelled leg cluster (a segment holding two
 labelled legs, the legs touching, is a positive too). Negatives: every segment of the drive through
 empty rooms (``negative_2``, three lasers, nobody present). Other segments of a labelled scan are not
 used (a second person passes in some recordings, unlabelled).
@@ -30,65 +30,18 @@ from typing import Any
 
 import numpy as np
 
-from app.bagread import BagTopics, read_bag
 from app.cmd_eval import default_real_data_dir
-from app.evaluation.real_data import read_labels, scan_topics
-from app.legmodel import default_model_path, load_leg_model
-from vipsm.bodies import BodiesConfig, segments
-from vipsm.legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
-from vipsm.prefilter import PrefilterConfig, veiling_masks
+from app.legmodel import DRIVE_BAG, default_model_path, drive_leg_rows, labelled_leg_rows, load_leg_model
+from vipsm.legs import FEATURE_NAMES, LegModel
 
 LABELLED = ("positive_1", "positive_2", "positive_3", "positive_6")
 HELD_OUT = "positive_6"
-DRIVE = "negative_2.bag"
-DRIVE_TOPICS = ("/left_scan", "/rear_scan", "/right_scan")
-#: a segment's centroid this close to a labelled leg cluster's position is that leg (the label is the
-#: centroid of leg_tracker's own cluster of the same returns, so they agree to a few centimetres)
-LABEL_M = 0.12
 #: the operating point: the share of non-leg segments (out of fold) taken for legs. The tracker's
 #: existence probability absorbs single false legs; a lower rate loses legs (recall 0.7 -> 0.5 at 0.05)
 TARGET_FPR = 0.10
 TREES = 60
 DEPTH = 14
 SEED = 29
-
-
-def scan_samples(r: np.ndarray, b: np.ndarray) -> tuple[list[tuple[int, int, np.ndarray]], np.ndarray]:
-    """The leg-candidate segments of one scan, pre-filtered and segmented as in the estimator."""
-    mixed, lone = veiling_masks(r, b, PrefilterConfig())
-    dropped = mixed | lone
-    rr = np.where(dropped, np.nan, r)
-    return segment_features(rr, b, segments(rr, b, BodiesConfig(), dropped), LegConfig())
-
-
-def labelled_samples(data: Path, name: str) -> np.ndarray:
-    """Features of the labelled leg segments of one recording."""
-    labels = {round(t, 6): legs for t, legs in read_labels(data / f"{name}.bag", data / f"{name}_extracted.bag")}
-    rows = []
-    bag = data / f"{name}.bag"
-    for bc in read_bag(bag, BagTopics(scan_topics(bag)[0])):
-        legs = labels.get(round(bc.scan.stamp_s, 6))
-        if legs is None:
-            continue
-        kept, x = scan_samples(bc.scan.ranges_m, bc.scan.bearings_rad)
-        for (_, _, pts), row in zip(kept, x, strict=True):
-            c = pts.mean(axis=0)
-            if np.min(np.hypot(legs[:, 0] - c[0], legs[:, 1] - c[1])) <= LABEL_M:
-                rows.append(row)
-    return np.array(rows).reshape(-1, len(FEATURE_NAMES))
-
-
-def drive_samples(data: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Features of every candidate segment of the drive: (first half, second half) by time."""
-    first, second = [], []
-    for topic in DRIVE_TOPICS:
-        scans = [(bc.scan.stamp_s, bc.scan.ranges_m, bc.scan.bearings_rad)
-                 for bc in read_bag(data / DRIVE, BagTopics(topic))]
-        mid = 0.5 * (scans[0][0] + scans[-1][0])
-        for t, r, b in scans:
-            _, x = scan_samples(r, b)
-            (first if t < mid else second).append(x)
-    return np.concatenate(first), np.concatenate(second)
 
 
 def export_forest(forest: Any, threshold_p: float) -> dict[str, np.ndarray]:
@@ -137,8 +90,8 @@ def operating_point(x: np.ndarray, y: np.ndarray, groups: np.ndarray) -> tuple[f
 
 
 def train(data: Path, out: Path) -> dict[str, Any]:
-    pos = {name: labelled_samples(data, name) for name in LABELLED}
-    neg_train, neg_val = drive_samples(data)
+    pos = {name: labelled_leg_rows(data, name) for name in LABELLED}
+    neg_train, neg_val = drive_leg_rows(data)
     trained = [n for n in LABELLED if n != HELD_OUT]
     x = np.concatenate([pos[n] for n in trained] + [neg_train])
     y = np.concatenate([np.ones(sum(len(pos[n]) for n in trained)), np.zeros(len(neg_train))])
@@ -175,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     data = args.data_dir or default_real_data_dir()
-    if not (data / DRIVE).exists():
+    if not (data / DRIVE_BAG).exists():
         print(f"train_legs: error: no recordings in {data}", file=sys.stderr)
         return 2
     report = train(data, args.out)

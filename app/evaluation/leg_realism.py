@@ -36,20 +36,16 @@ from typing import Any
 
 import numpy as np
 
+from app.legmodel import DRIVE_BAG, drive_leg_rows, labelled_leg_rows, leg_candidates
 from hil_fakes.world import LaserModel, World
 from hil_fakes.world.scenarios import Scenario, suite_scenario
-from vipsm.bodies import BodiesConfig, segments
-from vipsm.legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
-from vipsm.prefilter import PrefilterConfig, veiling_masks
+from vipsm.legs import FEATURE_NAMES, LegModel
 
 #: range bands (m) of the tables, 1-2 m wide: the returns on a leg fall as 1 / range, so the sets are
 #: compared at about the same range (their range distributions differ within wider bands)
 BANDS_M = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 4.0), (4.0, 6.0), (6.0, 8.0))
 HELD_OUT = "positive_6"
-DRIVE = "negative_2.bag"
-DRIVE_TOPICS = ("/left_scan", "/rear_scan", "/right_scan")
 #: a segment's centroid this close to a labelled leg cluster is that leg (as in tools/train_legs.py)
-LABEL_M = 0.12
 #: the suite's scenes with walking people, and the furnished ones (nothing else moves in them)
 PEOPLE_SCENES = ("cross_30", "cross_60", "cross_90", "head_on_step_aside", "two_people_opposite",
                  "stand_then_walk", "crowd", "stop_and_go")
@@ -67,15 +63,6 @@ LEG_TRACKER_SIGMA_M = 0.005
 
 class LegRealismError(ValueError):
     """A bad argument or unreadable data for the leg realism check."""
-
-
-def candidates(r: np.ndarray, b: np.ndarray) -> tuple[list[tuple[int, int, np.ndarray]], np.ndarray]:
-    """The leg-candidate segments of one scan and their features, pre-filtered and segmented as the
-    estimator does (the same steps as ``tools/train_legs.py``)."""
-    mixed, lone = veiling_masks(r, b, PrefilterConfig())
-    dropped = mixed | lone
-    rr = np.where(dropped, np.nan, r)
-    return segment_features(rr, b, segments(rr, b, BodiesConfig(), dropped), LegConfig())
 
 
 @dataclass
@@ -96,37 +83,17 @@ class Samples:
 # ------------------------------------------------------------------------------------------ real data
 def real_legs(data: Path, name: str = HELD_OUT) -> Samples:
     """The labelled leg segments of a recording (by default the held-out one)."""
-    from app.bagread import BagTopics, read_bag
-    from app.evaluation.real_data import read_labels, scan_topics
-
-    bag, extracted = data / f"{name}.bag", data / f"{name}_extracted.bag"
-    labels = {round(t, 6): legs for t, legs in read_labels(bag, extracted)}
     out = Samples()
-    for bc in read_bag(bag, BagTopics(scan_topics(bag)[0])):
-        legs = labels.get(round(bc.scan.stamp_s, 6))
-        if legs is None:
-            continue
-        kept, x = candidates(bc.scan.ranges_m, bc.scan.bearings_rad)
-        for (_, _, pts), row in zip(kept, x, strict=True):
-            c = pts.mean(axis=0)
-            if np.min(np.hypot(legs[:, 0] - c[0], legs[:, 1] - c[1])) <= LABEL_M:
-                out.add(row, "leg")
+    for row in labelled_leg_rows(data, name):
+        out.add(row, "leg")
     return out
 
 
 def real_nonlegs(data: Path) -> Samples:
     """Every candidate segment of the drive's second half (by time, per laser): nobody is there."""
-    from app.bagread import BagTopics, read_bag
-
     out = Samples()
-    for topic in DRIVE_TOPICS:
-        scans = [(bc.scan.stamp_s, bc.scan.ranges_m, bc.scan.bearings_rad)
-                 for bc in read_bag(data / DRIVE, BagTopics(topic))]
-        mid = 0.5 * (scans[0][0] + scans[-1][0])
-        for t, r, b in scans:
-            if t >= mid:
-                for row in candidates(r, b)[1]:
-                    out.add(row, "drive")
+    for row in drive_leg_rows(data)[1]:
+        out.add(row, "drive")
     return out
 
 
@@ -235,7 +202,7 @@ def sim_legs(scenes: Iterable[str], geometry: str, step_s: float) -> Samples:
         sc = suite_scenario(name)
         people = {i for i, o in enumerate(sc.obstacles) if getattr(o, "gait", None) is not None}
         for _, _, sw, b in sweeps(sc, geometry, step_s):
-            kept, x = candidates(sw.ranges_m, b)
+            kept, x = leg_candidates(sw.ranges_m, b)
             for (a, z, _), row in zip(kept, x, strict=True):
                 hit = sw.hit_obstacle[a:z][np.isfinite(sw.ranges_m[a:z])]
                 owner = np.bincount(np.maximum(hit, 0)).argmax() if hit.size else -1
@@ -252,7 +219,7 @@ def sim_clutter(scenes: Iterable[str], geometry: str, step_s: float) -> Samples:
         pieces = np.array([(x, y, r) for x, y, r, _ in sc.clutter.footprints()]).reshape(-1, 3)
         kinds = [k for *_, k in sc.clutter.footprints()]
         for world, t, sw, b in sweeps(sc, geometry, step_s):
-            kept, x = candidates(sw.ranges_m, b)
+            kept, x = leg_candidates(sw.ranges_m, b)
             lx, ly, lth = _laser_pose(world, t)
             for (a, z, pts), row in zip(kept, x, strict=True):
                 if np.any(sw.hit_obstacle[a:z] >= 0) or not pieces.size:
@@ -373,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
         from app.cmd_eval import default_real_data_dir
 
         data = args.data_dir or default_real_data_dir()
-        if not (data / DRIVE).exists() or not (data / f"{HELD_OUT}_extracted.bag").exists():
+        if not (data / DRIVE_BAG).exists() or not (data / f"{HELD_OUT}_extracted.bag").exists():
             print(f"leg_realism: error: no recordings in {data} (--no-real for the simulated sets only)",
                   file=sys.stderr)
             return 2

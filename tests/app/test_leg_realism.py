@@ -96,7 +96,7 @@ def test_cli_errors(capsys, tmp_path: Path) -> None:
 @pytest.fixture(scope="module")
 def real_dir(shared_data: Path) -> Path:
     path = shared_data / "real_people_laser"
-    if not (path / lr.DRIVE).exists():
+    if not (path / lr.DRIVE_BAG).exists():
         pytest.skip(f"the leg_tracker recordings are not in {path} (../shared/data/real_people_laser)")
     return path
 
