@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from app.cmd_eval import default_real_data_dir
-from app.legmodel import DRIVE_BAG, default_model_path, drive_leg_rows, labelled_leg_rows, load_leg_model
+from app.evaluation.real_data import DRIVE_BAG, drive_leg_rows, labelled_leg_rows
+from app.legmodel import default_model_path, load_leg_model
 from vipsm.legs import FEATURE_NAMES, LegModel
 
 LABELLED = ("positive_1", "positive_2", "positive_3", "positive_6")

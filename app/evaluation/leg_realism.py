@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from app.legmodel import DRIVE_BAG, drive_leg_rows, labelled_leg_rows, leg_candidates
+from app.evaluation.real_data import DRIVE_BAG, drive_leg_rows, labelled_leg_rows
+from app.legmodel import leg_candidates
 from hil_fakes.world import LaserModel, World
 from hil_fakes.world.scenarios import Scenario, suite_scenario
 from vipsm.legs import FEATURE_NAMES, LegModel

@@ -40,11 +40,12 @@ from typing import Any
 import numpy as np
 
 from vipsm.estimator import Estimator, EstimatorConfig
+from vipsm.legs import FEATURE_NAMES
 from vipsm.psm import PsmResult
 from vipsm.types import EstimateFlag
 
 from ..bagread import LASER_SCAN, BagTopics, bag_topics, open_reader, read_bag
-from ..legmodel import default_leg_model
+from ..legmodel import default_leg_model, leg_candidates
 
 SPEED_WINDOW_S = 1.0  # the centroid fit spans +-half of this
 WALKING_MPS = 0.3
@@ -475,3 +476,48 @@ def print_real_table(suite: dict[str, Any]) -> None:
               f"{f(k.get('max_offset_m')):>10}")
     for name in suite["skipped"]:
         print(f"{name}: skipped (not in {suite['data_dir']})")
+
+
+# ---------------------------------------------------------------------------------------------
+# the leg detector's samples (tools/train_legs.py, app/evaluation/leg_realism.py)
+
+#: a segment's centroid this close to a labelled leg cluster's position is that leg (the label is the
+#: centroid of leg_tracker's own cluster of the same returns, so they agree to a few centimetres)
+LABEL_M = 0.12
+#: the drive through empty rooms (nobody present: every segment is a non-leg) and its three lasers
+DRIVE_BAG = "negative_2.bag"
+DRIVE_TOPICS = ("/left_scan", "/rear_scan", "/right_scan")
+
+
+def labelled_leg_rows(data: Path, name: str) -> np.ndarray:
+    """Features of the labelled leg segments of the recording ``name`` (``name.bag`` with its labels in
+    ``name_extracted.bag``): segments whose centroid lies within ``LABEL_M`` of a labelled leg (a segment
+    holding two labelled legs, the legs touching, is one too)."""
+    bag = data / f"{name}.bag"
+    labels = {round(t, 6): legs for t, legs in read_labels(bag, data / f"{name}_extracted.bag")}
+    rows = []
+    for bc in read_bag(bag, BagTopics(scan_topics(bag)[0])):
+        legs = labels.get(round(bc.scan.stamp_s, 6))
+        if legs is None:
+            continue
+        kept, x = leg_candidates(bc.scan.ranges_m, bc.scan.bearings_rad)
+        for (_, _, pts), row in zip(kept, x, strict=True):
+            c = pts.mean(axis=0)
+            if np.min(np.hypot(legs[:, 0] - c[0], legs[:, 1] - c[1])) <= LABEL_M:
+                rows.append(row)
+    return np.array(rows).reshape(-1, len(FEATURE_NAMES))
+
+
+def drive_leg_rows(data: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Features of every candidate segment of the drive (nobody present), (first half, second half) by
+    time on each laser: training takes the first, validation the second."""
+    first, second = [], []
+    for topic in DRIVE_TOPICS:
+        scans = [(bc.scan.stamp_s, bc.scan.ranges_m, bc.scan.bearings_rad)
+                 for bc in read_bag(data / DRIVE_BAG, BagTopics(topic))]
+        mid = 0.5 * (scans[0][0] + scans[-1][0])
+        for t, r, b in scans:
+            (first if t < mid else second).append(leg_candidates(r, b)[1])
+    width = len(FEATURE_NAMES)
+    return (np.concatenate(first).reshape(-1, width) if first else np.zeros((0, width)),
+            np.concatenate(second).reshape(-1, width) if second else np.zeros((0, width)))
