@@ -551,19 +551,26 @@ def _with_evidence(legs: list[LegDetection], bodies: list[Body]) -> list[LegDete
             for p in legs]
 
 
+def _beam_towards(scan: Scan, laser: Pose2D, x: float, y: float) -> tuple[float, float] | None:
+    """(the range the scan returned on the beam towards world point (x, y) (NaN: none), the point's
+    distance), or None outside the field of view."""
+    b = scan.bearings_rad
+    dx, dy = x - laser.x_m, y - laser.y_m
+    bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+    if b.size < 2 or not b[0] <= bearing <= b[-1]:
+        return None
+    k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
+    return float(scan.ranges_m[k]), math.hypot(dx, dy)
+
+
 def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
     """``visible(x, y)``: the scan could have seen a body at that world point: inside the field of
     view, and the beam towards it returned no nearer than ``margin_m`` in front of it (or not at all:
     it went through)."""
-    b, r = scan.bearings_rad, scan.ranges_m
 
     def visible(x: float, y: float) -> bool:
-        dx, dy = x - laser.x_m, y - laser.y_m
-        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
-        if b.size < 2 or not b[0] <= bearing <= b[-1]:
-            return False
-        k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
-        return not (np.isfinite(r[k]) and r[k] < math.hypot(dx, dy) - margin_m)
+        beam = _beam_towards(scan, laser, x, y)
+        return beam is not None and not (math.isfinite(beam[0]) and beam[0] < beam[1] - margin_m)
 
     return visible
 
@@ -571,15 +578,10 @@ def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
 def _seen_through(scan: Scan, laser: Pose2D, margin_m: float = 0.15):
     """``seen_free(x, y)``: the beam towards that world point returned at least ``margin_m`` beyond it
     (a leg's width: nothing stands there now)."""
-    b, r = scan.bearings_rad, scan.ranges_m
 
     def seen_free(x: float, y: float) -> bool:
-        dx, dy = x - laser.x_m, y - laser.y_m
-        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
-        if b.size < 2 or not b[0] <= bearing <= b[-1]:
-            return False
-        k = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
-        return bool(np.isfinite(r[k]) and r[k] >= math.hypot(dx, dy) + margin_m)
+        beam = _beam_towards(scan, laser, x, y)
+        return beam is not None and math.isfinite(beam[0]) and beam[0] >= beam[1] + margin_m
 
     return seen_free
 
