@@ -469,8 +469,8 @@ class Estimator:
         if kf.seen_m is not None:
             # where restoration bridged a cut (a body the camera or a track flagged, rightly or not) the
             # keyframe holds an interpolation between the surfaces beside it, not what the laser saw:
-            # a box in front of that line would look "ahead" for as long as the keyframe lives
-            # (cylinder_clutter seed 91). There the measured range counts.
+            # a box in front of that line would look "ahead" for as long as the keyframe lives.
+            # There the measured range counts.
             kr = np.where(kf.prep.weights > 0.0, kr, kf.seen_m)
         kr = _nearest_within(kr, self._ahead_window_beams(kf.pose, match.pose, kb))[j]
         with np.errstate(invalid="ignore"):

@@ -163,7 +163,7 @@ def _remove_global_error(
     over the usable pixels and remove it. Two starts: all pixels (moving bodies a minority, trimmed
     away), and the pixels the uncorrected prediction already explains best (a body near the camera
     fills half the image: the fit over all pixels took its motion for the robot's, and the whole
-    background then "moved", cylinder_clutter seed 240); the model leaving the most pixels below
+    background then "moved"); the model leaving the most pixels below
     ``alpha_base_px`` wins, no correction at all included."""
     idx = np.flatnonzero(usable.ravel())
     if idx.size < 50:

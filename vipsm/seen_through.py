@@ -30,7 +30,7 @@ error per keyframe step between them (``steps`` = turn / ``step_angle_rad`` + di
 the estimator's keyframe spacing). A still laser keeps its window of ``lateral_tol_m`` (its scans'
 heading noise, 0.01-0.06 deg on the shared still recordings, moves a return by less than ``pose_tol_m``);
 driving and turning widen it for the older scans. The window is sharp: 1-2 cm more on a still laser cut
-the walking recall of positive_3 from 0.75 to 0.60.
+a real recording's walking recall from 0.75 to 0.60 (a walker's leg moves only centimetres a scan).
 """
 
 from __future__ import annotations
