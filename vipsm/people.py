@@ -168,6 +168,8 @@ class PersonTrack:
     #: probability that it is a body that moves at all (a person), not a static thing taken for legs; a new
     #: track's is even (nothing known)
     p_dynamic: float = 0.5
+    #: obstacle cycles the track has lived (``Obstacle.age_cycles`` of a moving person)
+    age_cycles: int = 1
 
     @property
     def p_moving(self) -> float:
@@ -238,6 +240,7 @@ class PeopleTracker:
             dt = stamp_s - t.stamp_s
             t.filt.predict(dt)
             t.stamp_s = stamp_s
+            t.age_cycles += 1
             if dt > 0:
                 t.existence *= math.exp(-dt / c.unseen_memory_s)
         self._track_legs(stamp_s, detections)
@@ -522,6 +525,7 @@ class PeopleTracker:
         if not c.report_moving:
             return ()
         out = []
+        tracks = {t.track_id: t for t in self.tracks}
         moving = [p for p in people if p.moving and p.legs]
         for p, k in zip(moving, _explained(moving, others, c.leg_pair_max_m, c.person_radius_m), strict=True):
             if k is not None:
@@ -529,8 +533,10 @@ class PeopleTracker:
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
             half = math.asin(min(c.person_radius_m / max(math.hypot(dx, dy), 1e-6), 1.0))
+            t = tracks[p.track_id]
+            cov = tuple(float(v) for v in np.asarray(t.filt.cov, float)[:4, :4].ravel())
             out.append(Obstacle(p.track_id, p.x_m, p.y_m, p.vx_mps, p.vy_mps, c.person_radius_m, b - half, b + half,
-                                -1, -1, person=True))
+                                -1, -1, age_cycles=t.age_cycles, covariance=cov, person=True))
         return tuple(out)
 
     def people(self, stamp_s: float) -> tuple[Person, ...]:

@@ -199,6 +199,11 @@ def test_moving_people_become_obstacles_unless_the_body_tracker_has_them() -> No
     (ob,) = tr.obstacles(people, (), laser)
     assert ob.track_id == people[0].track_id and ob.radius_m == tr.config.person_radius_m and ob.person
     assert ob.bearing_min_rad < math.atan2(ob.y_m, ob.x_m) < ob.bearing_max_rad
+    # like the body tracker's: its age in obstacle cycles and the filter's 4x4 covariance (x, y, vx, vy)
+    assert ob.age_cycles == 20
+    cov = np.array(ob.covariance).reshape(4, 4)
+    np.testing.assert_allclose(cov, cov.T, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(cov) > 0.0) and cov[0, 0] < tr.config.max_position_sigma_m**2
     other = Obstacle(1, people[0].x_m + 0.3, people[0].y_m, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5)
     assert tr.obstacles(people, (other,), laser) == ()
     off = PeopleTracker(PeopleConfig(report_moving=False), default_leg_model())
