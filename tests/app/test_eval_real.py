@@ -19,6 +19,7 @@ from app.evaluation.real_data import (
     end_to_start_m,
     labelled_metrics,
     path_comparison,
+    person_centre,
     person_speeds,
     refusal_metrics,
     speed_class,
@@ -58,7 +59,17 @@ def test_labelled_metrics_recall_error_and_far_reports() -> None:
     assert m["labelled_scans"]["all"] == 20
     assert m["recall_0.3m"]["all"] == pytest.approx(0.5) and m["recall_0.5m"]["all"] == pytest.approx(0.75)
     assert m["position_error_median_m"] == pytest.approx(0.2, abs=1e-6)
+    # to the person's centre (between the legs, at y = 0): only the 8 matched scans with both legs labelled
+    assert m["person_position_scans"] == 8
+    assert m["person_position_error_median_m"] == pytest.approx(math.hypot(0.2, 0.1), abs=1e-3)
     assert m["far_reports_per_min"] == pytest.approx(20 / (20 * 0.1 / 60), rel=1e-3)
+
+
+def test_person_centre_is_the_closest_pair_of_labelled_legs() -> None:
+    pair_and_chair = np.array([[2.0, 0.15], [4.0, 1.0], [2.1, -0.15]])
+    assert person_centre(pair_and_chair) == pytest.approx([2.05, 0.0])
+    assert person_centre(np.array([[2.0, 0.0]])) is None  # the other leg hidden: centre unknown
+    assert person_centre(np.array([[2.0, 0.0], [2.0, 1.2]])) is None  # farther apart than a step
 
 
 def test_background_reports_and_still_tracks() -> None:
