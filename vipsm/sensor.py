@@ -3,10 +3,12 @@
 Every Hokuyo (and any ROS ``LaserScan``) gives its beams' bearings and each beam's time offset: the
 bearing step, field of view and beam count follow from the bearings. The scan period is the spacing of
 consecutive scans' stamps where the caller has seen two (``stamp_period_s``); from one scan alone it is the
-time between neighbouring beams (``beam_dt_s``) times the beams one full turn holds (``2 pi / step``),
-which holds only when the bearing step is the mirror's step: a recording whose beams are every k-th
-mirror step (a coarser ``angle_increment``) but whose ``time_increment`` is one mirror step's time gives
-a period k times too short from beam timing, while its stamps still come one period apart. On the
+time between neighbouring beams (``beam_dt_s``) times the beams one full turn holds (``2 pi / step``).
+That is the mirror's turn, and it is the scan period only when every turn is delivered at the stated step:
+the leg_tracker recordings' scanners state 65.1 us per 0.3516 deg beam (a 15 Hz mirror, 66.7 ms) but
+deliver a scan every 133 ms (every other turn; their ``scan_time`` and stamps say so), and a recording
+whose beams are every k-th mirror step with one step's ``time_increment`` gives k times too short a
+period the same way. The stamps always come one delivered period apart. On the
 UTM-30LX that is 0.25 deg, 1081 beams, 270 deg and 25 ms (40 Hz); on a URG-04LX 0.35 deg, 682 beams,
 240 deg and 100 ms. Thresholds that depend on the sensor are derived from these (see
 ``docs/real_data.md``).
