@@ -138,12 +138,13 @@ def test_period_from_stamps_when_the_bearing_step_is_not_the_mirrors() -> None:
 
 def test_period_from_stamps_when_only_every_other_turn_is_delivered() -> None:
     """The leg_tracker recordings: 768 beams at 0.3516 deg, 65.1 us a beam (a 15 Hz mirror), a scan every
-    133 ms. Beam timing says 66.7 ms; the stamps say 133 ms, and the stall age follows them (a scan two
-    periods old is not a stalled scanner)."""
+    133 ms. Beam timing says 66.7 ms; the stamps say 133 ms, and the stall age follows them (counted in
+    delivered periods, not in mirror turns)."""
     n, first, step, _ = WIDE_270_7HZ
     scan = Scan(np.full(n, 3.0), first + step * np.arange(n), 0.0, 0, 6.510417e-05)
     assert scan_geometry(scan).period_s == pytest.approx(1 / 15, rel=1e-4)
     measured = scan_period_from_stamps(np.arange(6) / 7.5)
     assert scan_geometry(scan, measured).rate_hz == pytest.approx(7.5)
     loop = LoopConfig()
-    assert scan_age_limit_s(loop, scan, measured) > 2 / 7.5 + loop.period_s
+    assert scan_age_limit_s(loop, scan, measured) == pytest.approx(loop.max_scan_age_periods / 7.5 + loop.period_s)
+    assert scan_age_limit_s(loop, scan) == pytest.approx(loop.max_scan_age_periods / 15 + loop.period_s, rel=1e-4)
