@@ -203,16 +203,17 @@ def normalised_bearings(first_rad: float, step_rad: float, n: int) -> np.ndarray
     return first_rad + step_rad * np.arange(n, dtype=float)
 
 
-def scan_age_limit_s(loop: Any, scan: Scan) -> float:
+def scan_age_limit_s(loop: Any, scan: Scan, stamp_period_s: float | None = None) -> float:
     """How old the newest scan may be before the scanner counts as stalled: ``loop.max_scan_age_s`` if
-    set, else ``loop.max_scan_age_periods`` of the scanner's own period (from the scan's beam timing;
-    unknown: the loop's period) plus one loop period (the loop samples the newest scan up to a period
-    late). 0.25 s at 40 Hz with the 0.1 s loop, 0.9 s at 7.5 Hz."""
+    set, else ``loop.max_scan_age_periods`` of the scanner's own period (the measured spacing of its
+    scans' stamps, ``stamp_period_s``, once known; before that the scan's beam timing; unknown: the loop's
+    period) plus one loop period (the loop samples the newest scan up to a period late). 0.25 s at 40 Hz
+    with the 0.1 s loop, 0.9 s at 7.5 Hz."""
     from vipsm.sensor import scan_geometry
 
     if loop.max_scan_age_s > 0.0:
         return float(loop.max_scan_age_s)
-    period = scan_geometry(scan).period_s or loop.period_s
+    period = scan_geometry(scan, stamp_period_s).period_s or loop.period_s
     return float(loop.max_scan_age_periods * period + loop.period_s)
 
 
@@ -497,7 +498,7 @@ class ControlLoop:
     def _scan_age_limit_s(self) -> float:
         """The stall age for the newest scan's sensor (:func:`scan_age_limit_s`)."""
         assert self.last_scan is not None
-        return scan_age_limit_s(self.config.loop, self.last_scan.scan)
+        return scan_age_limit_s(self.config.loop, self.last_scan.scan, self._scan_period_s)
 
     def _obstacle_budget_s(self) -> float | None:
         """The time one estimate may take to keep up: the scan period when every scan triggers a cycle

@@ -116,35 +116,65 @@ def _solve(nx, ny, e, jt, w, m, damping):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _reverse_pairs(rx, ry, r_ok, cx, cy, cb, c_uniform, c_ok, c_seg, x, y, th, window, max_dist, nx_out, ny_out, e_out,
+                   jt_out, idx_out, m0, qx_a, qy_a, phi_a):  # pragma: no cover - compiled
+    """The other direction of a symmetric match: each usable reference point, placed in the current scan's
+    frame, against the line through its nearest current point and that point's neighbour. The residual is
+    the same distance seen from the reference's frame, e = (R n_c) . (p - t) - n_c . c_j, so its Jacobian
+    in the pose (x, y, th) is (-R n_c, (J R n_c) . (p - t)) with J the quarter turn. Appends after ``m0``
+    pairs; returns the new count. ``idx_out`` holds reference indices offset by -1 - index (negative)."""
+    c, s = math.cos(th), math.sin(th)
+    ix, iy = -(c * x + s * y), -(-s * x + c * y)  # the inverse pose's translation
+    n = _pairs(cx, cy, cb, c_uniform, c_ok, c_seg, rx, ry, r_ok, ix, iy, -th, window, max_dist,
+               nx_out[m0:], ny_out[m0:], e_out[m0:], jt_out[m0:], idx_out[m0:], qx_a, qy_a, phi_a)
+    for k in range(m0, m0 + n):
+        i = idx_out[k]
+        mx, my = c * nx_out[k] - s * ny_out[k], s * nx_out[k] + c * ny_out[k]
+        px, py = rx[i] - x, ry[i] - y
+        nx_out[k], ny_out[k] = -mx, -my
+        jt_out[k] = -my * px + mx * py
+        idx_out[k] = -1 - i
+    return m0 + n
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def refine(rx, ry, rb, uniform, r_ok, seg, cx, cy, c_ok, c_w, x, y, th, iterations, window, max_dist, robust_scale,
-           min_scale, min_pairs, damping, degenerate_eig, stop_t, stop_r):  # pragma: no cover - compiled
-    """Point-to-line iterations from (x, y, th). Returns (x, y, th, code, pairs, rms residual m,
-    iterations run)."""
-    n = cx.size
+           min_scale, min_pairs, damping, degenerate_eig, stop_t, stop_r, symmetric, r_w, cb, c_uniform, c_seg
+           ):  # pragma: no cover - compiled
+    """Point-to-line iterations from (x, y, th); ``symmetric``: the reference's points against the current
+    scan's lines too (``r_w``, ``cb``, ``c_uniform``, ``c_seg``: the reference's weights, the current scan's
+    bearings, uniformity and segments). Returns (x, y, th, code, pairs, rms residual m, iterations run)."""
+    n = cx.size + (rx.size if symmetric else 0)
     nx, ny, e, jt = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     idx = np.empty(n, dtype=np.int64)
     w = np.empty(n)
-    qx, qy, phi = np.empty(n), np.empty(n), np.empty(n)
+    nq = max(cx.size, rx.size)
+    qx, qy, phi = np.empty(nq), np.empty(nq), np.empty(nq)
     m, rms, it = 0, math.nan, 0
     for it in range(1, iterations + 1):
         m = _pairs(rx, ry, rb, uniform, r_ok, seg, cx, cy, c_ok, x, y, th, window, max_dist, nx, ny, e, jt, idx,
                    qx, qy, phi)
-        if m < min_pairs:
-            return x, y, th, TOO_FEW_PAIRS, m, rms, it
+        m_fwd = m
+        if symmetric:
+            m = _reverse_pairs(rx, ry, r_ok, cx, cy, cb, c_uniform, c_ok, c_seg, x, y, th, window, max_dist, nx, ny,
+                               e, jt, idx, m, qx, qy, phi)
+        if m_fwd < min_pairs or (symmetric and m - m_fwd < min_pairs):
+            return x, y, th, TOO_FEW_PAIRS, m_fwd, rms, it
         scale = max(robust_scale * np.median(np.abs(e[:m])), min_scale)
         s2 = 0.0
         for k in range(m):
-            w[k] = c_w[idx[k]] / (1.0 + (e[k] / scale) ** 2)
+            own = c_w[idx[k]] if idx[k] >= 0 else r_w[-1 - idx[k]]
+            w[k] = own / (1.0 + (e[k] / scale) ** 2)
             s2 += e[k] * e[k]
         rms = math.sqrt(s2 / m)
         ok, d, h, sw = _solve(nx, ny, e, jt, w, m, damping)
         tr = h[0, 0] + h[1, 1]
         lam_min = 0.5 * tr - math.sqrt(max(0.25 * tr * tr - (h[0, 0] * h[1, 1] - h[0, 1] * h[0, 1]), 0.0))
         if not ok or lam_min / sw < degenerate_eig:
-            return x, y, th, DEGENERATE, m, rms, it
+            return x, y, th, DEGENERATE, m_fwd, rms, it
         x += d[0]
         y += d[1]
         th += d[2]
         if math.hypot(d[0], d[1]) < stop_t and abs(d[2]) < stop_r:
             break
-    return x, y, th, OK, m, rms, it
+    return x, y, th, OK, m_fwd, rms, it

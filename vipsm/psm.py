@@ -101,6 +101,9 @@ class PsmConfig:
     refine_damping: float = 1e-4  # towards no change, relative to the information (unconstrained directions)
     #: a pair PSM refuses is refined from the initial guess instead (accepted when the refinement is)
     refine_refused: bool = False
+    #: the refinement's cost in both directions: the current points against the reference's lines and the
+    #: reference's points against the current's lines (a one-sided fit leans on one scan's sampling)
+    refine_symmetric: bool = False
 
     def __post_init__(self) -> None:
         if self.median_window < 1 or self.median_window % 2 == 0:
@@ -186,11 +189,14 @@ def _preset(name: str) -> PsmConfig:
     (0.25-0.35 deg): the defaults with the search windows as angles (+-20 deg first, +-5 deg later) and
     5 refinement steps. Coarse SICK scans (0.5 and 1 deg): the original's SICK block (segments broken at
     2 r dphi, C = 0.1^2, +-20 / +-10 deg windows), a 3-beam median at 0.5 deg (5 beams of 1 deg round a
-    corner off by 2 deg), 10 refinement steps, and a pair PSM refuses refined from the guess."""
+    corner off by 2 deg), the two-way refinement (at 0.5-1 deg one scan's chords are coarse: a one-sided
+    fit leans on them) run to convergence (at most 30 steps; the stop test ends most within 15), and a pair
+    PSM refuses refined from the guess."""
     fine = dict(search_window_first_rad=math.radians(20.0), search_window_rad=math.radians(5.0), refine_iterations=5)
     coarse = dict(max_range_m=10.0, min_valid_beams=20, search_window_first_rad=math.radians(20.0),
                   search_window_rad=math.radians(10.0), max_error_m=0.5, weight_c_m2=0.10**2,
-                  seg_jump_range_factor=2.0, median_window=3, refine_iterations=10, refine_refused=True)
+                  seg_jump_range_factor=2.0, median_window=3, refine_iterations=30, refine_refused=True,
+                  refine_symmetric=True)
     table: dict[str, dict[str, object]] = {
         "utm30lx": fine,
         "hokuyo_0.35deg": fine,
@@ -558,7 +564,8 @@ def _refine(ref: PreparedScan, cur: PreparedScan, x: float, y: float, th: float,
         ref.x_m, ref.y_m, ref.bearings_rad, _uniform(ref.bearings_rad), r_ok, ref.segments, cur.x_m, cur.y_m,
         c_ok, cur.weights, x, y, th, c.refine_iterations, window, c.refine_max_dist_m,
         c.refine_robust_scale, c.refine_min_scale_m, min_pairs, c.refine_damping, c.degenerate_eig,
-        c.stop_translation_m * 0.1, c.stop_rotation_rad * 0.1)
+        c.stop_translation_m * 0.1, c.stop_rotation_rad * 0.1, c.refine_symmetric, ref.weights, cur.bearings_rad,
+        _uniform(cur.bearings_rad), cur.segments)
     if code != OK:
         return False, x, y, th
     return True, rx, ry, th2

@@ -1,8 +1,14 @@
 """The laser's geometry and timing as a scan states them (never assumed from one scanner model).
 
 Every Hokuyo (and any ROS ``LaserScan``) gives its beams' bearings and each beam's time offset: the
-bearing step, field of view and beam count follow from the bearings, the scan period from the time
-between neighbouring beams (``beam_dt_s``) times the beams one full turn holds (``2 pi / step``). On the
+bearing step, field of view and beam count follow from the bearings. The scan period is the spacing of
+consecutive scans' stamps where the caller has seen two (``stamp_period_s``); from one scan alone it is the
+time between neighbouring beams (``beam_dt_s``) times the beams one full turn holds (``2 pi / step``).
+That is the mirror's turn, and it is the scan period only when every turn is delivered at the stated step:
+the leg_tracker recordings' scanners state 65.1 us per 0.3516 deg beam (a 15 Hz mirror, 66.7 ms) but
+deliver a scan every 133 ms (every other turn; their ``scan_time`` and stamps say so), and a recording
+whose beams are every k-th mirror step with one step's ``time_increment`` gives k times too short a
+period the same way. The stamps always come one delivered period apart. On the
 UTM-30LX that is 0.25 deg, 1081 beams, 270 deg and 25 ms (40 Hz); on a URG-04LX 0.35 deg, 682 beams,
 240 deg and 100 ms. Thresholds that depend on the sensor are derived from these (see
 ``docs/real_data.md``).
@@ -31,15 +37,20 @@ class ScanGeometry:
         return 1.0 / self.period_s if self.period_s > 0.0 else 0.0
 
 
-def scan_geometry(scan: Scan) -> ScanGeometry:
+def scan_geometry(scan: Scan, stamp_period_s: float | None = None) -> ScanGeometry:
+    """The scan's geometry; its period from ``stamp_period_s`` (the measured spacing of consecutive scans'
+    stamps, :func:`scan_period_from_stamps`) when that is known (> 0), else from the beam timing."""
     b = scan.bearings_rad
     n = int(b.size)
     step = float(abs(b[-1] - b[0]) / (n - 1)) if n > 1 else 0.0
-    return ScanGeometry(n, step, step * max(n - 1, 0), scan_period_s(scan.beam_dt_s, step))
+    measured = float(stamp_period_s) if stamp_period_s is not None and math.isfinite(stamp_period_s) else 0.0
+    period = measured if measured > 0.0 else scan_period_s(scan.beam_dt_s, step)
+    return ScanGeometry(n, step, step * max(n - 1, 0), period)
 
 
 def scan_period_s(beam_dt_s: float, step_rad: float) -> float:
-    """The time of one turn from one beam's time and bearing step (0 if either is unknown)."""
+    """The time of one turn from one beam's time and bearing step (0 if either is unknown). Right only when
+    the step is the mirror's step (see the module's doc): prefer the stamps' spacing where it is known."""
     dt, step = abs(float(beam_dt_s)), abs(float(step_rad))
     if not (math.isfinite(dt) and math.isfinite(step)) or dt <= 0.0 or step <= 0.0:
         return 0.0

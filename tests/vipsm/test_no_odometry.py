@@ -145,5 +145,7 @@ def test_refinement_steps_apply_only_without_odometry() -> None:
         _errors(est, seq, odometry=odometry)
         used[odometry] = set(calls)
     assert used == {True: {0}, False: {5}}
+    # the refinement without odometry is the two-way cost (vipsm.plicp; docs/psm.md)
+    assert cfg.psm.refine_symmetric and without._matcher._configs[True][0].refine_symmetric  # noqa: SLF001
     with pytest.raises(ValueError, match="no_odometry_refine_iterations"):
         EstimatorConfig(no_odometry_refine_iterations=-1)

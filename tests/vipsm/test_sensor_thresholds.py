@@ -116,3 +116,35 @@ def test_scanner_stall_age_fixed_or_without_timing() -> None:
     assert scan_age_limit_s(LoopConfig(max_scan_age_s=0.5), make_scan(WIDE_270_7HZ)) == 0.5
     untimed = Scan(np.ones(10), np.linspace(0.0, 1.0, 10), 0.0)  # no beam timing: the loop's period stands in
     assert scan_age_limit_s(LoopConfig(), untimed) == pytest.approx(7 * LoopConfig().period_s)
+
+
+def test_period_from_stamps_when_the_bearing_step_is_not_the_mirrors() -> None:
+    """A recording whose beams are every 2nd mirror step (0.5 deg of a 0.25 deg, 40 Hz mirror) but whose
+    beam time is one mirror step's (25 ms / 1440): the beam timing alone gives half the period; the stamps'
+    spacing gives the true one and wins wherever it is known, also for the scanner-stall age."""
+    n, step = 541, math.radians(0.5)
+    skipped = Scan(np.full(n, 3.0), math.radians(-135.0) + step * np.arange(n), 0.0, 0, 0.025 / 1440)
+    assert scan_geometry(skipped).period_s == pytest.approx(0.0125)  # beam timing: 2x too short
+    measured = scan_period_from_stamps(0.025 * np.arange(8))
+    g = scan_geometry(skipped, measured)
+    assert g.period_s == pytest.approx(0.025) and g.rate_hz == pytest.approx(40.0)
+    loop = LoopConfig()
+    assert scan_age_limit_s(loop, skipped, measured) == pytest.approx(loop.max_scan_age_periods * 0.025 + loop.period_s)
+    assert scan_age_limit_s(loop, skipped, measured) > scan_age_limit_s(loop, skipped)
+    # an unknown or invalid measured period leaves the beam timing
+    for bad in (None, 0.0, float("nan"), -1.0):
+        assert scan_geometry(skipped, bad).period_s == pytest.approx(0.0125)
+
+
+def test_period_from_stamps_when_only_every_other_turn_is_delivered() -> None:
+    """The leg_tracker recordings: 768 beams at 0.3516 deg, 65.1 us a beam (a 15 Hz mirror), a scan every
+    133 ms. Beam timing says 66.7 ms; the stamps say 133 ms, and the stall age follows them (counted in
+    delivered periods, not in mirror turns)."""
+    n, first, step, _ = WIDE_270_7HZ
+    scan = Scan(np.full(n, 3.0), first + step * np.arange(n), 0.0, 0, 6.510417e-05)
+    assert scan_geometry(scan).period_s == pytest.approx(1 / 15, rel=1e-4)
+    measured = scan_period_from_stamps(np.arange(6) / 7.5)
+    assert scan_geometry(scan, measured).rate_hz == pytest.approx(7.5)
+    loop = LoopConfig()
+    assert scan_age_limit_s(loop, scan, measured) == pytest.approx(loop.max_scan_age_periods / 7.5 + loop.period_s)
+    assert scan_age_limit_s(loop, scan) == pytest.approx(loop.max_scan_age_periods / 15 + loop.period_s, rel=1e-4)
