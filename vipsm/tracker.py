@@ -342,13 +342,32 @@ def _fit_invariant_xy(hist: np.ndarray) -> np.ndarray:
     """A track's history rows' positions with each fitted centre moved along its view line by its
     radius's difference from the newest fit's: what the visible surface did (a box's fit grows and
     recedes as a face turns into view; a round body's keeps its radius, and so its centre)."""
-    xy = hist[:, 1:3].copy()
-    r, view = hist[:, 7], hist[:, 8]
-    ok = np.isfinite(r) & np.isfinite(view)
-    if np.isfinite(r[-1]) and ok.any():
-        dr = r[ok] - r[-1]
+    if not np.isfinite(hist[-1, 7]):
+        return hist[:, 1:3].copy()
+    return _fit_invariant(hist[:, 1:3], hist[:, 7], hist[:, 8])
+
+
+def _fit_invariant(xy: np.ndarray, radius: np.ndarray, view: np.ndarray) -> np.ndarray:
+    """Positions ``xy`` (k x 2) of fitted centres (``radius`` NaN: not a fit) moved along their view lines
+    (``view``, world-frame directions from the laser) by their radius's difference from the newest fit's."""
+    xy = xy.copy()
+    ok = np.isfinite(radius) & np.isfinite(view)
+    if ok.any():
+        dr = radius[ok] - radius[ok][-1]
         xy[ok] -= dr[:, None] * np.stack([np.cos(view[ok]), np.sin(view[ok])], axis=1)
     return xy
+
+
+def _report_rows(recent: list[tuple[float, ...]]) -> np.ndarray:
+    """A track's report window as (stamp_s, x_m, y_m, kind) rows, each fitted centre moved as in
+    :func:`_fit_invariant`: a standing box whose visible part shrinks as the robot comes closer (its fit
+    0.36 -> 0.12 m) moves its fitted centre 0.24 m with nothing moving, and a track that stopped was
+    reported again on it. Reporting takes both views: a moving box's fit changes as well."""
+    rows = np.array(recent)
+    out = rows[:, :4].copy()
+    if rows.shape[1] >= 6:
+        out[:, 1:3] = _fit_invariant(rows[:, 1:3], rows[:, 4], rows[:, 5])
+    return out
 
 
 @dataclass
@@ -372,8 +391,8 @@ class Track:
     history: list[tuple[float, ...]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
-    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code)
-    recent: list[tuple[float, float, float, float]] = field(default_factory=list)
+    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, view_rad)
+    recent: list[tuple[float, ...]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
     seen_as_person: bool = False
@@ -532,7 +551,8 @@ class Tracker:
         from behind a box was held until its three partly hidden pairs left the window, 0.4 s)."""
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
-        t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
+        t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
+                         det.radius_m if det.radius_fitted else math.nan, det.view_rad))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
@@ -657,12 +677,18 @@ class Tracker:
         c = self.config
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
-        rec = np.array(t.recent)
-        if not self._steady(rec, rec[:, 3], t.seen_as_person):
+        raw = np.array(t.recent)[:, :4]
+        if not self._steady(raw, raw[:, 3], t.seen_as_person):
             return False
-        if rec[-1, 0] - rec[0, 0] < 0.5:
+        if raw[-1, 0] - raw[0, 0] < 0.5:
             return True
-        path = self._window_path(rec, t.seen_as_person)
+        # the detections must move both as placed and with each fitted centre moved by its radius's change
+        return all(self._moves(rec, t.seen_as_person) for rec in (raw, _report_rows(t.recent)))
+
+    def _moves(self, rec: np.ndarray, person: bool) -> bool:
+        """The report window's (stamp_s, x_m, y_m, kind) rows go somewhere at a walker's speed."""
+        c = self.config
+        path = self._window_path(rec, person)
         if path is None:
             return False
         parts, v = path
