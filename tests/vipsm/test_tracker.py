@@ -1060,3 +1060,16 @@ def test_a_stopped_cart_whose_fit_shrinks_as_the_robot_comes_closer_is_not_repor
         out = tr.step(0.1 * (k + j), [_box(4.15 - d * math.cos(view), -1.67 - d * math.sin(view), r, False)])
         reported.append(any(tr.reported(t) for t, _ in out))
     assert not any(reported[15:])
+
+
+def test_the_estimators_detections_carry_the_laser_pose_and_its_heading_error() -> None:
+    from vipsm.bodies import Body
+    from vipsm.estimator import Estimator, _detection
+    from vipsm.types import Pose2D
+
+    body = Body(2.0, 1.0, 0.2, True, "body", 1.0, False, 10, 20, 0.1, 0.2)
+    d = _detection(body, Pose2D(0.5, -0.5, 0.3), 0.004)
+    assert (d.laser_x_m, d.laser_y_m, d.laser_theta_rad, d.heading_sigma_rad) == (0.5, -0.5, 0.3, 0.004)
+    assert d.view_rad == pytest.approx(math.atan2(1.5, 1.5))
+    est = Estimator()
+    assert est._tracker._poses is est._memory  # noqa: SLF001 - the tracker judges with the evidence's pose model
