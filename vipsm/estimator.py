@@ -193,11 +193,11 @@ class Estimator:
         self.plain_psm = plain_psm
         cfg = self.config
         self._flow = FlowDetector(cfg.flow, cfg.camera_mount)
-        self._tracker = Tracker(cfg.tracker)
+        self._memory = ScanMemory(cfg.seen_through)
+        self._tracker = Tracker(cfg.tracker, self._memory)
         self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
-        self._memory = ScanMemory(cfg.seen_through)
         self._last_pose: Pose2D | None = None
         self._last_obstacle_s: float | None = None
         self._last_odo: Pose2D | None = None
@@ -251,7 +251,9 @@ class Estimator:
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
-        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser) for b in bodies])
+        own = self._heading_sigma_rad
+        own = self.config.seen_through.heading_sigma_rad if own is None else own
+        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, own) for b in bodies])
         if self._people is not None:
             legs = _with_evidence(detect_legs(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
                                               self.config.people, self.config.bodies, dropped), bodies)
@@ -261,11 +263,16 @@ class Estimator:
 
     def _without_self_returns(self, scan: Scan, lone_m: np.ndarray, dropped: np.ndarray, predicted: Pose2D
                               ) -> tuple[Scan, np.ndarray, np.ndarray]:
-        """The scan without the beams that see the robot itself (they count as removed, like the pre-filter's)."""
+        """The scan without the beams that see the robot itself (they count as removed, like the pre-filter's).
+        A beam on which a part of the robot was found is cut whole, also where it returns beyond that part: it
+        is blocked by the robot in most scans, so what it returns past the part came by the part's edge or
+        off its surface (a shiny frame sends the beam on to a robot-fixed echo at one range, which a turn
+        sweeps through space the laser saw free), not from a surface straight along the beam."""
         if self._self_returns is None:
             return scan, lone_m, dropped
         heading = predicted.theta_rad + self.config.laser_theta_rad
         own = self._self_returns.update(np.where(np.isfinite(lone_m), lone_m, scan.ranges_m), heading)
+        own = own | self._self_returns.found()
         if not own.any():
             return scan, lone_m, dropped
         ranges = np.where(own, np.nan, scan.ranges_m)
@@ -595,11 +602,15 @@ def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
     return flags
 
 
-def _detection(b: Body, laser: Pose2D) -> Detection:
+def _detection(b: Body, laser: Pose2D, heading_sigma_rad: float = math.nan) -> Detection:
+    """The tracker's detection of a body seen from ``laser`` (world frame) whose own heading error is
+    ``heading_sigma_rad``."""
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
                      b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind],
                      sigma_across_m=_SIGMA_ACROSS_M.get(b.kind), kind=b.kind,
-                     occluded=b.occluded, view_rad=math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m))
+                     occluded=b.occluded, view_rad=math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m),
+                     laser_x_m=laser.x_m, laser_y_m=laser.y_m, laser_theta_rad=laser.theta_rad,
+                     heading_sigma_rad=heading_sigma_rad)
 
 
 def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, float]) -> Obstacle:

@@ -31,10 +31,22 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numba import njit
+
+from .types import Pose2D
+
+
+class PoseUncertainty(Protocol):
+    """The relative error of two matched laser poses (implemented by :class:`vipsm.seen_through.ScanMemory`)."""
+
+    config: Any  # with ``sigma_gate``
+
+    def relative_heading_sigma_rad(self, a: Pose2D, sigma_a_rad: float, b: Pose2D, sigma_b_rad: float) -> float: ...
+
+    def relative_position_sigma_m(self, a: Pose2D, b: Pose2D) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -175,6 +187,13 @@ class Detection:
     #: centre along it with nothing moving: confirmation takes that out (a box 4.3 m away whose fit grew
     #: 0.19 -> 0.26 m as more of a face showed "moved" 5.5 cm away from the robot, its front 1.3 cm)
     view_rad: float = math.nan
+    #: the world-frame laser pose (x_m, y_m, theta_rad) of the scan the detection came from and that scan's own
+    #: heading error (1 sigma; NaN: unknown): two detections placed with two matched poses differ by the
+    #: poses' relative error, which confirmation must not read as displacement (see ``Tracker``)
+    laser_x_m: float = math.nan
+    laser_y_m: float = math.nan
+    laser_theta_rad: float = math.nan
+    heading_sigma_rad: float = math.nan
 
 
 def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
@@ -300,6 +319,19 @@ def kind_aligned(rows: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     return aligned, (float(v[0]), float(v[1]))
 
 
+def _kind_slack_m(a: Detection, b: Detection, kind_change_m: float) -> float:
+    """How far apart two detections of one body may be placed with the body still: 0 for one kind; a lone leg
+    and a leg pair's midpoint up to ``kind_change_m`` (half the widest pair); a round body (the legs seen as
+    one segment) and a leg or a pair inside its outline: up to its fitted radius. A wall piece's circle fit
+    and a thin post 0.7 m beside it are not one body (a rear laser's track hopped from one to the other,
+    "moved" 0.7 m and was reported in a turn)."""
+    if a.kind == b.kind:
+        return 0.0
+    if "body" in (a.kind, b.kind):
+        return max(d.radius_m for d in (a, b) if d.kind == "body")
+    return kind_change_m
+
+
 def _onset(hist: np.ndarray) -> int:
     """Index of the first of the history rows' trailing run with motion evidence (len: none)."""
     still = np.flatnonzero(hist[:, 3] == 0.0)
@@ -310,13 +342,32 @@ def _fit_invariant_xy(hist: np.ndarray) -> np.ndarray:
     """A track's history rows' positions with each fitted centre moved along its view line by its
     radius's difference from the newest fit's: what the visible surface did (a box's fit grows and
     recedes as a face turns into view; a round body's keeps its radius, and so its centre)."""
-    xy = hist[:, 1:3].copy()
-    r, view = hist[:, 7], hist[:, 8]
-    ok = np.isfinite(r) & np.isfinite(view)
-    if np.isfinite(r[-1]) and ok.any():
-        dr = r[ok] - r[-1]
+    if not np.isfinite(hist[-1, 7]):
+        return hist[:, 1:3].copy()
+    return _fit_invariant(hist[:, 1:3], hist[:, 7], hist[:, 8])
+
+
+def _fit_invariant(xy: np.ndarray, radius: np.ndarray, view: np.ndarray) -> np.ndarray:
+    """Positions ``xy`` (k x 2) of fitted centres (``radius`` NaN: not a fit) moved along their view lines
+    (``view``, world-frame directions from the laser) by their radius's difference from the newest fit's."""
+    xy = xy.copy()
+    ok = np.isfinite(radius) & np.isfinite(view)
+    if ok.any():
+        dr = radius[ok] - radius[ok][-1]
         xy[ok] -= dr[:, None] * np.stack([np.cos(view[ok]), np.sin(view[ok])], axis=1)
     return xy
+
+
+def _report_rows(recent: list[tuple[float, ...]]) -> np.ndarray:
+    """A track's report window as (stamp_s, x_m, y_m, kind) rows, each fitted centre moved as in
+    :func:`_fit_invariant`: a standing box whose visible part shrinks as the robot comes closer (its fit
+    0.36 -> 0.12 m) moves its fitted centre 0.24 m with nothing moving, and a track that stopped was
+    reported again on it. Reporting takes both views: a moving box's fit changes as well."""
+    rows = np.array(recent)
+    out = rows[:, :4].copy()
+    if rows.shape[1] >= 6:
+        out[:, 1:3] = _fit_invariant(rows[:, 1:3], rows[:, 4], rows[:, 5])
+    return out
 
 
 @dataclass
@@ -336,12 +387,12 @@ class Track:
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
     #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``, the
     #: radius of a circle fitted to a partly occluded view, else NaN; the fitted radius, else NaN; the
-    #: view direction ``Detection.view_rad``)
+    #: view direction ``Detection.view_rad``; the laser pose x, y, theta and its heading sigma)
     history: list[tuple[float, ...]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
-    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code)
-    recent: list[tuple[float, float, float, float]] = field(default_factory=list)
+    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, view_rad)
+    recent: list[tuple[float, ...]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
     seen_as_person: bool = False
@@ -359,8 +410,11 @@ class Track:
 class Tracker:
     """Constant-velocity Kalman filters, greedy nearest-neighbour association with a gate."""
 
-    def __init__(self, config: TrackerConfig | None = None) -> None:
+    def __init__(self, config: TrackerConfig | None = None, poses: PoseUncertainty | None = None) -> None:
+        """``poses``: the relative error of two matched laser poses (:class:`vipsm.seen_through.ScanMemory`);
+        None: detections are taken as placed without pose error."""
         self.config = config or TrackerConfig()
+        self._poses = poses
         self.tracks: list[Track] = []
         self._next_id = 1
         #: the detections of the cycles of the last ``retro_s`` that no confirmed track took and that started
@@ -497,13 +551,15 @@ class Tracker:
         from behind a box was held until its three partly hidden pairs left the window, 0.4 s)."""
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
-        t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0)))
+        t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
+                         det.radius_m if det.radius_fitted else math.nan, det.view_rad))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
                           float(not reliable or (det.occluded and not det.radius_fitted and det.kind != "person")),
                           det.radius_m if det.occluded and det.radius_fitted else math.nan,
-                          det.radius_m if det.radius_fitted else math.nan, det.view_rad))
+                          det.radius_m if det.radius_fitted else math.nan, det.view_rad, det.laser_x_m,
+                          det.laser_y_m, det.laser_theta_rad, det.heading_sigma_rad))
         del t.history[: -self.config.confirm_window]
 
     def _fold(self, t: Track, det: Detection) -> None:
@@ -555,6 +611,7 @@ class Tracker:
             needed = c.confirm_displacement_sustained_m
         else:
             needed = c.confirm_displacement_m
+        needed = max(needed, self._pose_allowance_m(hist))
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
@@ -564,6 +621,22 @@ class Tracker:
         origin = self._started(hist, xy, needed)
         if origin is not None and self._left(t, hist[origin, :3], detections, own):
             t.confirmed = True
+
+    def _pose_allowance_m(self, hist: np.ndarray) -> float:
+        """How far the first and the newest of the history rows may lie apart with nothing moving: the two
+        scans' relative pose error (``sigma_gate`` sigmas of their relative heading error times the range,
+        and of their relative position error). A still laser's scans differ by a match's few centimetres,
+        which the fixed displacements already hold; a laser that drove or turned between them carries one
+        match error per keyframe step, which at 6 m is 10 cm (a dark post "moved" that far sideways in a
+        turn of 13 degrees)."""
+        a, b = hist[0], hist[-1]
+        if self._poses is None or hist.shape[1] < 13 or not np.all(np.isfinite(np.r_[a[9:13], b[9:13]])):
+            return 0.0
+        pa, pb = (Pose2D(float(r[9]), float(r[10]), float(r[11])) for r in (a, b))
+        sigma_rad = self._poses.relative_heading_sigma_rad(pa, float(a[12]), pb, float(b[12]))
+        sigma_m = self._poses.relative_position_sigma_m(pa, pb)
+        range_m = math.hypot(b[1] - b[9], b[2] - b[10])
+        return self._poses.config.sigma_gate * math.hypot(range_m * sigma_rad, sigma_m)
 
     def _started(self, hist: np.ndarray, xy: np.ndarray, needed: float) -> int | None:
         """A body that stood and started to move: the window's newest detections (at least
@@ -604,12 +677,18 @@ class Tracker:
         c = self.config
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
-        rec = np.array(t.recent)
-        if not self._steady(rec, rec[:, 3], t.seen_as_person):
+        raw = np.array(t.recent)[:, :4]
+        if not self._steady(raw, raw[:, 3], t.seen_as_person):
             return False
-        if rec[-1, 0] - rec[0, 0] < 0.5:
+        if raw[-1, 0] - raw[0, 0] < 0.5:
             return True
-        path = self._window_path(rec, t.seen_as_person)
+        # the detections must move both as placed and with each fitted centre moved by its radius's change
+        return all(self._moves(rec, t.seen_as_person) for rec in (raw, _report_rows(t.recent)))
+
+    def _moves(self, rec: np.ndarray, person: bool) -> bool:
+        """The report window's (stamp_s, x_m, y_m, kind) rows go somewhere at a walker's speed."""
+        c = self.config
+        path = self._window_path(rec, person)
         if path is None:
             return False
         parts, v = path
@@ -687,7 +766,7 @@ class Tracker:
             for i, (d, holder) in enumerate(dets):
                 if holder in live:
                     continue
-                slack = c.kind_change_m if d.kind != head.kind else 0.0
+                slack = _kind_slack_m(d, head, c.kind_change_m)
                 dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m) - slack
                 if dist > reach:
                     continue
