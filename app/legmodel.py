@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import functools
 import math
+import zipfile
+import zlib
 from importlib import resources
 from pathlib import Path
 
@@ -30,7 +32,7 @@ def load_leg_model(path: str | Path | None = None) -> LegModel:
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:  # absent, not a zip, damaged
         raise ModelError(f"cannot read the leg model {path}: {exc}") from exc
     return model_from_arrays(arrays, f"the leg model {path}")
 

@@ -176,3 +176,20 @@ def test_banded_shares_count_rows_per_range_band() -> None:
     out = tl.banded(np.array([0.9, 0.1, 0.9, 0.0]), x, 0.5)
     assert out["0-2"] == {"n": 2, "share": 0.5} and out["5-6.5"] == {"n": 1, "share": 1.0}
     assert out["10-inf"] == {"n": 1, "share": 0.0} and out["2-3.5"] == {"n": 0, "share": None}
+
+
+def test_a_damaged_model_file_is_a_typed_error(tmp_path) -> None:
+    """Truncated, not a zip at all, or a member's compressed bytes flipped: a ModelError, never a zip error."""
+    from app.legmodel import default_model_path, load_leg_model
+    from vipsm.legs import ModelError
+
+    data = default_model_path().read_bytes()
+    (tmp_path / "half.npz").write_bytes(data[: len(data) // 2])
+    (tmp_path / "junk.npz").write_bytes(b"PK\x03\x04" + bytes(100))
+    flipped = bytearray(data)
+    mid = len(flipped) // 3
+    flipped[mid : mid + 64] = bytes(b ^ 0xFF for b in flipped[mid : mid + 64])
+    (tmp_path / "flipped.npz").write_bytes(bytes(flipped))
+    for name in ("half.npz", "junk.npz", "flipped.npz"):
+        with pytest.raises(ModelError):
+            load_leg_model(tmp_path / name)
