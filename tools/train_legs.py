@@ -43,7 +43,7 @@ from app.bagread import BagTopics, read_bag
 from app.cmd_eval import default_real_data_dir
 from app.evaluation.real_data import DRIVE_BAG, DRIVE_TOPICS, LABEL_M, read_labels, scan_topics
 from app.legmodel import default_model_path, leg_candidates, load_leg_model, prefiltered, reseen_farther
-from vipsm.legs import FEATURE_NAMES, LegModel
+from vipsm.legs import FEATURE_NAMES, LegModel, ModelError
 
 LABELLED = ("positive_1", "positive_2", "positive_3", "positive_6")
 HELD_OUT = "positive_6"
@@ -208,7 +208,8 @@ def validation(model: LegModel, held: tuple[np.ndarray, np.ndarray], held_far: t
                                "false_positive_rate_drive_second_half": banded(model.predict(neg_far), neg_far, thr)}}
 
 
-def train(data: Path, out: Path, baseline: Path | None = None) -> dict[str, Any]:
+def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None) -> dict[str, Any]:
+    """Train, store the forest at ``out`` and report; ``baseline``: (path, model) validated beside it."""
     rng = np.random.default_rng(SEED)
     pos = {name: labelled_samples(data, name) for name in LABELLED}
     drive_train, drive_val = drive_samples(data)
@@ -257,7 +258,7 @@ def train(data: Path, out: Path, baseline: Path | None = None) -> dict[str, Any]
                                                                        strict=True)},
     }
     if baseline is not None:
-        report["baseline"] = {"model": str(baseline), "by_range": validation(load_leg_model(baseline), held, held_far)}
+        report["baseline"] = {"model": str(baseline[0]), "by_range": validation(baseline[1], held, held_far)}
     return report
 
 
@@ -269,11 +270,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baseline", type=Path, default=None,
                     help="another model file, validated beside the new one (the before/after table)")
     args = ap.parse_args(argv)
+    try:  # before the training: a bad file fails at once, not after it
+        baseline = (args.baseline, load_leg_model(args.baseline)) if args.baseline is not None else None
+    except ModelError as exc:
+        print(f"train_legs: error: --baseline: {exc}", file=sys.stderr)
+        return 2
     data = args.data_dir or default_real_data_dir()
     if not (data / DRIVE_BAG).exists():
         print(f"train_legs: error: no recordings in {data}", file=sys.stderr)
         return 2
-    report = train(data, args.out, args.baseline)
+    report = train(data, args.out, baseline)
     print(json.dumps(report, indent=None if args.json else 2))
     return 0
 

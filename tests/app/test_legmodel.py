@@ -193,3 +193,33 @@ def test_a_damaged_model_file_is_a_typed_error(tmp_path) -> None:
     for name in ("half.npz", "junk.npz", "flipped.npz"):
         with pytest.raises(ModelError):
             load_leg_model(tmp_path / name)
+
+
+def test_train_legs_refuses_a_bad_baseline_before_training(tmp_path, capsys) -> None:
+    tl = _train_legs()
+    (tmp_path / "bad.npz").write_bytes(b"not a model")
+    assert tl.main(["--baseline", str(tmp_path / "bad.npz"), "--out", str(tmp_path / "m.npz")]) == 2
+    assert "--baseline" in capsys.readouterr().err and not (tmp_path / "m.npz").exists()
+    assert tl.main(["--data-dir", str(tmp_path), "--out", str(tmp_path / "m.npz")]) == 2
+    assert "no recordings" in capsys.readouterr().err
+
+
+def test_validation_reports_each_model_per_band_on_the_same_rows() -> None:
+    """``--baseline``'s table: the same held-out rows scored by two models, band by band."""
+    tl = _train_legs()
+    from app.legmodel import default_leg_model
+
+    model = default_leg_model()
+    rng = np.random.default_rng(SEED)
+    r, b = _scan(2.5, 0.4, RECORDED_STEP_RAD, rng)
+    leg = _leg_span(r, b, 2.5)[2]
+    far = leg.copy()
+    far[FEATURE_NAMES.index("range_m")] = 7.0
+    rows = np.stack([leg, far])
+    out = tl.validation(model, (rows, rows), (rows, rows))
+    rec = out["recorded"]["recall_" + tl.HELD_OUT]
+    assert rec["0-2"]["n"] == 0 and rec["2-3.5"]["n"] == 1 and rec["6.5-8"]["n"] == 1
+    p = model.predict(rows)
+    assert rec["2-3.5"]["share"] == float(p[0] >= model.threshold_p)
+    assert out["reseen_farther"]["false_positive_rate_drive_second_half"]["6.5-8"]["share"] == float(
+        p[1] >= model.threshold_p)
