@@ -58,8 +58,8 @@ def test_simulated_legs_beyond_the_labelled_range_are_taken_for_legs(model) -> N
     """Every labelled real leg lies within 5 m; trained on them also re-seen from farther, the detector
     takes a simulated walker's leg at 5-8 m for a leg 0.27 of the time (44 legs; before: never, 0.00).
     Real held-out legs re-seen there are taken about REAL_FAR_LEG_SHARE of the time: the gap is the world's
-    edges, not the detector (a simulated far leg with a mixed pixel attached is never taken, 0 of 10, while the recordings'
-    laser returns a mixed pixel at 2 % of a leg's edges and no echo at 75-90 %; docs/simulation.md)."""
+    edges, not the detector (a simulated far leg with a mixed pixel attached is never taken, 0 of 10, while
+    the recordings' laser returns a mixed pixel at 2 % of a leg's edges and no echo at 75-90 %)."""
     n, share = lr.range_share(lr.sim_legs(("wall_hugger", "crowd"), "utm30lx", 0.25), model, 5.0, 8.0)
     assert n > 30
     assert share >= FAR_SIM_LEG_SHARE
