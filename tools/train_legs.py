@@ -1,6 +1,7 @@
 """Train the leg detector (:mod:`vipsm.legs`) on the recorded leg_tracker scans and store it as arrays.
 
     PYTHONPATH=. python tools/train_legs.py [--data-dir DIR] [--out vipsm/data/legs_model.npz] [--json]
+                                            [--baseline OTHER.npz]
 
 (needs scikit-learn, which neither the estimator nor the app imports: the model is stored as arrays)
 
@@ -11,11 +12,19 @@ labelled legs, the legs touching, is a positive too). Negatives: every segment o
 empty rooms (``negative_2``, three lasers, nobody present). Other segments of a labelled scan are not
 used (a second person passes in some recordings, unlabelled).
 
+Farther than labelled: every labelled leg lies within 5 m of the laser (the labelling stopped there), so
+each sample, leg or not alike, is also trained on as seen from ``COPIES`` longer ranges up to
+``FAR_RANGE_M`` (:func:`app.legmodel.reseen_farther`: the segment and the scene beside it moved away along
+its bearing, cast again with beams at the recording's or the UTM-30LX's step, with the range noise of the
+new range); a copy stays in its original's fold and set.
+
 Split (honest validation): ``HELD_OUT`` is never trained on, and of the drive only the first half (by
 time) is; the held-out recording's positives with the drive's second half are the validation set. The
 classifier is a random forest (scikit-learn, balanced class weights); the operating point is the
 probability at which out-of-fold estimates (one trained recording, with a third of the drive's first
-half, left out per fold) pass ``TARGET_FPR`` of the non-legs. The
+half, left out per fold) pass ``TARGET_FPR`` of the recorded non-legs. The validation is reported per
+range band, for the held-out sets as recorded and re-seen farther (``--baseline``: another model file's
+figures beside them). The
 forest is written as plain arrays (no pickle), so the run time needs neither scikit-learn nor a version
 of it.
 """
@@ -30,10 +39,11 @@ from typing import Any
 
 import numpy as np
 
+from app.bagread import BagTopics, read_bag
 from app.cmd_eval import default_real_data_dir
-from app.evaluation.real_data import DRIVE_BAG, drive_leg_rows, labelled_leg_rows
-from app.legmodel import default_model_path, load_leg_model
-from vipsm.legs import FEATURE_NAMES, LegModel
+from app.evaluation.real_data import DRIVE_BAG, DRIVE_TOPICS, LABEL_M, read_labels, scan_topics
+from app.legmodel import default_model_path, leg_candidates, load_leg_model, prefiltered, reseen_farther
+from vipsm.legs import FEATURE_NAMES, LegModel, ModelError
 
 LABELLED = ("positive_1", "positive_2", "positive_3", "positive_6")
 HELD_OUT = "positive_6"
@@ -43,6 +53,16 @@ TARGET_FPR = 0.10
 TREES = 60
 DEPTH = 14
 SEED = 29
+#: every real segment, leg or not, is also trained on as seen from this many longer ranges (the labelled
+#: legs all lie within 5 m of the laser: the labelling stopped there, not the laser)
+COPIES = 4
+#: the re-seen ranges are drawn uniformly from the segment's own range to this: the range noise is
+#: measured to 10 m (docs/simulation.md), and a 0.15 m leg gives the UTM-30LX 3 beams out to 11 m
+FAR_RANGE_M = 10.0
+#: the re-seen beams' spacing alternates between the recording's own and the robot's UTM-30LX's
+UTM30LX_STEP_RAD = float(np.radians(0.25))
+#: the range bands of the validation tables (m)
+BANDS_M = (0.0, 2.0, 3.5, 5.0, 6.5, 8.0, 10.0, np.inf)
 
 
 def export_forest(forest: Any, threshold_p: float) -> dict[str, np.ndarray]:
@@ -80,46 +100,166 @@ def _forest() -> Any:
                                   class_weight="balanced_subsample", random_state=SEED, n_jobs=1)
 
 
-def operating_point(x: np.ndarray, y: np.ndarray, groups: np.ndarray) -> tuple[float, np.ndarray]:
+def operating_point(x: np.ndarray, y: np.ndarray, groups: np.ndarray, recorded: np.ndarray
+                    ) -> tuple[float, np.ndarray]:
     """The leg probability at which forests trained on the other groups pass ``TARGET_FPR`` of the
-    negatives of the group left out (out-of-fold, over all folds), and those out-of-fold probabilities."""
+    recorded negatives (not the re-seen copies) of the group left out (out-of-fold, over all folds), and
+    those out-of-fold probabilities."""
     p = np.zeros(y.size)
     for g in np.unique(groups):
         held = groups == g
         p[held] = _forest().fit(x[~held], y[~held]).predict_proba(x[held])[:, 1]
-    return float(np.quantile(p[y == 0], 1.0 - TARGET_FPR)), p
+    return float(np.quantile(p[(y == 0) & recorded], 1.0 - TARGET_FPR)), p
 
 
-def train(data: Path, out: Path) -> dict[str, Any]:
-    pos = {name: labelled_leg_rows(data, name) for name in LABELLED}
-    neg_train, neg_val = drive_leg_rows(data)
+class Samples:
+    """Leg-candidate segments of pre-filtered scans: each sample is (scan index, (start, stop)), with its
+    features; ``scans`` holds (ranges, bearings) once per scan. (A plain class: the tests load this
+    script from its path, where a dataclass cannot find its module.)"""
+
+    def __init__(self) -> None:
+        self.scans: list[tuple[np.ndarray, np.ndarray]] = []
+        self.spans: list[tuple[int, tuple[int, int]]] = []
+        self.rows: list[np.ndarray] = []
+
+    def add_scan(self, r: np.ndarray, b: np.ndarray, keep: Any = None) -> None:
+        """The scan's candidate segments (those ``keep(points)`` accepts, default all)."""
+        kept, x = leg_candidates(r, b)
+        chosen = [(a, z, row) for (a, z, pts), row in zip(kept, x, strict=True) if keep is None or keep(pts)]
+        if chosen:
+            self.scans.append((prefiltered(r, b)[0], b))
+            for a, z, row in chosen:
+                self.spans.append((len(self.scans) - 1, (a, z)))
+                self.rows.append(row)
+
+    def matrix(self) -> np.ndarray:
+        return np.array(self.rows).reshape(-1, len(FEATURE_NAMES))
+
+
+def labelled_samples(data: Path, name: str) -> Samples:
+    """The labelled leg segments of ``name`` (as ``app.evaluation.real_data.labelled_leg_rows``: centroid
+    within ``LABEL_M`` of a labelled leg), with their scans."""
+    bag = data / f"{name}.bag"
+    labels = {round(t, 6): legs for t, legs in read_labels(bag, data / f"{name}_extracted.bag")}
+    out = Samples()
+    for bc in read_bag(bag, BagTopics(scan_topics(bag)[0])):
+        legs = labels.get(round(bc.scan.stamp_s, 6))
+        if legs is not None:
+            out.add_scan(bc.scan.ranges_m, bc.scan.bearings_rad,
+                         lambda pts, legs=legs: bool(np.min(np.hypot(*(legs - pts.mean(axis=0)).T)) <= LABEL_M))
+    return out
+
+
+def drive_samples(data: Path) -> tuple[Samples, Samples]:
+    """Every candidate segment of the drive (nobody present), (first half, second half) by time on each
+    laser (as ``app.evaluation.real_data.drive_leg_rows``)."""
+    first, second = Samples(), Samples()
+    for topic in DRIVE_TOPICS:
+        scans = [(bc.scan.stamp_s, bc.scan.ranges_m, bc.scan.bearings_rad)
+                 for bc in read_bag(data / DRIVE_BAG, BagTopics(topic))]
+        mid = 0.5 * (scans[0][0] + scans[-1][0])
+        for t, r, b in scans:
+            (first if t < mid else second).add_scan(r, b)
+    return first, second
+
+
+def farther(samples: Samples, copies: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample re-seen from ``copies`` longer ranges (:func:`app.legmodel.reseen_farther`), the beam
+    spacing alternating between the recording's and the UTM-30LX's; the features and, per row, the index
+    of the sample it came from. A copy that is no leg candidate any more (too few returns) is dropped."""
+    rows, src = [], []
+    for i, (scan, span) in enumerate(samples.spans):
+        r, b = samples.scans[scan]
+        own = float(abs(b[-1] - b[0]) / max(b.size - 1, 1))
+        r0 = float(samples.rows[i][FEATURE_NAMES.index("range_m")])
+        for c in range(copies):
+            step = own if c % 2 == 0 else UTM30LX_STEP_RAD
+            # never sampled finer across the surface than the recording sampled it
+            lo = max(r0, r0 * own / step)
+            if lo >= FAR_RANGE_M:
+                continue
+            row = reseen_farther(r, b, span, float(rng.uniform(lo, FAR_RANGE_M)), step, rng)
+            if row is not None:
+                rows.append(row)
+                src.append(i)
+    return np.array(rows).reshape(-1, len(FEATURE_NAMES)), np.array(src, dtype=np.intp)
+
+
+def banded(p: np.ndarray, x: np.ndarray, thr: float) -> dict[str, Any]:
+    """The share of rows at or above ``thr`` per range band (``BANDS_M``), with the rows' count."""
+    rng_m = x[:, FEATURE_NAMES.index("range_m")]
+    out = {}
+    for lo, hi in zip(BANDS_M[:-1], BANDS_M[1:], strict=True):
+        sel = (rng_m >= lo) & (rng_m < hi)
+        out[f"{lo:g}-{hi:g}"] = {"n": int(sel.sum()),
+                                 "share": round(float(np.mean(p[sel] >= thr)), 4) if sel.any() else None}
+    return out
+
+
+def validation(model: LegModel, held: tuple[np.ndarray, np.ndarray], held_far: tuple[np.ndarray, np.ndarray]
+               ) -> dict[str, Any]:
+    """Per range band: recall on the held-out recording's legs, false-positive rate on the drive's
+    second half; as recorded, and each re-seen from farther (the only legs beyond 5 m there are)."""
+    thr = model.threshold_p
+    (pos, neg), (pos_far, neg_far) = held, held_far
+    return {"recorded": {"recall_" + HELD_OUT: banded(model.predict(pos), pos, thr),
+                         "false_positive_rate_drive_second_half": banded(model.predict(neg), neg, thr)},
+            "reseen_farther": {"recall_" + HELD_OUT: banded(model.predict(pos_far), pos_far, thr),
+                               "false_positive_rate_drive_second_half": banded(model.predict(neg_far), neg_far, thr)}}
+
+
+def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None) -> dict[str, Any]:
+    """Train, store the forest at ``out`` and report; ``baseline``: (path, model) validated beside it."""
+    rng = np.random.default_rng(SEED)
+    pos = {name: labelled_samples(data, name) for name in LABELLED}
+    drive_train, drive_val = drive_samples(data)
     trained = [n for n in LABELLED if n != HELD_OUT]
-    x = np.concatenate([pos[n] for n in trained] + [neg_train])
-    y = np.concatenate([np.ones(sum(len(pos[n]) for n in trained)), np.zeros(len(neg_train))])
-    # folds: each trained recording's positives with a third of the drive's first half (in time order
-    # per laser, so about one laser each)
-    groups = np.concatenate([np.full(len(pos[n]), i) for i, n in enumerate(trained)]
-                            + [np.arange(len(neg_train)) * len(trained) // len(neg_train)])
-    thr, oof = operating_point(x, y, groups)
+    parts = [pos[n] for n in trained] + [drive_train]
+    labels = [1.0] * len(trained) + [0.0]
+    xs, ys, gs, real = [], [], [], []
+    for k, (smp, lab) in enumerate(zip(parts, labels, strict=True)):
+        x0 = smp.matrix()
+        xf, src = farther(smp, COPIES, rng)
+        # folds: each trained recording's positives with a third of the drive's first half (in time order
+        # per laser, so about one laser each); a re-seen copy stays in its original's fold
+        g0 = (np.full(len(x0), k) if lab else np.arange(len(x0)) * len(trained) // max(len(x0), 1))
+        xs += [x0, xf]
+        ys += [np.full(len(x0) + len(xf), lab)]
+        gs += [g0, g0[src]]
+        real += [np.ones(len(x0), bool), np.zeros(len(xf), bool)]
+    x, y, groups, real_rows = np.concatenate(xs), np.concatenate(ys), np.concatenate(gs), np.concatenate(real)
+    # scikit-learn's trees compare in float32: train on float32 values so that the exported arrays, which
+    # compare in float64, split every training row as scikit-learn did
+    x = x.astype(np.float32).astype(np.float64)
+    thr, oof = operating_point(x, y, groups, real_rows)
     forest = _forest().fit(x, y)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **export_forest(forest, thr))
     model: LegModel = load_leg_model(out)
     if not np.allclose(model.predict(x), forest.predict_proba(x)[:, 1], atol=1e-9):
         raise RuntimeError("the exported forest does not reproduce scikit-learn's probabilities")
-    p_held, p_val = model.predict(pos[HELD_OUT]), model.predict(neg_val)
-    return {
+    vrng = np.random.default_rng(SEED + 1)
+    held = (pos[HELD_OUT].matrix(), drive_val.matrix())
+    held_far = (farther(pos[HELD_OUT], COPIES, vrng)[0], farther(drive_val, COPIES, vrng)[0])
+    p_held, p_val = model.predict(held[0]), model.predict(held[1])
+    report = {
         "model": str(out), "trees": len(forest.estimators_), "depth": model.depth, "nodes": int(model.feature.size),
         "threshold_p": round(thr, 4), "held_out": HELD_OUT, "drive_split": "first half trained, second half held out",
-        "training_out_of_fold": figures(oof[y == 1], oof[y == 0], thr),
+        "reseen_copies": COPIES, "reseen_up_to_m": FAR_RANGE_M,
+        "training_rows": {"recorded": int(real_rows.sum()), "reseen_farther": int((~real_rows).sum())},
+        "training_out_of_fold": figures(oof[(y == 1) & real_rows], oof[(y == 0) & real_rows], thr),
         "validation": {"held_out_recording_positives": figures(p_held, np.zeros(0), thr),
                        "drive_second_half_negatives": figures(np.zeros(0), p_val, thr),
                        "recall_at_drive_fpr": {f"{f:g}": round(float(np.mean(p_held > np.quantile(p_val, 1 - f))), 3)
-                                               for f in (0.02, 0.05, 0.1, 0.2)}},
-        "positives_per_recording": {n: int(len(pos[n])) for n in LABELLED},
+                                               for f in (0.02, 0.05, 0.1, 0.2)},
+                       "by_range": validation(model, held, held_far)},
+        "positives_per_recording": {n: len(pos[n].rows) for n in LABELLED},
         "feature_importance": {n: round(float(v), 4) for n, v in zip(FEATURE_NAMES, forest.feature_importances_,
                                                                        strict=True)},
     }
+    if baseline is not None:
+        report["baseline"] = {"model": str(baseline[0]), "by_range": validation(baseline[1], held, held_far)}
+    return report
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -127,12 +267,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data-dir", type=Path, default=None)
     ap.add_argument("--out", type=Path, default=default_model_path())
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="another model file, validated beside the new one (the before/after table)")
     args = ap.parse_args(argv)
+    try:  # before the training: a bad file fails at once, not after it
+        baseline = (args.baseline, load_leg_model(args.baseline)) if args.baseline is not None else None
+    except ModelError as exc:
+        print(f"train_legs: error: --baseline: {exc}", file=sys.stderr)
+        return 2
     data = args.data_dir or default_real_data_dir()
     if not (data / DRIVE_BAG).exists():
         print(f"train_legs: error: no recordings in {data}", file=sys.stderr)
         return 2
-    report = train(data, args.out)
+    report = train(data, args.out, baseline)
     print(json.dumps(report, indent=None if args.json else 2))
     return 0
 

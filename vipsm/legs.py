@@ -6,9 +6,11 @@ Leigh et al., ICRA 2015 — point count, spread, width, line and circle fit resi
 boundary length and regularity, curvature, inscribed-angle statistics — and how far it stands in front
 of the returns beside it) and a leg probability from a random forest trained on the recorded leg_tracker
 scans (``tools/train_legs.py``: labelled leg clusters as positives, the drive through empty rooms as
-negatives). The forest is shipped as plain arrays in ``vipsm/data/legs_model.npz`` (no pickle, no
-scikit-learn at run time): every tree's nodes as ``feature``, ``threshold``, ``left``, ``right`` and the
-leaf's share of legs in ``value``, all trees in one array with ``roots`` giving each tree's first node.
+negatives, and every one of them also as seen from farther, up to 10 m: the labelled legs all lie within
+5 m of the laser, ``app.legmodel.reseen_farther``). The forest is shipped as plain arrays in
+``vipsm/data/legs_model.npz`` (no pickle, no scikit-learn at run time): every tree's nodes as ``feature``,
+``threshold``, ``left``, ``right`` and the leaf's share of legs in ``value``, all trees in one array with
+``roots`` giving each tree's first node.
 The estimator does no I/O: ``app.legmodel`` reads the file and :func:`model_from_arrays` checks it.
 """
 

@@ -1,9 +1,10 @@
 """The simulated world's legs against the leg detector learned from real scans (app.evaluation.leg_realism).
 
 The figures the bounds come from (``python -m app.evaluation.leg_realism``, docs/simulation.md "Legs
-against the learned detector"): the shipped detector takes 88 % of the real labelled legs of the held-out
-recording positive_6 at 1-4 m for legs, and 27 % of the real non-leg segments of the held-out second half
-of the drive (negative_2) at 1-4 m.
+against the learned detector"): the shipped detector takes 86 % of the real labelled legs of the held-out
+recording positive_6 at 1-4 m for legs, and 25 % of the real non-leg segments of the held-out second half
+of the drive (negative_2) at 1-4 m (88 % and 27 % before its training also took every segment re-seen
+from farther).
 """
 
 from __future__ import annotations
@@ -18,9 +19,15 @@ from app.evaluation import leg_realism as lr
 from app.legmodel import default_leg_model
 
 #: real held-out figures at 1-4 m (see the module docstring) and the margin allowed against them
-REAL_LEG_SHARE = 0.88
-REAL_NONLEG_SHARE = 0.27
+REAL_LEG_SHARE = 0.86
+REAL_NONLEG_SHARE = 0.25
 MARGIN = 0.10
+#: real held-out legs at 5-8 m: positive_6's labelled legs re-seen there (tools/train_legs.py ``by_range``,
+#: 201 at 5-6.5 m taken 0.62, 185 at 6.5-8 m taken 0.48); no real leg is labelled beyond 5 m
+REAL_FAR_LEG_SHARE = 0.55
+#: simulated walkers' legs at 5-8 m, measured 0.27 of 44 (the old detector: 0.00); below the real
+#: REAL_FAR_LEG_SHARE because of the world's edges (the test's docstring): not met, a floor against regression
+FAR_SIM_LEG_SHARE = 0.15
 WALKER_SCENES = ("cross_60", "cross_90", "two_people_opposite")
 
 
@@ -45,6 +52,17 @@ def test_the_detector_takes_simulated_walkers_legs_for_legs_as_often_as_real_one
     # with the old range noise (10 mm at every range: the datasheet's accuracy read as random noise) this
     # was 0.74: the simulated legs looked rougher than any real leg
     assert share >= REAL_LEG_SHARE - MARGIN
+
+
+def test_simulated_legs_beyond_the_labelled_range_are_taken_for_legs(model) -> None:
+    """Every labelled real leg lies within 5 m; trained on them also re-seen from farther, the detector
+    takes a simulated walker's leg at 5-8 m for a leg 0.27 of the time (44 legs; before: never, 0.00).
+    Real held-out legs re-seen there are taken about REAL_FAR_LEG_SHARE of the time: the gap is the world's
+    edges, not the detector (a simulated far leg with a mixed pixel attached is never taken, 0 of 10, while
+    the recordings' laser returns a mixed pixel at 2 % of a leg's edges and no echo at 75-90 %)."""
+    n, share = lr.range_share(lr.sim_legs(("wall_hugger", "crowd"), "utm30lx", 0.25), model, 5.0, 8.0)
+    assert n > 30
+    assert share >= FAR_SIM_LEG_SHARE
 
 
 def test_simulated_chair_and_table_legs_are_no_more_leg_like_than_real_non_legs(model, sim_furniture) -> None:

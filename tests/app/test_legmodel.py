@@ -1,0 +1,225 @@
+"""A real segment re-seen from farther (app.legmodel.reseen_farther: the leg detector's training
+augmentation) and the shipped detector over the scanner's range."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.legmodel import default_leg_model, leg_candidates, prefiltered, range_sigma_m, reseen_farther
+from vipsm.legs import FEATURE_NAMES
+
+SEED = 29
+ROOT = Path(__file__).resolve().parents[2]
+STEP_RAD = math.radians(0.25)  # the UTM-30LX
+RECORDED_STEP_RAD = math.radians(360.0 / 1024.0)  # the recordings' laser
+
+
+def _f(row: np.ndarray, name: str) -> float:
+    return float(row[FEATURE_NAMES.index(name)])
+
+
+def _scan(leg_range_m: float, wall_behind_m: float, step_rad: float, rng: np.random.Generator,
+          leg_radius_m: float = 0.06, noise: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """A scan of a round leg on the x axis in front of a wall across the beams (x = leg + behind)."""
+    b = np.arange(-0.6, 0.6, step_rad)
+    wall = leg_range_m + wall_behind_m
+    r = wall / np.cos(b)
+    # ray-circle intersection: |t e - c|^2 = rho^2
+    proj = leg_range_m * np.cos(b)
+    disc = proj**2 - (leg_range_m**2 - leg_radius_m**2)
+    hit = disc > 0.0
+    r[hit] = np.minimum(r[hit], proj[hit] - np.sqrt(disc[hit]))
+    if noise:
+        r = r + rng.standard_normal(r.size) * range_sigma_m(r)
+    return r, b
+
+
+def _leg_span(r: np.ndarray, b: np.ndarray, leg_range_m: float) -> tuple[int, int, np.ndarray]:
+    kept, x = leg_candidates(r, b)
+    for (a, z, pts), row in zip(kept, x, strict=True):
+        if abs(float(pts.mean(axis=0)[0]) - leg_range_m) < 0.1:
+            return a, z, row
+    raise AssertionError("no leg candidate")
+
+
+def test_reseen_at_its_own_range_and_step_is_the_same_segment() -> None:
+    rng = np.random.default_rng(SEED)
+    r, b = _scan(2.0, 0.5, RECORDED_STEP_RAD, rng)
+    a, z, row = _leg_span(r, b, 2.0)
+    again = reseen_farther(prefiltered(r, b)[0], b, (a, z), _f(row, "range_m"), RECORDED_STEP_RAD, rng)
+    assert again is not None
+    assert abs(_f(again, "n_points") - _f(row, "n_points")) <= 1
+    for name, tol in (("width_m", 0.02), ("range_m", 0.005), ("front_left_m", 0.02), ("front_right_m", 0.02)):
+        assert _f(again, name) == pytest.approx(_f(row, name), abs=tol)
+
+
+def test_reseen_farther_has_the_beams_a_leg_gets_there_and_keeps_what_lies_behind() -> None:
+    rng = np.random.default_rng(SEED)
+    r, b = _scan(2.0, 0.3, RECORDED_STEP_RAD, rng)
+    a, z, row = _leg_span(r, b, 2.0)
+    rr = prefiltered(r, b)[0]
+    counts = []
+    for _ in range(40):
+        far = reseen_farther(rr, b, (a, z), 7.0, STEP_RAD, rng)
+        if far is None:
+            counts.append(0)
+            continue
+        counts.append(_f(far, "n_points"))
+        assert _f(far, "range_m") == pytest.approx(7.0, abs=0.03)
+        # the wall moved with the leg: still 0.3 m behind its centre, 0.36 m behind its nearest return
+        assert _f(far, "front_left_m") == pytest.approx(0.36, abs=0.04)
+        assert _f(far, "front_right_m") == pytest.approx(0.36, abs=0.04)
+        assert _f(far, "width_m") < 0.12
+    # the visible chord of a 0.12 m leg at 7 m spans about 3.5 beams of 0.25 deg: 3 or 4 returns
+    assert 3.0 <= np.mean(counts) <= 4.5 and max(counts) <= 5
+
+
+def test_reseen_returns_carry_the_range_noise_of_their_new_range() -> None:
+    rng = np.random.default_rng(SEED)
+    b = np.arange(-0.3, 0.3, RECORDED_STEP_RAD)
+    r = np.full(b.size, 12.0)
+    flat = np.abs(b) < 0.12  # a flat board 0.24 m wide, 1 m away, recorded without noise
+    r[flat] = 1.0 / np.cos(b[flat])
+    span = _leg_span(r, b, 1.0)[:2]
+    res = []
+    for _ in range(60):
+        far = reseen_farther(r, b, span, 3.0, RECORDED_STEP_RAD, rng)
+        if far is not None:
+            res.append(_f(far, "linearity_m"))
+    # rms distance from the fitted line of k returns with range noise sigma: sigma * sqrt((k - 2) / k)
+    assert len(res) > 40
+    assert float(np.sqrt(np.mean(np.square(res)))) == pytest.approx(float(range_sigma_m(3.0)) * 0.9, rel=0.25)
+
+
+def test_reseen_nearer_is_refused() -> None:
+    rng = np.random.default_rng(SEED)
+    r, b = _scan(3.0, 0.5, STEP_RAD, rng)
+    a, z, _ = _leg_span(r, b, 3.0)
+    with pytest.raises(ValueError, match="range"):
+        reseen_farther(r, b, (a, z), 2.0, STEP_RAD, rng)
+
+
+def test_a_leg_too_far_for_three_beams_is_no_candidate() -> None:
+    rng = np.random.default_rng(SEED)
+    r, b = _scan(2.0, 0.5, RECORDED_STEP_RAD, rng)
+    a, z, _ = _leg_span(r, b, 2.0)
+    # 0.12 m at 20 m spans 1.4 beams of 0.25 deg
+    assert all(reseen_farther(prefiltered(r, b)[0], b, (a, z), 20.0, STEP_RAD, rng) is None for _ in range(10))
+
+
+@pytest.mark.parametrize("leg_range_m", [2.5, 5.5, 7.0])
+def test_the_shipped_detector_takes_a_leg_before_a_wall_for_a_leg_over_the_scanners_range(leg_range_m) -> None:
+    """A 0.12 m leg 0.3 m in front of a wall (a person walking along it), seen by the UTM-30LX: the
+    labelled real legs all lie within 5 m, the re-seen copies teach the detector the rest."""
+    model = default_leg_model()
+    rng = np.random.default_rng(SEED)
+    p = []
+    for _ in range(30):
+        r, b = _scan(leg_range_m, 0.3, STEP_RAD, rng)
+        p.append(float(model.predict(_leg_span(r, b, leg_range_m)[2][None])[0]))
+    assert np.mean(np.array(p) >= model.threshold_p) >= 0.5
+
+
+def test_a_non_leg_is_no_more_leg_like_far_than_near() -> None:
+    """The augmentation moves non-legs out as it moves legs: range alone makes nothing a leg. A flat
+    board of a leg's width 0.3 m in front of a wall (leg-like to the detector near, as it was before the
+    augmentation) is taken for a leg at 7 m no more often than at 2.5 m."""
+    model = default_leg_model()
+    rng = np.random.default_rng(SEED)
+    share = {}
+    for rng_m in (2.5, 7.0):
+        hits = []
+        for _ in range(20):
+            b = np.arange(-0.6, 0.6, STEP_RAD)
+            r = np.full(b.size, rng_m + 0.3) / np.cos(b)
+            board = np.abs(b * rng_m) < 0.06
+            r[board] = rng_m / np.cos(b[board])
+            r = r + rng.standard_normal(r.size) * range_sigma_m(r)
+            hits.append(model.predict(_leg_span(r, b, rng_m)[2][None])[0] >= model.threshold_p)
+        share[rng_m] = float(np.mean(hits))
+    assert share[7.0] <= share[2.5] + 0.1
+
+
+def _train_legs():
+    spec = importlib.util.spec_from_file_location("train_legs", ROOT / "tools" / "train_legs.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_training_copies_each_sample_farther_alike_and_keeps_its_source() -> None:
+    tl = _train_legs()
+    rng = np.random.default_rng(SEED)
+    smp = tl.Samples()
+    for leg_range_m in (1.5, 3.0):
+        r, b = _scan(leg_range_m, 0.4, RECORDED_STEP_RAD, rng)
+        smp.add_scan(r, b, lambda pts, c=leg_range_m: abs(float(pts.mean(axis=0)[0]) - c) < 0.1)
+    assert len(smp.rows) == 2
+    x, src = tl.farther(smp, 4, np.random.default_rng(SEED))
+    assert x.shape[1] == len(FEATURE_NAMES) and set(src.tolist()) <= {0, 1} and len(src) == len(x) >= 4
+    rng_m = x[:, FEATURE_NAMES.index("range_m")]
+    assert np.all(rng_m >= smp.matrix()[src, FEATURE_NAMES.index("range_m")] - 0.02)
+    assert np.all(rng_m <= tl.FAR_RANGE_M + 0.05)
+    again, _ = tl.farther(smp, 4, np.random.default_rng(SEED))
+    np.testing.assert_array_equal(x, again)  # deterministic for a seed
+
+
+def test_banded_shares_count_rows_per_range_band() -> None:
+    tl = _train_legs()
+    x = np.zeros((4, len(FEATURE_NAMES)))
+    x[:, FEATURE_NAMES.index("range_m")] = [1.0, 1.5, 6.0, 20.0]
+    out = tl.banded(np.array([0.9, 0.1, 0.9, 0.0]), x, 0.5)
+    assert out["0-2"] == {"n": 2, "share": 0.5} and out["5-6.5"] == {"n": 1, "share": 1.0}
+    assert out["10-inf"] == {"n": 1, "share": 0.0} and out["2-3.5"] == {"n": 0, "share": None}
+
+
+def test_a_damaged_model_file_is_a_typed_error(tmp_path) -> None:
+    """Truncated, not a zip at all, or a member's compressed bytes flipped: a ModelError, never a zip error."""
+    from app.legmodel import default_model_path, load_leg_model
+    from vipsm.legs import ModelError
+
+    data = default_model_path().read_bytes()
+    (tmp_path / "half.npz").write_bytes(data[: len(data) // 2])
+    (tmp_path / "junk.npz").write_bytes(b"PK\x03\x04" + bytes(100))
+    flipped = bytearray(data)
+    mid = len(flipped) // 3
+    flipped[mid : mid + 64] = bytes(b ^ 0xFF for b in flipped[mid : mid + 64])
+    (tmp_path / "flipped.npz").write_bytes(bytes(flipped))
+    for name in ("half.npz", "junk.npz", "flipped.npz"):
+        with pytest.raises(ModelError):
+            load_leg_model(tmp_path / name)
+
+
+def test_train_legs_refuses_a_bad_baseline_before_training(tmp_path, capsys) -> None:
+    tl = _train_legs()
+    (tmp_path / "bad.npz").write_bytes(b"not a model")
+    assert tl.main(["--baseline", str(tmp_path / "bad.npz"), "--out", str(tmp_path / "m.npz")]) == 2
+    assert "--baseline" in capsys.readouterr().err and not (tmp_path / "m.npz").exists()
+    assert tl.main(["--data-dir", str(tmp_path), "--out", str(tmp_path / "m.npz")]) == 2
+    assert "no recordings" in capsys.readouterr().err
+
+
+def test_validation_reports_each_model_per_band_on_the_same_rows() -> None:
+    """``--baseline``'s table: the same held-out rows scored by two models, band by band."""
+    tl = _train_legs()
+    from app.legmodel import default_leg_model
+
+    model = default_leg_model()
+    rng = np.random.default_rng(SEED)
+    r, b = _scan(2.5, 0.4, RECORDED_STEP_RAD, rng)
+    leg = _leg_span(r, b, 2.5)[2]
+    far = leg.copy()
+    far[FEATURE_NAMES.index("range_m")] = 7.0
+    rows = np.stack([leg, far])
+    out = tl.validation(model, (rows, rows), (rows, rows))
+    rec = out["recorded"]["recall_" + tl.HELD_OUT]
+    assert rec["0-2"]["n"] == 0 and rec["2-3.5"]["n"] == 1 and rec["6.5-8"]["n"] == 1
+    p = model.predict(rows)
+    assert rec["2-3.5"]["share"] == float(p[0] >= model.threshold_p)
+    assert out["reseen_farther"]["false_positive_rate_drive_second_half"]["6.5-8"]["share"] == float(
+        p[1] >= model.threshold_p)
