@@ -104,6 +104,16 @@ class Imm:
             self._cov = np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
         return self._cov
 
+    def walking(self) -> tuple[np.ndarray, np.ndarray]:
+        """The state and covariance given that the person walks (the walking models' mixture): a moving
+        person's velocity, not shrunk towards the standing model's zero by P(standing)."""
+        w = self.probs[STANDING + 1 :]
+        w = w / max(float(w.sum()), 1e-300)
+        means, covs = self.means[STANDING + 1 :], self.covs[STANDING + 1 :]
+        mean = w @ means
+        d = means - mean
+        return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
+
     # ---------------------------------------------------------------- filter steps
     def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
         c = self.cfg

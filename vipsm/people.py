@@ -87,6 +87,9 @@ class PeopleConfig:
     #: track that walks by its kinematics but shows none is a static thing whose detections drift
     evidence_moving: float = 0.2
     evidence_standing: float = 0.02
+    #: a walker's usual speed, at which ``evidence_moving`` holds: a body moving slower leaves its own
+    #: footprint less often, in proportion (a standing person shows evidence as rarely as furniture)
+    walk_speed_mps: float = 1.0
     #: a track nowhere the scan could see it loses existence with this time constant (a person hidden
     #: behind another is still there for a few seconds; a false track must not live on out of sight)
     unseen_memory_s: float = 3.0
@@ -109,7 +112,8 @@ class PeopleConfig:
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
         if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m,
-               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m) <= 0.0 \
+               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m,
+               self.walk_speed_mps) <= 0.0 \
                 or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
 
@@ -421,13 +425,23 @@ class PeopleTracker:
         # motion evidence: seen on a walker's detections at rate evidence_moving, on anything standing still
         # (a person or furniture) at rate evidence_standing; a static thing never walks
         ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
-        pm = t.filt.p_moving
-        e_dyn = pm * c.evidence_moving + (1.0 - pm) * c.evidence_standing
+        e_dyn = self._evidence_rate(t)
         t.p_dynamic = _bayes(t.p_dynamic, e_dyn if ev else 1.0 - e_dyn,
                              c.evidence_standing if ev else 1.0 - c.evidence_standing)
         p_leg = max(lt.det.p_leg for lt in seen)
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _evidence_rate(self, t: PersonTrack) -> float:
+        """P(motion evidence on a detection | a body that moves, at the track's speed): evidence comes from
+        displacement (a body standing where the laser saw free space, a leg that left its place), so its
+        rate grows from a still body's ``evidence_standing`` to a walker's ``evidence_moving`` at
+        ``walk_speed_mps``. A person standing still shows it as rarely as furniture: standing is no
+        evidence against a person; walking without any evidence is."""
+        c = self.config
+        speed = float(math.hypot(t.filt.mean[2], t.filt.mean[3]))
+        share = min(speed / c.walk_speed_mps, 1.0)
+        return c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
 
     def _travelled(self, lt: LegTrack) -> bool:
         """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
@@ -534,7 +548,7 @@ class PeopleTracker:
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
             half = math.asin(min(c.person_radius_m / max(math.hypot(dx, dy), 1e-6), 1.0))
             t = tracks[p.track_id]
-            cov = tuple(float(v) for v in np.asarray(t.filt.cov, float)[:4, :4].ravel())
+            cov = tuple(float(v) for v in np.asarray(t.filt.walking()[1], float)[:4, :4].ravel())
             out.append(Obstacle(p.track_id, p.x_m, p.y_m, p.vx_mps, p.vy_mps, c.person_radius_m, b - half, b + half,
                                 -1, -1, age_cycles=t.age_cycles, covariance=cov, person=True))
         return tuple(out)
@@ -543,8 +557,8 @@ class PeopleTracker:
         """The confirmed tracks at ``stamp_s`` (positions predicted at constant velocity)."""
         out = []
         for t in self.tracks:
-            m, p = t.filt.mean, t.filt.cov
-            if not t.confirmed or np.linalg.eigvalsh(p[:2, :2])[-1] > self.config.max_position_sigma_m**2:
+            m, p = t.filt.walking() if t.moving else (t.filt.mean, t.filt.cov)
+            if not t.confirmed or np.linalg.eigvalsh(t.filt.cov[:2, :2])[-1] > self.config.max_position_sigma_m**2:
                 continue
             dt = stamp_s - t.stamp_s
             vx, vy = (float(m[2]), float(m[3])) if t.moving else (0.0, 0.0)

@@ -259,6 +259,42 @@ def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> N
             assert person.p_moving < PeopleConfig().moving_off
 
 
+def _walk_stand_walk(stand_s: float, seed: int = RNG_SEED) -> tuple[PeopleTracker, list[bool], float]:
+    """A person walks 2 s at 1 m/s (motion evidence on every other detection), stands ``stand_s`` (no
+    evidence: a standing body shows none) and walks on at 1 m/s with no evidence at all (not even its
+    legs' steps: the places they leave are not seen empty). Returns the tracker, the moving flag per
+    cycle and the stamp of the second start."""
+    rng = np.random.default_rng(seed)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    x, t, flags = 1.0, 0.0, []
+    phases = [(2.0, 1.0, True), (stand_s, 0.0, False), (1.5, 1.0, False)]
+    for k, (dur, v, ev) in enumerate(phases):
+        start = t
+        while t < start + dur - 1e-9:
+            x += v * 0.1
+            tr.step(t, _pair(x + rng.normal(0, 0.02), 2.0 + rng.normal(0, 0.02), evidence=ev and len(flags) % 2 == 0),
+                    seen_free=lambda x, y, ev=ev: ev)
+            flags.append(any(p.moving for p in tr.people(t)))
+            t = round(t + 0.1, 9)
+        if k == 1:
+            restart = t
+    return tr, flags, restart
+
+
+def test_a_person_who_stood_still_is_still_a_person_when_it_walks_on() -> None:
+    """Standing still is what people and furniture alike do: it is no evidence against a person. A
+    walker that stood 30 s (without motion evidence, as a standing body shows none) is moving again
+    within 0.6 s of walking on, before any new evidence, and never while it stood. Counting each
+    detection without evidence against "a body that moves" at the rate of a walker's evidence weighted by
+    the IMM's P(walking) (0.2-0.26 for a standing person) took P(a body that moves) from its bound 0.9999
+    to 0.1 in 30 s, and the second walk was never reported without new evidence."""
+    tr, flags, restart = _walk_stand_walk(30.0)
+    k0 = int(round(restart / 0.1))
+    assert any(flags[:20]) and not any(flags[25:k0])  # walking, then standing (stop latency < 0.5 s)
+    assert any(flags[k0 : k0 + 6]) and all(flags[k0 + 8 :])
+    assert len(tr.tracks) == 1 and tr.tracks[0].p_dynamic > 0.9
+
+
 def test_two_walkers_side_by_side_each_seen_by_one_leg_are_two_people() -> None:
     """Two people walking side by side 0.4 m apart, the laser seeing one leg of each (the other hidden
     behind it): the two legs lie within a stride of each other, but across the line of walking, where a
