@@ -87,9 +87,9 @@ class PeopleConfig:
     #: track that walks by its kinematics but shows none is a static thing whose detections drift
     evidence_moving: float = 0.2
     evidence_standing: float = 0.02
-    #: a walker's usual speed, at which ``evidence_moving`` holds: a body moving slower leaves its own
-    #: footprint less often, in proportion (a standing person shows evidence as rarely as furniture)
-    walk_speed_mps: float = 1.0
+    #: a person standing still walks on after this long on average (seconds to a minute), furniture
+    #: never: each second a body stands counts against "a body that moves" by exp(-1 / this)
+    stand_dwell_s: float = 10.0
     #: a track nowhere the scan could see it loses existence with this time constant (a person hidden
     #: behind another is still there for a few seconds; a false track must not live on out of sight)
     unseen_memory_s: float = 3.0
@@ -113,7 +113,7 @@ class PeopleConfig:
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
         if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m,
                self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m,
-               self.walk_speed_mps) <= 0.0 \
+               self.stand_dwell_s) <= 0.0 \
                 or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
 
@@ -174,6 +174,8 @@ class PersonTrack:
     p_dynamic: float = 0.5
     #: obstacle cycles the track has lived (``Obstacle.age_cycles`` of a moving person)
     age_cycles: int = 1
+    #: when a detection last updated it (None: never)
+    updated_s: float | None = None
 
     @property
     def p_moving(self) -> float:
@@ -422,26 +424,35 @@ class PeopleTracker:
         c = self.config
         x, y, sigma, seen = z
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
-        # motion evidence: seen on a walker's detections at rate evidence_moving, on anything standing still
-        # (a person or furniture) at rate evidence_standing; a static thing never walks
+        # a body that moves, or a static thing: motion evidence is seen on a walker's detections at rate
+        # evidence_moving, on anything standing still (a person or furniture) at rate evidence_standing; and a
+        # person standing still starts walking at the IMM's switch rate, a static thing never
         ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
-        e_dyn = self._evidence_rate(t)
-        t.p_dynamic = _bayes(t.p_dynamic, e_dyn if ev else 1.0 - e_dyn,
+        share = self._walking_share(t)
+        e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
+        dt = min(t.stamp_s - t.updated_s, c.leg_memory_s) if t.updated_s is not None else 0.0
+        stayed = math.exp(-(1.0 - share) * max(dt, 0.0) / c.stand_dwell_s)
+        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed,
                              c.evidence_standing if ev else 1.0 - c.evidence_standing)
+        t.updated_s = t.stamp_s
         p_leg = max(lt.det.p_leg for lt in seen)
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
 
-    def _evidence_rate(self, t: PersonTrack) -> float:
-        """P(motion evidence on a detection | a body that moves, at the track's speed): evidence comes from
-        displacement (a body standing where the laser saw free space, a leg that left its place), so its
-        rate grows from a still body's ``evidence_standing`` to a walker's ``evidence_moving`` at
-        ``walk_speed_mps``. A person standing still shows it as rarely as furniture: standing is no
-        evidence against a person; walking without any evidence is."""
-        c = self.config
-        speed = float(math.hypot(t.filt.mean[2], t.filt.mean[3]))
-        share = min(speed / c.walk_speed_mps, 1.0)
-        return c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
+    def _walking_share(self, t: PersonTrack) -> float:
+        """P(the track walks at a walking speed): the IMM's P(walking), times how much of the slowest walk
+        (``WALK_DIR_MPS``) its walking models' speed is. Motion evidence comes from displacement (a body
+        standing where the laser saw free space, a leg that left its place), so P(evidence | a body that
+        moves) is a walker's ``evidence_moving`` with this probability and a still body's
+        ``evidence_standing`` otherwise: a person standing still shows evidence as rarely as furniture.
+        (The IMM's P(walking) alone is no measure of it: its walking models fit a standing person at zero
+        speed, and P(walking) hovers at 0.2, which counted every detection of a standing person against
+        "a body that moves".) What tells a standing person from furniture is time: a person standing still
+        walks on after ``stand_dwell_s`` on average, a static thing never, so every second a body stands
+        still counts against "a body that moves" by exp(-1 / stand_dwell_s): seconds of standing hardly,
+        minutes of it for furniture."""
+        v = t.filt.walking()[0][2:4]
+        return t.filt.p_moving * min(float(math.hypot(v[0], v[1])) / WALK_DIR_MPS, 1.0)
 
     def _travelled(self, lt: LegTrack) -> bool:
         """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
