@@ -18,10 +18,13 @@ is a pair of leg tracks):
    people. A measurement outside the person's gate frees the legs instead of moving the person (two
    legs that drifted apart are not one body);
 4. **motion state** (:mod:`vipsm.imm`): per person an IMM of a standing and a walking model gives the
-   velocity and P(moving), weighed each cycle by the motion evidence of its legs (a return where the
-   laser had seen free space, :mod:`vipsm.bodies`) as a likelihood: ``evidence_moving`` of a walker's
-   detections show it, ``evidence_standing`` of a standing body's. A person is *moving* once P(moving)
-   reaches ``moving_on`` and until it falls below ``moving_off`` (hysteresis);
+   velocity and P(walking); P(moving) is that times P(a body that moves), the posterior of a person
+   against a static thing taken for legs, from the motion evidence of its legs (a return where the
+   laser had seen free space, :mod:`vipsm.bodies`, or a leg that left a place now seen empty), expected
+   on ``evidence_moving`` of a walker's detections and ``evidence_standing`` of a still body's, person or
+   furniture, and from time standing still (a person walks on after ``stand_dwell_s`` on average,
+   furniture never). A person is *moving* once P(moving) reaches ``moving_on`` and until it falls below
+   ``moving_off`` (hysteresis);
 5. **existence**: Bayes' rule with the detection probability ``p_detect`` of a person in view and the
    chance ``p_clutter`` that a gate holds a non-person leg (weighted by the leg probability); confirmed
    (in ``Estimate.people``) from ``exist_confirm``, dropped below ``exist_drop``. A miss counts only
@@ -112,10 +115,11 @@ class PeopleConfig:
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
         if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m,
-               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m,
-               self.stand_dwell_s) <= 0.0 \
+               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m) <= 0.0 \
                 or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
+        if not self.stand_dwell_s > 0.0:
+            raise ValueError(f"stand_dwell_s must be > 0 (a person's mean standing time), got {self.stand_dwell_s}")
 
 
 @dataclass(frozen=True)

@@ -434,6 +434,8 @@ def test_people_config_rejects_nonsense() -> None:
         PeopleConfig(moving_on=0.3, moving_off=0.5)
     with pytest.raises(ValueError):
         PeopleConfig(p_detect=1.0)
+    with pytest.raises(ValueError, match="stand_dwell_s"):
+        PeopleConfig(stand_dwell_s=0.0)
 
 
 def test_people_channel_colours_standing_and_moving_people_apart(tmp_path) -> None:
