@@ -572,8 +572,10 @@ class PeopleTracker:
         """The confirmed tracks at ``stamp_s`` (positions predicted at constant velocity)."""
         out = []
         for t in self.tracks:
-            m, p = t.filt.walking() if t.moving else (t.filt.mean, t.filt.cov)
-            if not t.confirmed or np.linalg.eigvalsh(t.filt.cov[:2, :2])[-1] > self.config.max_position_sigma_m**2:
+            m, p = t.filt.mean, t.filt.cov
+            if t.moving:  # the velocity given that it walks (P(standing) would shrink it towards zero)
+                m = np.concatenate([m[:2], t.filt.walking()[0][2:4]])
+            if not t.confirmed or np.linalg.eigvalsh(p[:2, :2])[-1] > self.config.max_position_sigma_m**2:
                 continue
             dt = stamp_s - t.stamp_s
             vx, vy = (float(m[2]), float(m[3])) if t.moving else (0.0, 0.0)

@@ -181,6 +181,23 @@ def test_a_walker_is_moving_and_a_standing_person_is_not() -> None:
     assert all(p.track_id >= FIRST_ID and p.existence > 0.9 and len(p.legs) == 2 for p in people.values())
 
 
+def test_a_moving_person_is_reported_with_the_velocity_given_that_it_walks() -> None:
+    """A moving person's velocity is its walking models' (the combined state's velocity is that times
+    P(walking), 15 % short at P(walking) 0.85); its position is the whole mixture's."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(30):
+        tr.step(0.1 * k, _pair(1.0 + 1.0 * 0.1 * k, 2.0, evidence=k % 2 == 0))
+    (t,) = tr.tracks
+    t.filt.probs = np.array([0.15, 0.425, 0.425])  # as after a few cycles of a slowing walk
+    t.filt._mean = t.filt._cov = None
+    (p,) = tr.people(t.stamp_s)
+    assert p.moving and p.vx_mps == pytest.approx(float(t.filt.walking()[0][2]))
+    assert p.vx_mps == pytest.approx(1.0, abs=0.1) and t.filt.mean[2] < 0.9
+    assert (p.x_m, p.y_m) == pytest.approx(tuple(t.filt.mean[:2]))
+    (o,) = tr.obstacles((p,), (), Pose2D(0.0, 0.0, 0.0))
+    assert o.vx_mps == p.vx_mps
+
+
 def test_tracks_are_confirmed_after_two_detections_and_dropped_when_seen_absent() -> None:
     tr = PeopleTracker(PeopleConfig(), default_leg_model())
     tr.step(0.0, _pair(2.0, 0.0))
