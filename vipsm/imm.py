@@ -32,6 +32,12 @@ STANDING = 0  # the first model; the others walk
 class ImmConfig:
     stand_sigma_mps: float = 0.05
     walk_accel_mps2: tuple[float, ...] = (0.3, 2.0)
+    #: how readily the filter changes its mind (not a person's dwell: see ``PeopleConfig.stand_dwell_s``).
+    #: The onset of a walk is set by the measurements, hardly by this rate: P(walking) >= 0.8 came 0.5 s
+    #: after a 1.8 m/s^2 start at 0.1-0.5 per second alike (10 Hz, 0.06 m noise; a start moves the pelvis
+    #: 1, 4, 8 cm in 0.1, 0.2, 0.3 s); a higher rate lifts a standing person's P(walking) (its largest
+    #: over 30 s: 0.78 at 0.5 per second, 0.47 at 0.1), a lower one made the tracker's gate, which follows
+    #: the combined covariance, lose starting walkers in the simulated scenes (docs/estimator.md, 6b)
     switch_per_s: float = 0.5
     #: speed uncertainty of a new track (a walker: up to ~1.5 m/s)
     init_speed_sigma_mps: float = 0.8
@@ -103,6 +109,16 @@ class Imm:
             d = self.means - self.mean
             self._cov = np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
         return self._cov
+
+    def walking(self) -> tuple[np.ndarray, np.ndarray]:
+        """The state and covariance given that the person walks (the walking models' mixture): a moving
+        person's velocity, not shrunk towards the standing model's zero by P(standing)."""
+        w = self.probs[STANDING + 1 :]
+        w = w / max(float(w.sum()), 1e-300)
+        means, covs = self.means[STANDING + 1 :], self.covs[STANDING + 1 :]
+        mean = w @ means
+        d = means - mean
+        return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
 
     # ---------------------------------------------------------------- filter steps
     def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:

@@ -18,10 +18,13 @@ is a pair of leg tracks):
    people. A measurement outside the person's gate frees the legs instead of moving the person (two
    legs that drifted apart are not one body);
 4. **motion state** (:mod:`vipsm.imm`): per person an IMM of a standing and a walking model gives the
-   velocity and P(moving), weighed each cycle by the motion evidence of its legs (a return where the
-   laser had seen free space, :mod:`vipsm.bodies`) as a likelihood: ``evidence_moving`` of a walker's
-   detections show it, ``evidence_standing`` of a standing body's. A person is *moving* once P(moving)
-   reaches ``moving_on`` and until it falls below ``moving_off`` (hysteresis);
+   velocity and P(walking); P(moving) is that times P(a body that moves), the posterior of a person
+   against a static thing taken for legs, from the motion evidence of its legs (a return where the
+   laser had seen free space, :mod:`vipsm.bodies`, or a leg that left a place now seen empty), expected
+   on ``evidence_moving`` of a walker's detections and ``evidence_standing`` of a still body's, person or
+   furniture, and from time standing still (a person walks on after ``stand_dwell_s`` on average,
+   furniture never). A person is *moving* once P(moving) reaches ``moving_on`` and until it falls below
+   ``moving_off`` (hysteresis);
 5. **existence**: Bayes' rule with the detection probability ``p_detect`` of a person in view and the
    chance ``p_clutter`` that a gate holds a non-person leg (weighted by the leg probability); confirmed
    (in ``Estimate.people``) from ``exist_confirm``, dropped below ``exist_drop``. A miss counts only
@@ -87,6 +90,9 @@ class PeopleConfig:
     #: track that walks by its kinematics but shows none is a static thing whose detections drift
     evidence_moving: float = 0.2
     evidence_standing: float = 0.02
+    #: a person standing still walks on after this long on average (seconds to a minute), furniture
+    #: never: each second a body stands counts against "a body that moves" by exp(-1 / this)
+    stand_dwell_s: float = 10.0
     #: a track nowhere the scan could see it loses existence with this time constant (a person hidden
     #: behind another is still there for a few seconds; a false track must not live on out of sight)
     unseen_memory_s: float = 3.0
@@ -112,6 +118,8 @@ class PeopleConfig:
                self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m) <= 0.0 \
                 or self.max_tracks < 1:
             raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
+        if not self.stand_dwell_s > 0.0:
+            raise ValueError(f"stand_dwell_s must be > 0 (a person's mean standing time), got {self.stand_dwell_s}")
 
 
 @dataclass(frozen=True)
@@ -170,6 +178,8 @@ class PersonTrack:
     p_dynamic: float = 0.5
     #: obstacle cycles the track has lived (``Obstacle.age_cycles`` of a moving person)
     age_cycles: int = 1
+    #: when a detection last updated it (None: never)
+    updated_s: float | None = None
 
     @property
     def p_moving(self) -> float:
@@ -418,16 +428,36 @@ class PeopleTracker:
         c = self.config
         x, y, sigma, seen = z
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
-        # motion evidence: seen on a walker's detections at rate evidence_moving, on anything standing still
-        # (a person or furniture) at rate evidence_standing; a static thing never walks
+        # a body that moves, or a static thing (``_walking_share``): motion evidence is seen on a walker's
+        # detections at rate evidence_moving, on anything standing still (a person or furniture) at rate
+        # evidence_standing; and a person standing still walks on after stand_dwell_s on average, a static
+        # thing never. Only time seen counts as time standing (at most a leg's memory between detections)
         ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
-        pm = t.filt.p_moving
-        e_dyn = pm * c.evidence_moving + (1.0 - pm) * c.evidence_standing
-        t.p_dynamic = _bayes(t.p_dynamic, e_dyn if ev else 1.0 - e_dyn,
+        share = self._walking_share(t)
+        e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
+        dt = min(t.stamp_s - t.updated_s, c.leg_memory_s) if t.updated_s is not None else 0.0
+        stayed = math.exp(-(1.0 - share) * max(dt, 0.0) / c.stand_dwell_s)
+        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed,
                              c.evidence_standing if ev else 1.0 - c.evidence_standing)
+        t.updated_s = t.stamp_s
         p_leg = max(lt.det.p_leg for lt in seen)
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _walking_share(self, t: PersonTrack) -> float:
+        """P(the track walks at a walking speed): the IMM's P(walking), times how much of the slowest walk
+        (``WALK_DIR_MPS``) its walking models' speed is. Motion evidence comes from displacement (a body
+        standing where the laser saw free space, a leg that left its place), so P(evidence | a body that
+        moves) is a walker's ``evidence_moving`` with this probability and a still body's
+        ``evidence_standing`` otherwise: a person standing still shows evidence as rarely as furniture.
+        (The IMM's P(walking) alone is no measure of it: its walking models fit a standing person at zero
+        speed, and P(walking) hovers at 0.2, which counted every detection of a standing person against
+        "a body that moves".) What tells a standing person from furniture is time: a person standing still
+        walks on after ``stand_dwell_s`` on average, a static thing never, so every second a body stands
+        still counts against "a body that moves" by exp(-1 / stand_dwell_s): seconds of standing hardly,
+        minutes of it for furniture."""
+        v = t.filt.walking()[0][2:4]
+        return t.filt.p_moving * min(float(math.hypot(v[0], v[1])) / WALK_DIR_MPS, 1.0)
 
     def _travelled(self, lt: LegTrack) -> bool:
         """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
@@ -534,7 +564,7 @@ class PeopleTracker:
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
             half = math.asin(min(c.person_radius_m / max(math.hypot(dx, dy), 1e-6), 1.0))
             t = tracks[p.track_id]
-            cov = tuple(float(v) for v in np.asarray(t.filt.cov, float)[:4, :4].ravel())
+            cov = tuple(float(v) for v in np.asarray(t.filt.walking()[1], float)[:4, :4].ravel())
             out.append(Obstacle(p.track_id, p.x_m, p.y_m, p.vx_mps, p.vy_mps, c.person_radius_m, b - half, b + half,
                                 -1, -1, age_cycles=t.age_cycles, covariance=cov, person=True))
         return tuple(out)
@@ -544,6 +574,8 @@ class PeopleTracker:
         out = []
         for t in self.tracks:
             m, p = t.filt.mean, t.filt.cov
+            if t.moving:  # the velocity given that it walks (P(standing) would shrink it towards zero)
+                m = np.concatenate([m[:2], t.filt.walking()[0][2:4]])
             if not t.confirmed or np.linalg.eigvalsh(p[:2, :2])[-1] > self.config.max_position_sigma_m**2:
                 continue
             dt = stamp_s - t.stamp_s

@@ -52,6 +52,7 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.tracker.confirm_vacated_m=-1", "estimator.tracker", "confirm_vacated_m >= 0"),
         ("estimator.tracker.anisotropic_min_speed_mps=0", "estimator.tracker", "anisotropic_min_speed_mps > 0"),
         ("estimator.tracker.confirm_onset_rows=1", "estimator.tracker", "confirm_onset_rows >= 2"),
+        ("estimator.people.stand_dwell_s=0", "estimator.people", "stand_dwell_s must be > 0"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )

@@ -18,6 +18,8 @@ from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, de
 from vipsm.types import Obstacle, Pose2D
 
 RNG_SEED = 29
+#: a walker's acceleration when it starts (about 1 m/s in 0.6 s)
+WALK_ACCEL_MPS2 = 1.8
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -101,13 +103,13 @@ def test_segment_features_keep_only_leg_sized_segments() -> None:
 
 
 # ------------------------------------------------------------------------------------------ IMM
-def _run(filt: Imm, speeds: list[float], dt: float = 0.1, seed: int = RNG_SEED) -> list[float]:
+def _run(filt: Imm, speeds: list[float], dt: float = 0.1, seed: int = RNG_SEED, noise_m: float = 0.05) -> list[float]:
     rng = np.random.default_rng(seed)
     x, out = 0.0, []
     for v in speeds:
         x += v * dt
         filt.predict(dt)
-        filt.update(np.array([x, 0.0]) + rng.normal(0.0, 0.05, 2), np.eye(2) * 0.05**2)
+        filt.update(np.array([x, 0.0]) + rng.normal(0.0, noise_m, 2), np.eye(2) * noise_m**2)
         out.append(filt.p_moving)
     return out
 
@@ -140,6 +142,17 @@ def test_imm_unobserved_weighs_standing_and_walking_alike() -> None:
         assert f.p_moving == pytest.approx(0.5, abs=1e-3)
 
 
+def test_imm_walk_onset_is_set_by_the_measurements_not_the_switch_rate() -> None:
+    """A start at 1.8 m/s^2 (1.1 m/s in 0.6 s), measured with 0.06 m noise at 10 Hz: P(walking) reaches
+    0.8 within 0.7 s, at a switch rate of 0.1 per second as at 0.5 (the pelvis has moved 1, 4 and 8 cm
+    after 0.1, 0.2 and 0.3 s: that, not the prior, holds the onset)."""
+    speeds = [0.0] * 50 + [min(1.1, WALK_ACCEL_MPS2 * 0.1 * (k + 1)) for k in range(20)]
+    for rate in (0.1, 0.5):
+        for seed in range(5):
+            p = _run(Imm(0.0, 0.0, 0.06, ImmConfig(switch_per_s=rate)), speeds, seed=seed, noise_m=0.06)
+            assert max(p[50:57]) >= 0.8, (rate, seed)
+
+
 def test_imm_config_rejects_nonsense() -> None:
     with pytest.raises(ValueError):
         ImmConfig(switch_per_s=0.0)
@@ -166,6 +179,23 @@ def test_a_walker_is_moving_and_a_standing_person_is_not() -> None:
     assert people[2].moving and people[2].p_moving > 0.8 and people[2].vx_mps == pytest.approx(1.0, abs=0.15)
     assert not people[-1].moving and people[-1].p_moving < 0.4
     assert all(p.track_id >= FIRST_ID and p.existence > 0.9 and len(p.legs) == 2 for p in people.values())
+
+
+def test_a_moving_person_is_reported_with_the_velocity_given_that_it_walks() -> None:
+    """A moving person's velocity is its walking models' (the combined state's velocity is that times
+    P(walking), 15 % short at P(walking) 0.85); its position is the whole mixture's."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(30):
+        tr.step(0.1 * k, _pair(1.0 + 1.0 * 0.1 * k, 2.0, evidence=k % 2 == 0))
+    (t,) = tr.tracks
+    t.filt.probs = np.array([0.15, 0.425, 0.425])  # as after a few cycles of a slowing walk
+    t.filt._mean = t.filt._cov = None
+    (p,) = tr.people(t.stamp_s)
+    assert p.moving and p.vx_mps == pytest.approx(float(t.filt.walking()[0][2]))
+    assert p.vx_mps == pytest.approx(1.0, abs=0.1) and t.filt.mean[2] < 0.9
+    assert (p.x_m, p.y_m) == pytest.approx(tuple(t.filt.mean[:2]))
+    (o,) = tr.obstacles((p,), (), Pose2D(0.0, 0.0, 0.0))
+    assert o.vx_mps == p.vx_mps
 
 
 def test_tracks_are_confirmed_after_two_detections_and_dropped_when_seen_absent() -> None:
@@ -257,6 +287,61 @@ def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> N
         assert tr.tracks[0].filt.p_moving > 0.8  # the kinematics alone say walking
         if not moving:
             assert person.p_moving < PeopleConfig().moving_off
+
+
+def _walk_stand_walk(stand_s: float, seed: int = RNG_SEED) -> tuple[PeopleTracker, list[bool], float]:
+    """A person walks 2 s at 1 m/s (motion evidence on every other detection), stands ``stand_s`` (no
+    evidence: a standing body shows none) and walks on at 1 m/s with no evidence at all (not even its
+    legs' steps: the places they leave are not seen empty). Returns the tracker, the moving flag per
+    cycle and the stamp of the second start."""
+    rng = np.random.default_rng(seed)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    x, t, flags = 1.0, 0.0, []
+    phases = [(2.0, 1.0, True), (stand_s, 0.0, False), (1.5, 1.0, False)]
+    for k, (dur, v, ev) in enumerate(phases):
+        start = t
+        while t < start + dur - 1e-9:
+            x += min(v, WALK_ACCEL_MPS2 * (t + 0.1 - start)) * 0.1  # a start takes about 0.6 s
+            tr.step(t, _pair(x + rng.normal(0, 0.02), 2.0 + rng.normal(0, 0.02), evidence=ev and len(flags) % 2 == 0),
+                    seen_free=lambda x, y, ev=ev: ev)
+            flags.append(any(p.moving for p in tr.people(t)))
+            t = round(t + 0.1, 9)
+        if k == 1:
+            restart = t
+    return tr, flags, restart
+
+
+def test_a_person_who_stood_still_is_still_a_person_when_it_walks_on() -> None:
+    """Standing still is what people and furniture alike do: it is no evidence against a person. A
+    walker that stood 30 s (without motion evidence, as a standing body shows none) is moving again
+    within 0.7 s of walking on, before any new evidence, and never while it stood. Counting each
+    detection without evidence against "a body that moves" at the rate of a walker's evidence weighted by
+    the IMM's P(walking) (0.2-0.26 for a standing person) took P(a body that moves) from its bound 0.9999
+    to 0.1 in 30 s, and the second walk was never reported without new evidence."""
+    tr, flags, restart = _walk_stand_walk(30.0)
+    k0 = int(round(restart / 0.1))
+    assert any(flags[:20]) and not any(flags[25:k0])  # walking, then standing (stop latency < 0.5 s)
+    assert any(flags[k0 : k0 + 7]) and all(flags[k0 + 9 :])
+    assert len(tr.tracks) == 1 and tr.tracks[0].p_dynamic > 0.9
+
+
+def test_a_person_shaped_thing_that_stands_for_minutes_is_furniture() -> None:
+    """A still leg pair showing motion evidence as rarely as furniture does (2 % of its detections) and
+    drifting by a few cm (the robot's pose error): a new track is as likely a person as not, but a person
+    standing still starts walking within seconds to a minute, furniture never: after two minutes it is
+    no body that moves, and a stray evidence then cannot make it one. Without that (standing counted as
+    neither), such a track kept P(a body that moves) 1/2 for ever, and stray evidence while it drifted
+    made furniture walk (measured on the drive through empty rooms)."""
+    rng = np.random.default_rng(RNG_SEED)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(1200):
+        drift = 0.03 * math.sin(0.05 * k)
+        tr.step(0.1 * k, _pair(2.0 + drift + rng.normal(0, 0.01), 1.0 + rng.normal(0, 0.01),
+                               evidence=rng.random() < 0.02))
+        if k == 100:
+            early = tr.tracks[0].p_dynamic
+    assert len(tr.tracks) == 1 and early > 0.25 and tr.tracks[0].p_dynamic < 0.05
+    assert not any(p.moving for p in tr.people(119.9))
 
 
 def test_two_walkers_side_by_side_each_seen_by_one_leg_are_two_people() -> None:
@@ -366,6 +451,8 @@ def test_people_config_rejects_nonsense() -> None:
         PeopleConfig(moving_on=0.3, moving_off=0.5)
     with pytest.raises(ValueError):
         PeopleConfig(p_detect=1.0)
+    with pytest.raises(ValueError, match="stand_dwell_s"):
+        PeopleConfig(stand_dwell_s=0.0)
 
 
 def test_people_channel_colours_standing_and_moving_people_apart(tmp_path) -> None:
