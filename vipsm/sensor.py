@@ -72,10 +72,17 @@ class SelfReturns:
     part of the robot does not: it stays at one (beam, range) however the robot moves. The model keeps, per
     beam and per range bin of ``tol_m`` out to ``max_range_m`` (the robot's reach from its laser: the
     footprint is bounded, ``beams x max_range_m / tol_m`` counts), how often a return fell in that bin at the
-    *checks*: the scans at which the laser has turned at least ``turn_rad`` since the last check (only turns:
-    a still laser, or one driving straight past a parallel wall, sees the world at fixed ranges too). A bin
-    counts as looked at when the beam's return lies in it or beyond it (a return in front hides it; no
-    return is no evidence). Counts decay by ``1 - 1/memory_checks`` a check, so the model follows a robot
+    *checks*. Turn checks: the scans at which the laser has turned at least ``turn_rad`` since the last one
+    (a still laser sees the world at fixed ranges too); there a bin counts as looked at when the beam's
+    return lies in it or beyond it (a return in front hides it; no return is no evidence). Move checks (with
+    the laser's world position and the beams' bearings given, ``move_m`` > 0): the scans at which the laser
+    has travelled ``move_m`` since the last one. Driving straight, a wall parallel to the travel also stays at
+    one (beam, range), so there a return counts only where the last check's scan saw through its world point
+    (or this scan sees through the point that beam returned then): it moved with the laser, and only on a
+    beam that held it in every scan since (see :meth:`_move_evidence`). A robot that drives straight for its
+    first seconds learns its parts within ``2-3 move_m``, before its first turn.
+
+    Counts decay by ``1 - 1/memory_checks`` a check, so the model follows a robot
     that changes (a door of the robot opened, a load put on). A bin held in at least ``min_share`` of the
     checks that looked at it, by at least ``checks`` of them, is the robot's body; the nearest such bin is
     the beam's footprint. Parts seen only now and then (vibration, a dark surface, a thin rod that one beam
@@ -87,7 +94,8 @@ class SelfReturns:
     body's outline gives mixed returns that flicker between it and what lies behind). The laser's world
     heading is the estimated one: a match error of a few degrees changes nothing in a turn of ``turn_rad``.
     Not told apart: a person walking beside a turning robot at one bearing and one range (within ``tol_m``)
-    over ``checks`` turns, within ``max_range_m``."""
+    over ``checks`` turns, within ``max_range_m``; or walking at the robot's pace with a leg held still
+    relative to the laser (within ``2 tol_m``, every scan) over the ``move_m`` before two move checks."""
 
     def __init__(self, turn_rad: float = math.radians(30.0), tol_m: float = 0.05, checks: int = 2,
                  edge_beams: int = 3, max_range_m: float = 1.0, min_share: float = 0.5,
@@ -172,15 +180,12 @@ class SelfReturns:
         return hits | (steady & (centre[None, :] < rr - self.tol_m)), hits
 
     def _held(self, r: np.ndarray) -> np.ndarray:
-        """Per beam: its return ``r`` held since the last move check: within ``2 tol_m`` of ``r`` in that
-        check's scan (the window's first) and in at least ``min_share`` of the scans since, and no return
-        nearer than ``r - 2 tol_m`` in any of them. The beam passes beside a part of the robot now and then
-        (its outline) and sees beyond, but nothing moves in front of it, as a walking person's legs swinging
-        to and fro along the beam do, and a leg that happens to be at one range in two scans is seldom there
-        at the check's scan too. A beam without a return is none."""
+        """Per beam: its return ``r`` held since the last move check, within ``2 tol_m`` in every scan since
+        (that check's scan included) without a gap. A part of the robot does; a walking person's legs, which
+        stand on the floor while the laser passes and then swing past it, seldom do over the ``move_m`` between
+        two checks. A part that the beam passes beside now and then (its outline) is left to the turn checks."""
         since = np.stack(self._since)
         with np.errstate(invalid="ignore"):
-            nearer = (since < r[None, :] - 2.0 * self.tol_m).any(axis=0)
             at = np.abs(since - r[None, :]) <= 2.0 * self.tol_m
         return np.isfinite(r) & at.all(axis=0)
 
