@@ -83,13 +83,18 @@ def test_the_footprint_is_bounded_by_the_robots_reach() -> None:
 
 
 def test_a_still_or_straight_driving_laser_finds_nothing() -> None:
+    """Without a part of the robot in view: a still laser, then one driving 3 m straight past the room's walls
+    and pillars (turn checks only, and with the travel's move checks)."""
     world = box_room(8.0, 7.0, x0=-3.0, y0=-3.5)
-    rng = np.random.default_rng(2)
-    sr = SelfReturns()
-    for k in range(60):  # 6 s still, then 3 m straight on
-        pose = Pose2D(-1.5 + 0.1 * max(k - 30, 0), -0.5, 0.0)
-        scan = world.scan(pose, BEARINGS, noise_m=0.01, rng=rng)
-        assert not sr.update(scan.ranges_m, pose.theta_rad).any()
+    for travel in (False, True):
+        rng = np.random.default_rng(2)
+        sr = SelfReturns()
+        for k in range(60):  # 6 s still, then 3 m straight on
+            pose = Pose2D(-1.5 + 0.1 * max(k - 30, 0), -0.5, 0.0)
+            scan = world.scan(pose, BEARINGS, noise_m=0.01, rng=rng)
+            where = (BEARINGS, (pose.x_m, pose.y_m)) if travel else (None, None)
+            assert not sr.update(scan.ranges_m, pose.theta_rad, *where).any()
+        assert not sr.found().any()
 
 
 def test_the_estimator_cuts_the_robots_own_returns_from_the_scan_every_stage_sees() -> None:
