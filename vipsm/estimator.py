@@ -137,6 +137,11 @@ class EstimatorConfig:
     self_returns_checks: int = 2
     self_returns_max_range_m: float = 1.0
     self_returns_share: float = 0.5
+    #: the laser's travel is evidence too: checks also every ``self_returns_move_m`` of travel, where a return
+    #: whose world point the last check's scan saw through (it moved with the laser) and that the beam held
+    #: steady since counts as the robot's, and one that scan saw (a static surface, also a wall parallel to the
+    #: travel) as not. Must exceed ``2 self_returns_tol_m`` (the static test's margin); 0: turns only
+    self_returns_move_m: float = 0.2
     #: bodies, tracking and the static map run at most this often (their thresholds count cycles of
     #: this length); scans in between publish the tracks predicted to their stamp
     obstacle_period_s: float = 0.1
@@ -146,9 +151,11 @@ class EstimatorConfig:
             raise ValueError(f"no_odometry_refine_iterations must be >= 0, got {self.no_odometry_refine_iterations}")
         if (self.self_returns_turn_rad < 0.0 or not self.self_returns_tol_m > 0.0 or self.self_returns_checks < 1
                 or not self.self_returns_max_range_m > self.self_returns_tol_m
-                or not 0.0 < self.self_returns_share <= 1.0):
+                or not 0.0 < self.self_returns_share <= 1.0
+                or not (self.self_returns_move_m == 0.0 or self.self_returns_move_m > 2.0 * self.self_returns_tol_m)):
             raise ValueError("need self_returns_turn_rad >= 0 (0: off), self_returns_tol_m > 0, self_returns_checks "
-                             ">= 1, self_returns_max_range_m > self_returns_tol_m and 0 < self_returns_share <= 1")
+                             ">= 1, self_returns_max_range_m > self_returns_tol_m, 0 < self_returns_share <= 1 and "
+                             "self_returns_move_m 0 (off) or > 2 self_returns_tol_m")
         if self.deskew not in DESKEW_MODES:
             raise ValueError(f"deskew must be one of {', '.join(DESKEW_MODES)}, got {self.deskew!r}")
         if self.motion_prior not in MOTION_PRIORS:
@@ -204,7 +211,8 @@ class Estimator:
         self._motion = ConstantVelocity(self.config.max_prediction_gap_s)
         c = self.config
         self._self_returns = (SelfReturns(c.self_returns_turn_rad, c.self_returns_tol_m, c.self_returns_checks,
-                                          max_range_m=c.self_returns_max_range_m, min_share=c.self_returns_share)
+                                          max_range_m=c.self_returns_max_range_m, min_share=c.self_returns_share,
+                                          move_m=c.self_returns_move_m)
                               if c.self_returns_turn_rad > 0.0 else None)
         self._last_cov = np.zeros((3, 3))
         self.last_debug: StepDebug | None = None
@@ -270,8 +278,9 @@ class Estimator:
         sweeps through space the laser saw free), not from a surface straight along the beam."""
         if self._self_returns is None:
             return scan, lone_m, dropped
-        heading = predicted.theta_rad + self.config.laser_theta_rad
-        own = self._self_returns.update(np.where(np.isfinite(lone_m), lone_m, scan.ranges_m), heading)
+        laser = compose(predicted, self.config.laser_mount)
+        own = self._self_returns.update(np.where(np.isfinite(lone_m), lone_m, scan.ranges_m), laser.theta_rad,
+                                        scan.bearings_rad, (laser.x_m, laser.y_m))
         own = own | self._self_returns.found()
         if not own.any():
             return scan, lone_m, dropped
