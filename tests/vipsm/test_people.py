@@ -164,12 +164,12 @@ def test_imm_config_rejects_nonsense() -> None:
 def test_gait_a_swing_leg_beside_a_standing_one_is_a_step_and_still_legs_are_standing() -> None:
     cfg = PeopleConfig()
     walk_v = np.array([[0.0, 0.0], [0.05, 0.0]])  # walking models at rest: a walk's onset
-    still = gait_likelihoods([(0.002, -0.001, 0.1), (-0.001, 0.002, 0.1)], walk_v, cfg)
-    step = gait_likelihoods([(0.1, 0.0, 0.1), (0.001, 0.0, 0.1)], walk_v, cfg)
+    still = gait_likelihoods([(0.002, -0.001, 0.1, 1.0), (-0.001, 0.002, 0.1, 1.0)], walk_v, cfg)
+    step = gait_likelihoods([(0.1, 0.0, 0.1, 1.0), (0.001, 0.0, 0.1, 1.0)], walk_v, cfg)
     assert still[0] == pytest.approx(1.0) and max(still[1:]) < 0.5  # still legs: standing
     assert step[0] < 0.25 * max(step[1:])  # one leg 0.1 m in 0.1 s, its partner still: a step (odds x 4)
     # a leg track that took a detection 0.5 m away is no step: hardly evidence either way
-    far = gait_likelihoods([(0.5, 0.0, 0.1)], walk_v, cfg)
+    far = gait_likelihoods([(0.5, 0.0, 0.1, 1.0)], walk_v, cfg)
     assert 0.3 < min(far) <= max(far) == 1.0
 
 
@@ -177,8 +177,8 @@ def test_gait_a_steady_walkers_legs_fit_their_walking_speed() -> None:
     """Stance near a third of the body's speed, swing near twice it: the walking model of the right speed
     explains the legs of a walker at 1.2 m/s better than a walking model at rest, and far better than
     standing."""
-    like = gait_likelihoods([(0.04 * 1.2, 0.0, 0.1), (0.2 * 1.2, 0.0, 0.1)], np.array([[0.0, 0.0], [1.2, 0.0]]),
-                            PeopleConfig())
+    steps = [(0.04 * 1.2, 0.0, 0.1, 1.0), (0.2 * 1.2, 0.0, 0.1, 1.0)]
+    like = gait_likelihoods(steps, np.array([[0.0, 0.0], [1.2, 0.0]]), PeopleConfig())
     assert like[2] == 1.0 and like[1] < 0.5 and like[0] < 0.01
 
 
