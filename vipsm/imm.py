@@ -156,11 +156,8 @@ class Imm:
         """The combined prediction's innovation and its covariance for a position measurement."""
         return z - self.mean[:2], self.cov[:2, :2] + r
 
-    def update(self, z: np.ndarray, r: np.ndarray, model_like: np.ndarray | None = None) -> None:
-        """Fold in a position measurement ``z`` (2,) with covariance ``r`` (2 x 2), and optionally
-        ``model_like`` (one per model: standing first): the likelihood of further evidence under each
-        model (the legs' own motion, :func:`vipsm.people.gait_likelihoods`), which weighs the models and
-        leaves their states as they are."""
+    def update(self, z: np.ndarray, r: np.ndarray) -> None:
+        """Fold in a position measurement ``z`` (2,) with covariance ``r`` (2 x 2)."""
         like = np.empty(self.probs.size)
         for j in range(self.probs.size):
             s = self.covs[j][:2, :2] + r
@@ -171,8 +168,6 @@ class Imm:
             self.covs[j] = 0.5 * (self.covs[j] + self.covs[j].T)
             like[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / (2 * math.pi * math.sqrt(np.linalg.det(s)))
         self._mean = self._cov = None
-        if model_like is not None:
-            like = like * np.asarray(model_like, float)
         post = self.probs * like
         total = float(post.sum())
         if total > 0.0 and math.isfinite(total):

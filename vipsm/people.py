@@ -72,28 +72,6 @@ class PeopleConfig:
     #: it a hip's width apart (0.1-0.2 m at the laser's height) plus each centre's few cm of noise. Two
     #: people walking side by side, each seen by one leg, are two people, not one person's stride
     leg_across_max_m: float = 0.3
-    #: the gait (the legs' own motion, evidence of walking in the IMM: :func:`gait_likelihoods`): a
-    #: leg swings this share of a gait cycle and stands the rest (about 40 % swing, 60 % stance: Perry,
-    #: Gait Analysis) ...
-    swing_share: float = 0.4
-    #: ... and swings at this multiple of the body's velocity (a foot at 2.5; at the laser's height on
-    #: the real recordings the legs' steps along a walker's line, in body speeds: 5/25/50/75/95th
-    #: percentile 0.2/0.5/1.1/1.5/2.2, swing near 2, stance near 0.3). Both legs keep up with the body,
-    #: so a standing leg's section moves at (1 - share x this) / (1 - share) of it (0.33: the shin pivots
-    #: about the ankle) ...
-    swing_speed_ratio: float = 2.0
-    #: ... give or take this (a first step from rest swings a leg at about 1 m/s while the body has
-    #: moved a few cm)
-    swing_sigma_mps: float = 0.8
-    #: a leg centre's noise between two scans, each axis, standing (still legs' steps between two scans on
-    #: the real recordings: median 2 mm, 90th percentile 7 mm, 95 % within 11 mm, the rest jumps of the
-    #: centre by up to a leg's width, which part of it is seen: ``p_clutter`` of the steps, spread over a
-    #: leg's diameter). Set for a standing person's legs, which shift with its weight: at 5 mm a person
-    #: whose legs jittered 2 cm a scan was reported walking in 110 of 295 standing cycles, at 15 mm in none
-    leg_noise_m: float = 0.005
-    #: a leg's step is judged over at least this long (one scan at 10 Hz; with faster scans each detection
-    #: adds only its share of the overlapping windows' evidence)
-    step_time_s: float = 0.1
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
     pair_sigma_m: float = 0.06
     leg_sigma_m: float = 0.15
@@ -131,17 +109,15 @@ class PeopleConfig:
 
     def __post_init__(self) -> None:
         probs = (self.gate_p, self.p_detect, self.p_clutter, self.exist_birth, self.exist_confirm, self.exist_drop,
-                 self.moving_on, self.moving_off, self.evidence_moving, self.evidence_standing, self.swing_share,
-                 self.swing_share * self.swing_speed_ratio)
+                 self.moving_on, self.moving_off, self.evidence_moving, self.evidence_standing)
         if not all(0.0 < p < 1.0 for p in probs):
             raise ValueError("the people tracker's probabilities must lie in (0, 1)")
         if not (self.exist_drop < self.exist_birth and self.moving_off < self.moving_on):
             raise ValueError("need exist_drop < exist_birth and moving_off < moving_on")
         if min(self.leg_pair_max_m, self.pair_sigma_m, self.leg_sigma_m, self.leg_step_m,
-               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m,
-               self.swing_sigma_mps, self.leg_noise_m, self.step_time_s) <= 0.0 \
+               self.leg_memory_s, self.leg_max_speed_mps, self.leg_travel_m, self.leg_across_max_m) <= 0.0 \
                 or self.max_tracks < 1:
-            raise ValueError("need positive leg and pair sizes, noises, leg and swing speeds, memory, max_tracks >= 1")
+            raise ValueError("need positive leg and pair sizes, noises, leg speed and memory, and max_tracks >= 1")
         if not self.stand_dwell_s > 0.0:
             raise ValueError(f"stand_dwell_s must be > 0 (a person's mean standing time), got {self.stand_dwell_s}")
 
@@ -243,12 +219,6 @@ PointTest = Callable[[float, float], bool]
 #: from this speed on the velocity gives a walker's line of walking (a standing person's legs and centre
 #: wander by a few cm/s; the slowest walk is about 0.3 m/s)
 WALK_DIR_MPS = 0.3
-
-#: of a still leg's steps between two scans that are not its centre's noise (``PeopleConfig.p_clutter``),
-#: the share within a leg's width (its centre jumping with which part of it is seen); the others are
-#: another thing's detection (the real recordings' still legs: 95 % within 11 mm, 4 % within 0.1 m,
-#: 1 % beyond)
-JUMP_SHARE = 0.8
 
 #: people's track ids start here, apart from the body tracker's (both appear in ``Estimate.obstacles``)
 FIRST_ID = 1 << 20
@@ -457,9 +427,7 @@ class PeopleTracker:
     def _update(self, t: PersonTrack, z: tuple[float, float, float, list[LegTrack]]) -> None:
         c = self.config
         x, y, sigma, seen = z
-        steps = [st for lt in seen if (st := self._leg_step(lt)) is not None]
-        like = gait_likelihoods(steps, t.filt.means[1:, 2:4], c) if steps else None
-        t.filt.update(np.array([x, y]), np.eye(2) * sigma**2, like)
+        t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves, or a static thing (``_walking_share``): motion evidence is seen on a walker's
         # detections at rate evidence_moving, on anything standing still (a person or furniture) at rate
         # evidence_standing; and a person standing still walks on after stand_dwell_s on average, a static
@@ -490,21 +458,6 @@ class PeopleTracker:
         minutes of it for furniture."""
         v = t.filt.walking()[0][2:4]
         return t.filt.p_moving * min(float(math.hypot(v[0], v[1])) / WALK_DIR_MPS, 1.0)
-
-    def _leg_step(self, lt: LegTrack) -> tuple[float, float, float, float] | None:
-        """(dx, dy, dt, share) of a leg seen in full this cycle: its move since its newest detection at
-        least ``step_time_s`` old (else its oldest within ``leg_memory_s``), over ``dt``, and the share of
-        that time new since its previous detection (consecutive windows overlap: each detection adds
-        only its own share of the evidence). None without one. A partly hidden leg's centre moves with
-        its occluder's edge."""
-        if lt.det is None or lt.det.occluded or len(lt.path) < 2:
-            return None
-        t1, x1, y1 = lt.path[-1]
-        old = [p for p in lt.path[:-1] if t1 - p[0] >= self.config.step_time_s - 1e-6]
-        t0, x0, y0 = old[-1] if old else lt.path[0]
-        if t1 <= t0:
-            return None
-        return x1 - x0, y1 - y0, t1 - t0, min((t1 - lt.path[-2][0]) / (t1 - t0), 1.0)
 
     def _travelled(self, lt: LegTrack) -> bool:
         """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
@@ -631,47 +584,6 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
-
-
-def gait_likelihoods(steps: list[tuple[float, float, float, float]], walk_v_mps: np.ndarray, cfg: PeopleConfig
-                     ) -> np.ndarray:
-    """The likelihood of the legs' own steps ``(dx, dy, dt, share)`` (each leg seen in full: its move over
-    the last ``dt``, of which ``share`` is new since the leg's previous detection; the likelihood counts
-    to that power, so that overlapping windows count each stretch of time once) under each IMM model
-    (standing first, then one per row of ``walk_v_mps``, the walking
-    models' predicted velocities), up to a common factor. A gait model: a standing person's legs stand
-    (a step is two detections' noise ``leg_noise_m`` plus the standing sway ``imm.stand_sigma_mps``); a
-    walker's leg swings with probability ``swing_share``, at ``swing_speed_ratio`` times the body's
-    velocity give or take ``swing_sigma_mps``, and stands otherwise, its section at the laser's height
-    moving at what is left of the body's velocity (the legs keep up with the body on average), give or
-    take as much. Under either model a step is, with probability ``p_clutter``, not the leg's own
-    motion: mostly (``JUMP_SHARE``) its detected centre's jump across the leg (which part of it is
-    seen), spread over a leg's diameter, else another thing's detection anywhere in the leg tracker's
-    reach (a leg track that took a neighbour's leg or a far detection after a gap). A leg that swings
-    while its partner stands is thus a step, the onset of a walk that the legs' midpoint shows only
-    later (it moves half as far; the body, starting, a few cm); furniture never steps."""
-    c = cfg
-    walk_v = np.asarray(walk_v_mps, float).reshape(-1, 2)
-    stance_ratio = (1.0 - c.swing_share * c.swing_speed_ratio) / (1.0 - c.swing_share)
-    speed = np.hypot(walk_v[:, 0], walk_v[:, 1])
-    log_like = np.zeros(1 + len(walk_v))
-    for dx, dy, dt, share in steps:
-        d = np.array([dx, dy])
-        var0 = 2.0 * c.leg_noise_m**2 + c.imm.stand_sigma_mps**2 * dt
-        reach_m = c.leg_step_m + c.leg_max_speed_mps * dt
-        other = c.p_clutter * (JUMP_SHARE * _normal2(d, var0 + (2.0 * c.leg_radius_m) ** 2)
-                               + (1.0 - JUMP_SHARE) / (math.pi * reach_m**2))
-        stance = _normal2(d, var0)
-        walk = [(1.0 - c.swing_share) * _normal2(d - stance_ratio * v * dt, var0 + (stance_ratio * s * dt) ** 2)
-                + c.swing_share * _normal2(d - c.swing_speed_ratio * v * dt, var0 + (c.swing_sigma_mps * dt) ** 2)
-                for v, s in zip(walk_v, speed, strict=True)]
-        log_like += share * np.log((1.0 - c.p_clutter) * np.array([stance, *walk]) + other)
-    return np.exp(log_like - log_like.max())
-
-
-def _normal2(d: np.ndarray, var: float) -> float:
-    """The isotropic 2-d normal density of ``d`` with variance ``var`` per axis."""
-    return math.exp(-0.5 * float(d @ d) / var) / (2.0 * math.pi * var)
 
 
 def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float, radius_m: float) -> list[int | None]:

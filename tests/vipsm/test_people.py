@@ -14,7 +14,7 @@ from vipsm.assignment import assign
 from vipsm.bodies import BodiesConfig
 from vipsm.imm import Imm, ImmConfig
 from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
-from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, detect_legs, gait_likelihoods
+from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, detect_legs
 from vipsm.types import Obstacle, Pose2D
 
 RNG_SEED = 29
@@ -158,89 +158,6 @@ def test_imm_config_rejects_nonsense() -> None:
         ImmConfig(switch_per_s=0.0)
     with pytest.raises(ValueError):
         ImmConfig(init_p_moving=1.0)
-
-
-# ------------------------------------------------------------------------------------------ gait
-def test_gait_a_swing_leg_beside_a_standing_one_is_a_step_and_still_legs_are_standing() -> None:
-    cfg = PeopleConfig()
-    walk_v = np.array([[0.0, 0.0], [0.05, 0.0]])  # walking models at rest: a walk's onset
-    still = gait_likelihoods([(0.002, -0.001, 0.1, 1.0), (-0.001, 0.002, 0.1, 1.0)], walk_v, cfg)
-    step = gait_likelihoods([(0.1, 0.0, 0.1, 1.0), (0.001, 0.0, 0.1, 1.0)], walk_v, cfg)
-    assert still[0] == pytest.approx(1.0) and max(still[1:]) < 0.5  # still legs: standing
-    assert step[0] < 0.25 * max(step[1:])  # one leg 0.1 m in 0.1 s, its partner still: a step (odds x 4)
-    # a leg track that took a detection 0.5 m away is no step: hardly evidence either way
-    far = gait_likelihoods([(0.5, 0.0, 0.1, 1.0)], walk_v, cfg)
-    assert 0.3 < min(far) <= max(far) == 1.0
-
-
-def test_gait_a_steady_walkers_legs_fit_their_walking_speed() -> None:
-    """Stance near a third of the body's speed, swing near twice it: the walking model of the right speed
-    explains the legs of a walker at 1.2 m/s better than a walking model at rest, and far better than
-    standing."""
-    steps = [(0.04 * 1.2, 0.0, 0.1, 1.0), (0.2 * 1.2, 0.0, 0.1, 1.0)]
-    like = gait_likelihoods(steps, np.array([[0.0, 0.0], [1.2, 0.0]]), PeopleConfig())
-    assert like[2] == 1.0 and like[1] < 0.5 and like[0] < 0.01
-
-
-def _gait(start_s: float, seed: int, duration_s: float = 4.0, dt: float = 0.1, noise_m: float = 0.005
-          ) -> list[tuple[float, list[LegDetection]]]:
-    """Legs of a person standing at the origin who starts walking along x at ``start_s`` (1.8 m/s^2 to
-    1.1 m/s); steps of 0.5 s, each leg swinging 0.4 s of it (a smooth profile) to 0.15 m ahead of where
-    the body will be at the step's end, while the other stands."""
-    rng = np.random.default_rng(seed)
-    vmax, ta = 1.1, 1.1 / WALK_ACCEL_MPS2
-
-    def body(t: float) -> float:
-        tt = max(t - start_s, 0.0)
-        return 0.5 * WALK_ACCEL_MPS2 * min(tt, ta) ** 2 + vmax * max(tt - ta, 0.0)
-
-    out = []
-    for k in range(int(duration_s / dt)):
-        t = k * dt
-        feet = [0.0, 0.0]
-        if t >= start_s:
-            n = int((t - start_s) // 0.5)
-            for m in range(n):
-                feet[m % 2] = body(start_s + 0.5 * (m + 1)) + 0.15
-            a = min((t - start_s - 0.5 * n) / 0.4, 1.0)
-            i = n % 2
-            feet[i] += (body(start_s + 0.5 * (n + 1)) + 0.15 - feet[i]) * 0.5 * (1.0 - math.cos(math.pi * a))
-        out.append((t, [LegDetection(feet[0] + rng.normal(0, noise_m), -0.1 + rng.normal(0, noise_m), 0.9, 0, 1),
-                        LegDetection(feet[1] + rng.normal(0, noise_m), 0.1 + rng.normal(0, noise_m), 0.9, 2, 3)]))
-    return out
-
-
-def test_a_walks_onset_is_seen_from_the_first_step_within_0_3_s() -> None:
-    """The legs' midpoint alone showed a start only after 0.5-0.6 s (the body moves 1, 4, 8 cm in 0.1,
-    0.2, 0.3 s); the swinging leg beside the standing one tells it within 0.3 s. Standing, the same legs
-    never look like walking."""
-    for seed in range(5):
-        tr = PeopleTracker(PeopleConfig(), default_leg_model())
-        p_walk = []
-        for t, legs in _gait(2.0, seed):
-            tr.step(t, legs)
-            (person,) = tr.tracks
-            p_walk.append((t, person.filt.p_moving))
-        assert max(p for t, p in p_walk if 0.5 <= t < 2.0) < 0.3, seed
-        assert max(p for t, p in p_walk if 2.0 <= t <= 2.3 + 1e-9) >= 0.8, seed
-
-
-def test_a_chairs_legs_whose_centres_jump_across_the_leg_never_walk() -> None:
-    """Still legs whose detected centres jump now and then by up to a leg's width (which part of it is
-    seen, 5 % of the scans) keep P(walking) low: a jump is no swing leg's step."""
-    rng = np.random.default_rng(RNG_SEED)
-    tr = PeopleTracker(PeopleConfig(), default_leg_model())
-    worst = 0.0
-    for k in range(300):
-        legs = []
-        for i, y in enumerate((-0.2, 0.2)):
-            jump = rng.normal(0.0, 0.05, 2) if rng.random() < 0.05 else np.zeros(2)
-            legs.append(LegDetection(2.0 + jump[0] + rng.normal(0, 0.003), y + jump[1] + rng.normal(0, 0.003),
-                                     0.9, 2 * i, 2 * i + 1))
-        tr.step(0.1 * k, legs)
-        if k > 10:
-            worst = max(worst, max(t.filt.p_moving for t in tr.tracks))
-    assert worst < 0.8 and not any(t.moving for t in tr.tracks)
 
 
 # ------------------------------------------------------------------------------------------ tracker
@@ -536,10 +453,6 @@ def test_people_config_rejects_nonsense() -> None:
         PeopleConfig(p_detect=1.0)
     with pytest.raises(ValueError, match="stand_dwell_s"):
         PeopleConfig(stand_dwell_s=0.0)
-    with pytest.raises(ValueError):  # the legs would outrun the body: a stance leg moving backwards
-        PeopleConfig(swing_share=0.5, swing_speed_ratio=2.0)
-    with pytest.raises(ValueError):
-        PeopleConfig(leg_noise_m=0.0)
 
 
 def test_people_channel_colours_standing_and_moving_people_apart(tmp_path) -> None:
