@@ -79,8 +79,11 @@ class SelfReturns:
     has travelled ``move_m`` since the last one. Driving straight, a wall parallel to the travel also stays at
     one (beam, range), so there a return counts only where the last check's scan saw through its world point
     (or this scan sees through the point that beam returned then): it moved with the laser, and only on a
-    beam that held it in every scan since (see :meth:`_move_evidence`). A robot that drives straight for its
-    first seconds learns its parts within ``2-3 move_m``, before its first turn.
+    beam that held it in every scan since (see :meth:`_move_evidence`). A beam that returned nothing in
+    some of those scans (a part it grazes, a dark part) held it too if it returned there in at least half
+    of them; that weaker evidence counts only where the point was seen through to beyond ``max_range_m``
+    (the world, not a second body within the robot's reach such as a follower's other leg). A robot that
+    drives straight for its first seconds learns its parts within ``2-3 move_m``, before its first turn.
 
     Counts decay by ``1 - 1/memory_checks`` a check, so the model follows a robot
     that changes (a door of the robot opened, a load put on). A bin held in at least ``min_share`` of the
@@ -169,25 +172,40 @@ class SelfReturns:
         the last check's scan saw through its world point, or this scan sees through the world point of the
         return that beam had then (the point moved with the laser: a hit). A point that scan saw (a static
         surface, a wall parallel to the travel, but also a part of the robot that stretches along the travel),
-        or could not see (out of its view, behind a nearer return, no return there), says nothing: no count."""
+        or could not see (out of its view, behind a nearer return, no return there), says nothing: no count.
+        A return held with gaps (:meth:`_held`) counts only where the point was seen through to beyond the
+        robot's reach ``max_range_m``: a follower's near leg is seen through by its other leg a few tenths
+        of a metre further, a part of the robot by the room."""
         rr = np.where(np.isfinite(look.ranges_m), look.ranges_m, -np.inf)[:, None]
         centre = (np.arange(self._bins) + 0.5) * self.tol_m
         # both ways: a part ahead of the laser's travel moves to where the last check's scan could not look
         # (behind a laser that faces back), but where it stood then is in the view now
-        free = _verdict(self._anchor, look, 2.0 * self.tol_m)[1] | _verdict(look, self._anchor, 2.0 * self.tol_m)[1]
-        steady = self._held(look.ranges_m)[:, None]
-        hits = steady & free[:, None] & (np.abs(centre[None, :] - rr) <= self.tol_m)
+        m, reach = 2.0 * self.tol_m, self.max_range_m
+        free = _verdict(self._anchor, look, m)[1] | _verdict(look, self._anchor, m)[1]
+        world = _verdict(self._anchor, look, m, reach)[1] | _verdict(look, self._anchor, m, reach)[1]
+        held, gapped = self._held(look.ranges_m)
+        steady = (held | gapped)[:, None]
+        hits = ((held & free) | (gapped & world))[:, None] & (np.abs(centre[None, :] - rr) <= self.tol_m)
         return hits | (steady & (centre[None, :] < rr - self.tol_m)), hits
 
-    def _held(self, r: np.ndarray) -> np.ndarray:
+    def _held(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per beam: its return ``r`` held since the last move check, within ``2 tol_m`` in every scan since
-        (that check's scan included) without a gap. A part of the robot does; a walking person's legs, which
-        stand on the floor while the laser passes and then swing past it, seldom do over the ``move_m`` between
-        two checks. A part that the beam passes beside now and then (its outline) is left to the turn checks."""
+        (that check's scan included) without a gap; and, where not, held with gaps: in the scans between, the
+        beam returned there or nothing, and there in at least half of them. A part of the robot holds its
+        return; a walking person's legs, which stand on the floor while the laser passes and then swing past
+        it, seldom do over the ``move_m`` between two checks: the beam sees the world behind them (a return
+        beyond). A part's return is always at one range when present, but a beam that grazes it or a dark part
+        returns nothing now and then (the drive's right laser: a part at 0.41-0.46 m missed in a third of the
+        scans), which is no evidence against it. A leg in open space, with nothing behind it to return, gives
+        the same gaps; so a gapped return is the weaker evidence (see :meth:`_move_evidence`). A part that the
+        beam passes beside now and then (its outline, a return beyond it) is left to the turn checks."""
         since = np.stack(self._since)
         with np.errstate(invalid="ignore"):
             at = np.abs(since - r[None, :]) <= 2.0 * self.tol_m
-        return np.isfinite(r) & at.all(axis=0)
+        ok = np.isfinite(r)
+        held = ok & at.all(axis=0)
+        gapped = ok & ~held & (at | ~np.isfinite(since)).all(axis=0) & (2 * at.sum(axis=0) >= len(self._since))
+        return held, gapped
 
     def _count(self, looks: np.ndarray, hits: np.ndarray) -> None:
         """Count one check's evidence into the (beam, range bin) model and take the footprint again."""
@@ -233,11 +251,11 @@ class _Look:
     heading_rad: float
 
 
-def _verdict(then: _Look, now: _Look, margin_m: float) -> tuple[np.ndarray, np.ndarray]:
+def _verdict(then: _Look, now: _Look, margin_m: float, reach_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Per beam of ``now``: its return's world point was seen by ``then`` (a return within ``margin_m`` on
     the nearest beam or a neighbour: static), or seen through (all three returned beyond it by more than
-    ``margin_m``: free). Neither where the point is out of ``then``'s view, behind a nearer return or where a
-    beam returned nothing (no evidence)."""
+    ``margin_m``, and beyond ``reach_m`` from ``then``'s laser: free). Neither where the point is out of
+    ``then``'s view, behind a nearer return or where a beam returned nothing (no evidence)."""
     a = now.heading_rad + now.bearings_rad
     wx, wy = now.x_m + now.ranges_m * np.cos(a), now.y_m + now.ranges_m * np.sin(a)
     dx, dy = wx - then.x_m, wy - then.y_m
@@ -254,6 +272,7 @@ def _verdict(then: _Look, now: _Look, margin_m: float) -> tuple[np.ndarray, np.n
         idx = np.clip(np.rint(np.where(inside, pos, 0.0)).astype(int), 0, n - 1)
         near = then.ranges_m[np.clip(idx[:, None] + np.array([-1, 0, 1])[None, :], 0, n - 1)]
         static = inside & (np.abs(near - rng[:, None]) <= margin_m).any(axis=1)
-        free = inside & ~static & (np.isfinite(near) & (near > rng[:, None] + margin_m)).all(axis=1)
+        beyond = np.maximum(rng[:, None] + margin_m, reach_m)
+        free = inside & ~static & (np.isfinite(near) & (near > beyond)).all(axis=1)
     ok = np.isfinite(now.ranges_m)
     return static & ok, free & ok
