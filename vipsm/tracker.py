@@ -323,8 +323,8 @@ def _kind_slack_m(a: Detection, b: Detection, kind_change_m: float) -> float:
     """How far apart two detections of one body may be placed with the body still: 0 for one kind; a lone leg
     and a leg pair's midpoint up to ``kind_change_m`` (half the widest pair); a round body (the legs seen as
     one segment) and a leg or a pair inside its outline: up to its fitted radius. A wall piece's circle fit
-    and a thin post 0.7 m beside it are not one body (a rear laser's track hopped from one to the other,
-    "moved" 0.7 m and was reported in a turn)."""
+    and a thin post 0.7 m beside it are not one body (a track chaining from one to the other "moves" 0.7 m
+    with nothing moving)."""
     if a.kind == b.kind:
         return 0.0
     if "body" in (a.kind, b.kind):
