@@ -259,9 +259,9 @@ class Estimator:
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
-        own = self._heading_sigma_rad
-        own = self.config.seen_through.heading_sigma_rad if own is None else own
-        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, own) for b in bodies])
+        sigma = self._heading_sigma_rad
+        sigma = self.config.seen_through.heading_sigma_rad if sigma is None else sigma
+        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, sigma) for b in bodies])
         if self._people is not None:
             legs = _with_evidence(detect_legs(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
                                               self.config.people, self.config.bodies, dropped), bodies)

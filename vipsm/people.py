@@ -428,10 +428,8 @@ class PeopleTracker:
         c = self.config
         x, y, sigma, seen = z
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
-        # a body that moves, or a static thing (``_walking_share``): motion evidence is seen on a walker's
-        # detections at rate evidence_moving, on anything standing still (a person or furniture) at rate
-        # evidence_standing; and a person standing still walks on after stand_dwell_s on average, a static
-        # thing never. Only time seen counts as time standing (at most a leg's memory between detections)
+        # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
+        # only time seen counts as time standing (at most a leg's memory between detections)
         ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
         share = self._walking_share(t)
         e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)

@@ -181,8 +181,9 @@ class SelfReturns:
         # both ways: a part ahead of the laser's travel moves to where the last check's scan could not look
         # (behind a laser that faces back), but where it stood then is in the view now
         m, reach = 2.0 * self.tol_m, self.max_range_m
-        free = _verdict(self._anchor, look, m)[1] | _verdict(look, self._anchor, m)[1]
-        world = _verdict(self._anchor, look, m, reach)[1] | _verdict(look, self._anchor, m, reach)[1]
+        free_a, world_a = _seen_through(self._anchor, look, m, reach)
+        free_b, world_b = _seen_through(look, self._anchor, m, reach)
+        free, world = free_a | free_b, world_a | world_b
         held, gapped = self._held(look.ranges_m)
         steady = (held | gapped)[:, None]
         hits = ((held & free) | (gapped & world))[:, None] & (np.abs(centre[None, :] - rr) <= self.tol_m)
@@ -195,10 +196,10 @@ class SelfReturns:
         return; a walking person's legs, which stand on the floor while the laser passes and then swing past
         it, seldom do over the ``move_m`` between two checks: the beam sees the world behind them (a return
         beyond). A part's return is always at one range when present, but a beam that grazes it or a dark part
-        returns nothing now and then (the drive's right laser: a part at 0.41-0.46 m missed in a third of the
-        scans), which is no evidence against it. A leg in open space, with nothing behind it to return, gives
-        the same gaps; so a gapped return is the weaker evidence (see :meth:`_move_evidence`). A part that the
-        beam passes beside now and then (its outline, a return beyond it) is left to the turn checks."""
+        returns nothing now and then (in up to half of the scans), which is no evidence against it. A leg in
+        open space, with nothing behind it to return, gives the same gaps; so a gapped return is the weaker
+        evidence (see :meth:`_move_evidence`). A part that the beam passes beside now and then (its outline, a
+        return beyond it) is left to the turn checks."""
         since = np.stack(self._since)
         with np.errstate(invalid="ignore"):
             at = np.abs(since - r[None, :]) <= 2.0 * self.tol_m
@@ -251,11 +252,12 @@ class _Look:
     heading_rad: float
 
 
-def _verdict(then: _Look, now: _Look, margin_m: float, reach_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Per beam of ``now``: its return's world point was seen by ``then`` (a return within ``margin_m`` on
-    the nearest beam or a neighbour: static), or seen through (all three returned beyond it by more than
-    ``margin_m``, and beyond ``reach_m`` from ``then``'s laser: free). Neither where the point is out of
-    ``then``'s view, behind a nearer return or where a beam returned nothing (no evidence)."""
+def _seen_through(then: _Look, now: _Look, margin_m: float, reach_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per beam of ``now``: its return's world point was seen through by ``then`` (all three nearest beams
+    returned beyond it by more than ``margin_m``; none returned within ``margin_m`` of it, which would be
+    the point seen, static), and seen through to beyond ``reach_m`` from ``then``'s laser as well. Neither
+    where the point is out of ``then``'s view, behind a nearer return or where a beam returned nothing (no
+    evidence)."""
     a = now.heading_rad + now.bearings_rad
     wx, wy = now.x_m + now.ranges_m * np.cos(a), now.y_m + now.ranges_m * np.sin(a)
     dx, dy = wx - then.x_m, wy - then.y_m
@@ -272,7 +274,7 @@ def _verdict(then: _Look, now: _Look, margin_m: float, reach_m: float = 0.0) -> 
         idx = np.clip(np.rint(np.where(inside, pos, 0.0)).astype(int), 0, n - 1)
         near = then.ranges_m[np.clip(idx[:, None] + np.array([-1, 0, 1])[None, :], 0, n - 1)]
         static = inside & (np.abs(near - rng[:, None]) <= margin_m).any(axis=1)
-        beyond = np.maximum(rng[:, None] + margin_m, reach_m)
-        free = inside & ~static & (np.isfinite(near) & (near > beyond)).all(axis=1)
+        free = inside & ~static & (np.isfinite(near) & (near > rng[:, None] + margin_m)).all(axis=1)
+        far = free & (near > reach_m).all(axis=1)
     ok = np.isfinite(now.ranges_m)
-    return static & ok, free & ok
+    return free & ok, far & ok
