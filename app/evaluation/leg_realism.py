@@ -17,7 +17,8 @@ at most ``LegConfig.max_width_m`` wide, at least 3 returns) are scored by the sh
 The real recordings come from a 768-beam Hokuyo at 0.3516 deg steps; the simulated UTM-30LX has
 0.25 deg steps, so a leg at the same range has about 1.4x as many returns, and its own range noise.
 ``--geometry leg_tracker`` casts the simulated sweeps on the recordings' beam pattern (the world takes
-any beam angles) with the recordings' measured range noise (``LEG_TRACKER_SIGMA_M``), so the world's
+any beam angles) with the recordings' measured range noise (``LEG_TRACKER_SIGMA_M``) and depth edges
+(footprint and pulse: ``hil_fakes.world.laser_effects.LEG_TRACKER_*``), so the world's
 bodies are compared with real ones through the same sensor; ``utm30lx`` is the world as the estimator
 sees it. ``sensor_noise`` reports both sensors' measured range noise (the recordings' still laser, and
 the recorded UTM-30LX frame in ``hokuyo_utm30lx_session``). ``--no-real``: the simulated sets only.
@@ -39,6 +40,7 @@ import numpy as np
 from app.evaluation.real_data import DRIVE_BAG, drive_leg_rows, labelled_leg_rows
 from app.legmodel import leg_candidates
 from hil_fakes.world import LaserModel, World
+from hil_fakes.world.laser_effects import LEG_TRACKER_DIVERGENCE_DEG, LEG_TRACKER_ECHO_SEPARATION_M
 from hil_fakes.world.scenarios import Scenario, suite_scenario
 from vipsm.legs import FEATURE_NAMES, LegModel
 
@@ -184,6 +186,10 @@ def sweeps(scenario: Scenario, geometry: str, step_s: float) -> Iterator[tuple[W
     laser = LaserModel()
     if geometry == "leg_tracker":
         laser = replace(laser, sigma_near_m=LEG_TRACKER_SIGMA_M, sigma_per_range=0.0, sigma_far_m=LEG_TRACKER_SIGMA_M)
+        if scenario.laser_effects.enabled:  # that sensor's footprint and pulse (fitted to its edges)
+            scenario = replace(scenario, laser_effects=replace(
+                scenario.laser_effects, divergence_rad=math.radians(LEG_TRACKER_DIVERGENCE_DEG),
+                echo_separation_m=LEG_TRACKER_ECHO_SEPARATION_M))
     world = World(scenario, laser=laser)
     angles, dt = beam_pattern(geometry, world)
     command = scenario.command_at(0.0)

@@ -146,7 +146,8 @@ PARAMS: dict[str, Param] = {
     ),
     # the realistic world's effects (ignored by the ideal world); defaults from datasheets and physics
     "laser_divergence_deg": Param(float, 0.3, 0.0, 2.0, "deg", "UTM-30LX beam divergence [?] (0.25-0.4)"),
-    "laser_mixed_prob": Param(float, 0.5, 0.0, 1.0, "", "probability a footprint on a depth edge mixes"),
+    "laser_echo_separation_m": Param(float, 1.1, 0.0, 10.0, "m", "range apart at which two echoes are "
+                                     "resolved (pulse std x 2): closer ones merge into a mixed pixel"),
     "laser_noise_scale": Param(float, 1.0, 0.0, 10.0, "x", "range noise scale: 1 = the measured UTM-30LX "
                                "(2.2 mm + 0.7 mm/m), 3 = the datasheet's +-30 mm read as 3 sigma at 1-3 m"),
     "laser_dropout_prob": Param(float, 0.001, 0.0, 0.5, "", "random no-return probability per beam"),
@@ -710,7 +711,7 @@ def check_robot_path(scenario: Scenario) -> None:
 def laser_effects(prm: dict[str, Any]) -> LaserEffects:
     return LaserEffects(
         divergence_rad=math.radians(prm["laser_divergence_deg"]),
-        mixed_prob=prm["laser_mixed_prob"],
+        echo_separation_m=prm["laser_echo_separation_m"],
         dropout_prob=prm["laser_dropout_prob"],
         noise_scale=prm["laser_noise_scale"],
         spurious_prob=prm["laser_spurious_prob"],

@@ -262,7 +262,7 @@ class World:
         ang = (th + m.laser_theta_rad + a)[:, None] + fx.offsets_rad()[None, :]
         dist, owner, refl_s, cos_inc, surface = self._cast_laser(ox[:, None], oy[:, None], ang, times)
         if fx.enabled:
-            dist0, src = footprint_return(dist, cos_inc, surface, fx, fx_rng)
+            dist0, src = footprint_return(dist, cos_inc, surface, fx, fx_rng, refl_s)
             pick = np.maximum(src, 0)[:, None]
             hit_ob = np.where(src >= 0, np.take_along_axis(owner, pick, axis=1)[:, 0], -1)
             refl = np.where(src >= 0, np.take_along_axis(refl_s, pick, axis=1)[:, 0], 0.4)

@@ -25,9 +25,10 @@ MARGIN = 0.10
 #: real held-out legs at 5-8 m: positive_6's labelled legs re-seen there (tools/train_legs.py ``by_range``,
 #: 201 at 5-6.5 m taken 0.62, 185 at 6.5-8 m taken 0.48); no real leg is labelled beyond 5 m
 REAL_FAR_LEG_SHARE = 0.55
-#: simulated walkers' legs at 5-8 m, measured 0.27 of 44 (the old detector: 0.00); below the real
-#: REAL_FAR_LEG_SHARE because of the world's edges (the test's docstring): not met, a floor against regression
-FAR_SIM_LEG_SHARE = 0.15
+#: simulated walkers' legs at 5-8 m, measured 0.11 of 37 (0.27 with the old edge model, which mixed at half
+#: of all edges; the old detector: 0.00); below the real REAL_FAR_LEG_SHARE (the test's docstring): not met,
+#: a floor against regression
+FAR_SIM_LEG_SHARE = 0.05
 WALKER_SCENES = ("cross_60", "cross_90", "two_people_opposite")
 
 
@@ -56,10 +57,12 @@ def test_the_detector_takes_simulated_walkers_legs_for_legs_as_often_as_real_one
 
 def test_simulated_legs_beyond_the_labelled_range_are_taken_for_legs(model) -> None:
     """Every labelled real leg lies within 5 m; trained on them also re-seen from farther, the detector
-    takes a simulated walker's leg at 5-8 m for a leg 0.27 of the time (44 legs; before: never, 0.00).
-    Real held-out legs re-seen there are taken about REAL_FAR_LEG_SHARE of the time: the gap is the world's
-    edges, not the detector (a simulated far leg with a mixed pixel attached is never taken, 0 of 10, while
-    the recordings' laser returns a mixed pixel at 2 % of a leg's edges and no echo at 75-90 %)."""
+    takes a simulated walker's leg at 5-8 m for a leg 0.11 of the time (37 legs; before: never, 0.00).
+    Real held-out legs re-seen there are taken about REAL_FAR_LEG_SHARE of the time. The world's far legs
+    stand 0.3-1 m before a wall (253 of 260 leg ends), where the UTM-30LX returns a mixed pixel at 0.76 of
+    its recorded edges (docs/simulation.md); the real legs were recorded by another Hokuyo (0.22 at such
+    edges) before open space (no echo beside 75-90 % of them), and a far leg with a mixed pixel attached is
+    never taken (0 of 5)."""
     n, share = lr.range_share(lr.sim_legs(("wall_hugger", "crowd"), "utm30lx", 0.25), model, 5.0, 8.0)
     assert n > 30
     assert share >= FAR_SIM_LEG_SHARE

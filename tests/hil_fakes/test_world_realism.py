@@ -24,38 +24,49 @@ def _static(obstacles: tuple[ObstaclePath, ...] = (), **params: object) -> objec
 
 
 # ------------------------------------------------------------------------------------------ laser
-def test_mixed_pixels_lie_between_the_two_surfaces_and_only_at_depth_edges() -> None:
-    post = ObstaclePath(radius_m=0.3, waypoints=((3.0, 0.0),), speed_mps=0.0, start_s=0.0)
-    fx = LaserEffects(mixed_prob=1.0, dropout_prob=0.0, spurious_prob=0.0)
-    sc = replace(_static((post,)), laser_effects=fx)
+def _post_sweeps(x_post_m: float, radius_m: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Sweeps of a still robot at x = 0.6 m facing a post (centre on the laser's axis at ``x_post_m``)
+    with the far wall (x = 8 m) behind it: (ranges (n, beams), the ideal post distance per beam (inf: the
+    beam misses it), the far wall's distance per beam, the silhouette's bearing)."""
+    post = ObstaclePath(radius_m=radius_m, waypoints=((x_post_m, 0.0),), speed_mps=0.0, start_s=0.0)
+    sc = _static((post,), laser_dropout_prob=0.0, laser_spurious_prob=0.0)
     world = World(sc, mount=RobotMount(laser_x_m=0.0))
-    lm = world.laser
-    ang = lm.angles_rad()
-    # the ideal geometry: the post's surface and the far wall behind it, per beam
+    ang = world.laser.angles_rad()
     x0 = sc.robot_start[0]
     d_post = np.full(ang.size, np.inf)
-    b = (x0 - 3.0) * np.cos(ang)
-    disc = b * b - ((x0 - 3.0) ** 2 - 0.09)
+    b = (x0 - x_post_m) * np.cos(ang)
+    disc = b * b - ((x0 - x_post_m) ** 2 - radius_m**2)
     hit = disc >= 0
     d_post[hit] = -b[hit] - np.sqrt(disc[hit])
-    d_wall = (8.0 - x0) / np.cos(ang)  # the far wall, for beams that reach it
-    edge_half = fx.divergence_rad / 2 + lm.angle_increment_rad
-    silhouette = math.asin(0.3 / (3.0 - x0))
-    mixed_seen = 0
-    for k in range(20):
-        r = world.sweep(float(k))
-        front = np.abs(ang) < 0.2
-        between = front & np.isfinite(r.ranges_m) & (r.ranges_m > np.where(hit, d_post, 0) + 0.05) & (
-            r.ranges_m < d_wall - 0.05
-        )
-        between &= hit | (np.abs(np.abs(ang) - silhouette) < edge_half)  # candidates
-        idx = np.flatnonzero(between)
-        near_edge = np.abs(np.abs(ang[idx]) - silhouette) <= edge_half
-        assert near_edge.all(), ang[idx][~near_edge]
-        lo = np.where(hit[idx], d_post[idx], 2.7 - x0 + 3.0) - 0.05
-        assert np.all(r.ranges_m[idx] >= lo - 0.05) and np.all(r.ranges_m[idx] <= d_wall[idx] + 0.05)
-        mixed_seen += idx.size
-    assert mixed_seen > 0  # with mixed_prob 1 every straddling footprint mixes
+    d_wall = (8.0 - x0) / np.cos(ang)
+    sweeps = np.array([world.sweep(float(k)).ranges_m for k in range(n)])
+    return sweeps, d_post, d_wall, math.asin(radius_m / (x_post_m - x0))
+
+
+def test_mixed_pixels_lie_between_the_two_surfaces_and_only_at_depth_edges() -> None:
+    """A post 0.45 m in front of the far wall (less than the echo separation: the echoes merge): every
+    return off both surfaces lies between them, beside the post's silhouette."""
+    sweeps, d_post, d_wall, silhouette = _post_sweeps(7.4, 0.15, 20)
+    fx = LaserEffects()
+    ang = LaserModel().angles_rad()
+    edge_half = fx.divergence_rad / 2 + LaserModel().angle_increment_rad
+    front = np.abs(ang) < 0.2
+    off = np.isfinite(sweeps) & (np.abs(sweeps - d_post) > 0.03) & (np.abs(sweeps - d_wall) > 0.03) & front
+    k, idx = np.nonzero(off)
+    assert idx.size > 0  # merged echoes do float between the post and the wall
+    assert np.all(np.abs(np.abs(ang[idx]) - silhouette) <= edge_half), ang[idx]
+    r = sweeps[k, idx]
+    assert np.all(r > 7.4 - 0.15 - 0.6 - 0.03) and np.all(r < d_wall[idx] + 0.03)
+
+
+def test_echoes_farther_apart_than_the_separation_do_not_mix() -> None:
+    """A post 4 m in front of the wall: the two echoes are resolved, the beam reports one surface (the
+    stronger echo) and nothing floats between them."""
+    sweeps, d_post, d_wall, _ = _post_sweeps(3.5, 0.15, 20)
+    ang = LaserModel().angles_rad()
+    front = np.isfinite(sweeps) & (np.abs(ang) < 0.2)
+    off = front & (np.abs(sweeps - d_post) > 0.03) & (np.abs(sweeps - d_wall) > 0.03)
+    assert not off.any(), sweeps[off]
 
 
 def test_grazing_beams_give_no_return() -> None:
@@ -113,7 +124,7 @@ def test_range_noise_grows_with_range_to_the_datasheet_bound() -> None:
 def test_the_noise_scale_multiplies_the_range_noise() -> None:
     """``laser_noise_scale`` (a pessimistic world: 3 is the datasheet's bound read as 3 sigma) scales the
     scan-to-scan spread of a static scene, nothing else."""
-    fx = LaserEffects(mixed_prob=0.0, dropout_prob=0.0, spurious_prob=0.0)
+    fx = LaserEffects(echo_separation_m=0.0, dropout_prob=0.0, spurious_prob=0.0)
     spreads = []
     for scale in (1.0, 3.0):
         world = World(replace(_static(), laser_effects=replace(fx, noise_scale=scale)))
@@ -128,7 +139,7 @@ def test_the_noise_scale_multiplies_the_range_noise() -> None:
 
 
 def test_dropouts_and_spurious_returns_have_the_configured_rates() -> None:
-    fx = LaserEffects(mixed_prob=0.0, dropout_prob=0.05, spurious_prob=0.05, grazing_limit_deg=90.0)
+    fx = LaserEffects(echo_separation_m=0.0, dropout_prob=0.05, spurious_prob=0.05, grazing_limit_deg=90.0)
     world = World(replace(_static(), laser_effects=fx), mount=RobotMount(laser_x_m=0.0))
     ideal = World(replace(_static(), laser_effects=LaserEffects(enabled=False)), mount=RobotMount(laser_x_m=0.0))
     ref = ideal.sweep(0.0).ranges_m
