@@ -17,7 +17,8 @@ model would have to choose: steady enough to average out the gait's 0.1-0.2 m/s 
 midpoint, or quick enough to follow a sidestep. The measurement noise comes with each detection (a
 leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
 changed (another point of the body). A lone leg of a track seen as a leg pair before is one of a
-person's legs: the centre lies anywhere within half the widest pair of it, its noise that wide.
+person's legs: the centre lies anywhere within half the widest pair of it, its noise that wide. Two lone
+legs standing where the track's legs stood are the person's two legs, measured as the pair they are.
 
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
@@ -30,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -330,6 +331,19 @@ def _kind_slack_m(a: Detection, b: Detection, kind_change_m: float) -> float:
     if "body" in (a.kind, b.kind):
         return max(d.radius_m for d in (a, b) if d.kind == "body")
     return kind_change_m
+
+
+def _pair_of(a: Detection, b: Detection, default_sigma_m: float) -> Detection:
+    """Two lone legs of one person measured as a leg pair: their midpoint, with the noise of a mean of two."""
+    sigma = 0.5 * math.hypot(*(default_sigma_m if d.sigma_m is None else d.sigma_m for d in (a, b)))
+    mx, my = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
+    view = math.atan2(my - a.laser_y_m, mx - a.laser_x_m) if math.isfinite(a.laser_x_m) else math.nan
+    return replace(a, x_m=mx, y_m=my, kind="person", sigma_m=sigma, sigma_across_m=None,
+                   evidence=a.evidence or b.evidence, occluded=a.occluded or b.occluded,
+                   scan_index_start=min(a.scan_index_start, b.scan_index_start),
+                   scan_index_stop=max(a.scan_index_stop, b.scan_index_stop),
+                   bearing_min_rad=min(a.bearing_min_rad, b.bearing_min_rad),
+                   bearing_max_rad=max(a.bearing_max_rad, b.bearing_max_rad), view_rad=view)
 
 
 def _onset(hist: np.ndarray) -> int:
@@ -814,7 +828,7 @@ class Tracker:
             self._past.popleft()
         for t in self.tracks:
             self._predict(t, stamp_s)
-        got = self._associate(detections)
+        got, taken = self._associate(detections)
         for ti, t in enumerate(self.tracks):
             t.age_cycles += 1
             if ti in got:
@@ -825,9 +839,9 @@ class Tracker:
                 t.missed += 1
         # for later chains: what no confirmed track holds (an unconfirmed one may die, and a track born
         # where it was should see the same static past, not start afresh with a short window)
-        held = {id(d) for ti, d in got.items() if self.tracks[ti].confirmed}
-        holder = {id(d): self.tracks[ti].track_id for ti, d in got.items()}
-        used = {id(d) for d in got.values()}
+        held = {i for i, ti in taken.items() if self.tracks[ti].confirmed}
+        holder = {i: self.tracks[ti].track_id for i, ti in taken.items()}
+        used = set(taken)
         born = set()
         for d in detections:
             if id(d) in used or not d.evidence:
@@ -839,8 +853,9 @@ class Tracker:
         self._past.append((stamp_s, [(d, holder.get(id(d))) for d in kept]))
         return self._prune(got)
 
-    def _associate(self, detections: list[Detection]) -> dict[int, Detection]:
-        """Track index -> its detection: nearest pairs first, each within the track's gate."""
+    def _associate(self, detections: list[Detection]) -> tuple[dict[int, Detection], dict[int, int]]:
+        """Track index -> its detection: nearest pairs first, each within the track's gate; and the id of each
+        detection taken -> its track's index (a person's two lone legs measured as one, ``_other_leg``)."""
         pairs: list[tuple[float, int, int]] = []
         for ti, t in enumerate(self.tracks):
             for di, d in enumerate(detections):
@@ -865,7 +880,44 @@ class Tracker:
             used_t.add(ti)
             used_d.add(di)
             got[ti] = detections[di]
-        return got
+        taken = {id(d): ti for ti, d in got.items()}
+        for ti, d in list(got.items()):
+            other = self._other_leg(self.tracks[ti], d, detections, used_d) if d.kind == "leg" else None
+            if other is not None:
+                used_d.add(other)
+                taken[id(detections[other])] = ti
+                got[ti] = _pair_of(d, detections[other], self.config.meas_sigma_m)
+        return got, taken
+
+    def _other_leg(self, t: Track, leg: Detection, detections: list[Detection], used: set[int]) -> int | None:
+        """The index of the track's other leg, seen as a lone leg of its own beside ``leg`` (the body stage
+        pairs legs only up to its widest pair, and a pair at that limit splits in some scans): a free lone
+        leg within a pair's reach (``2 kind_change_m``) of ``leg`` that stands where one of the track's legs
+        stood in its last ``confirm_window`` detections, to within ``step_noise_m``: where the track took a
+        lone leg, or the partner of ``leg`` in a leg pair the track took (the pair's midpoint is then the two
+        legs' midpoint); and their midpoint lies within ``gate_m`` of the prediction. A person seen by both
+        legs is where their midpoint is: the two lone legs of a wide stance or a static pair (a chair's)
+        taken one at a time read as a stride (a track on positive_3 took the one, then the other 0.64 m away,
+        and was reported). A static leg beside a walker's path stood where none of the walker's legs did."""
+        c = self.config
+        h = np.array(t.history)
+        if not t.seen_as_person or h.size == 0:
+            return None
+        lone = h[h[:, 4] == _KIND_CODE["leg"], 1:3]
+        pairs = h[h[:, 4] == _KIND_CODE["person"], 1:3]
+        best: tuple[float, int] | None = None
+        for di, o in enumerate(detections):
+            if di in used or o.kind != "leg" or o is leg:
+                continue
+            sep = math.hypot(o.x_m - leg.x_m, o.y_m - leg.y_m)
+            mid = np.array([0.5 * (o.x_m + leg.x_m), 0.5 * (o.y_m + leg.y_m)])
+            stood = bool(np.any(np.hypot(*(lone - (o.x_m, o.y_m)).T) <= c.step_noise_m)
+                         or np.any(np.hypot(*(pairs - mid).T) <= 0.5 * c.step_noise_m))
+            if (stood and c.step_noise_m < sep <= 2.0 * c.kind_change_m
+                    and math.hypot(mid[0] - t.state[0], mid[1] - t.state[1]) < c.gate_m
+                    and (best is None or sep < best[0])):
+                best = (sep, di)
+        return None if best is None else best[1]
 
     def _prune(self, got: dict[int, Detection]) -> list[tuple[Track, Detection | None]]:
         """Drop the dead (missed too long, tentative too old, space seen free) and the duplicates of
