@@ -234,8 +234,6 @@ class PeopleTracker:
         self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
         self._seen_free: PointTest | None = None
-        #: the people this stage reported as moving obstacles last cycle (``obstacles``)
-        self._reported: set[int] = set()
 
     # ------------------------------------------------------------------ one cycle
     def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
@@ -547,16 +545,16 @@ class PeopleTracker:
         person within a leg pair's reach (plus its radius) if the body tracker saw it as a leg pair, within
         a person's radius (plus its own) otherwise (:func:`_explained`): the same body, reported once and
         judged once. A second person beside it, or the person pushing a cart the body tracker holds, is
-        another body. A walker no leg of whom was seen this cycle stays an obstacle only as :meth:`_coasts`
-        allows; otherwise it stays in ``people`` while its position is known (the protective field on the
-        raw scan still guards the robot). The bearing interval is the person's radius seen from ``laser``;
-        scan indices -1 (a track, not one scan's segment)."""
+        another body. A walker no leg of whom was seen may have stopped or turned: it stays in ``people``
+        while its position is known, but it is no obstacle (the protective field on the raw scan still
+        guards the robot). The bearing interval is the person's radius seen from ``laser``; scan indices
+        -1 (a track, not one scan's segment)."""
         c = self.config
         if not c.report_moving:
             return ()
         out = []
         tracks = {t.track_id: t for t in self.tracks}
-        moving = [p for p in people if p.moving and (p.legs or self._coasts(p, tracks[p.track_id]))]
+        moving = [p for p in people if p.moving and p.legs]
         for p, k in zip(moving, _explained(moving, others, c.leg_pair_max_m, c.person_radius_m), strict=True):
             if k is not None:
                 continue
@@ -567,20 +565,7 @@ class PeopleTracker:
             cov = tuple(float(v) for v in np.asarray(t.filt.walking()[1], float)[:4, :4].ravel())
             out.append(Obstacle(p.track_id, p.x_m, p.y_m, p.vx_mps, p.vy_mps, c.person_radius_m, b - half, b + half,
                                 -1, -1, age_cycles=t.age_cycles, covariance=cov, person=True))
-        self._reported = {o.track_id for o in out}
         return tuple(out)
-
-    def _coasts(self, p: Person, t: PersonTrack) -> bool:
-        """A moving person no leg of whom was seen this cycle (the detector missed both, or something passed
-        in front) stays a moving obstacle while the distance it may have walked since a leg was last seen,
-        its speed times the time unseen, is within its radius (``person_radius_m``): had it stopped where it
-        was last seen, the reported disc still covers it. Only a person this stage reported last cycle: one
-        a body tracker's body stood for is coasted by that tracker (its own ``report_missed_s``), the same
-        body reported once."""
-        if t.updated_s is None or p.track_id not in self._reported:
-            return False
-        unseen_s = max(t.stamp_s - t.updated_s, 0.0)
-        return unseen_s * math.hypot(p.vx_mps, p.vy_mps) <= self.config.person_radius_m
 
     def people(self, stamp_s: float) -> tuple[Person, ...]:
         """The confirmed tracks at ``stamp_s`` (positions predicted at constant velocity)."""

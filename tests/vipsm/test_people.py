@@ -240,33 +240,6 @@ def test_moving_people_become_obstacles_unless_the_body_tracker_has_them() -> No
     assert off.obstacles(people, (), laser) == ()
 
 
-def test_a_walker_missed_by_the_detector_stays_an_obstacle_while_its_radius_covers_where_it_was() -> None:
-    """A reported walker no leg of whom is seen (the detector missed both) stays a moving obstacle while
-    its speed times the time unseen is within its radius: 1 m/s, 0.25 m, so for 0.2 s but not 0.3 s. One
-    a body tracker's body stood for when last seen is not coasted here (that tracker coasts it)."""
-    laser = Pose2D(0.0, 0.0, 0.0)
-
-    def walked(tr: PeopleTracker, held: bool = False) -> list[int]:
-        """Walk 2 s at 1 m/s (held: a body tracker's body on the walker), then 3 cycles unseen; the number of
-        obstacles reported each unseen cycle."""
-        for k in range(20):
-            x = 1.0 + 0.1 * k
-            tr.step(0.1 * k, _pair(x, 2.0, evidence=k % 3 == 0))
-            body = (Obstacle(1, x, 2.0, 1.0, 0.0, 0.3, 0.0, 0.1, 0, 5),) if held else ()
-            tr.obstacles(tr.people(0.1 * k), body, laser)
-        counts = []
-        for k in range(20, 23):
-            tr.step(0.1 * k, [], visible=lambda x, y: True)
-            people = tr.people(0.1 * k)
-            assert len(people) == 1 and people[0].moving and not people[0].legs
-            counts.append(len(tr.obstacles(people, (), laser)))
-        return counts
-
-    assert walked(PeopleTracker(PeopleConfig(), default_leg_model())) == [1, 1, 0]
-    assert walked(PeopleTracker(PeopleConfig(person_radius_m=0.15), default_leg_model())) == [1, 0, 0]
-    assert walked(PeopleTracker(PeopleConfig(), default_leg_model()), held=True) == [0, 0, 0]
-
-
 def test_a_body_of_the_body_tracker_stands_for_one_person_only() -> None:
     """Two walkers side by side and one body-tracker body on one of them (or between them): that body
     is one person, the nearest; the other walker is still a moving obstacle. Suppressing every person
