@@ -169,3 +169,28 @@ def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture
         assert k["heading_vs_other_lasers_max_deg"] < 5.0
         assert k["end_to_start_m"] >= 0.0 and k["kiss_icp_end_to_start_m"] > 0.0
         assert r["reports_per_min"] is not None and "background_reports_per_min" not in r  # not a still laser
+
+
+def test_walking_after_onset_leaves_out_the_first_report_budget() -> None:
+    """A person stands 1 s, then walks: the walking scans within ``ONSET_BUDGET_S`` of the walk's onset are in
+    ``walking`` but not in ``walking_after_onset``; a report only from 0.5 s into the walk is found in every
+    settled walking scan and in fewer of all walking ones."""
+    from app.evaluation.real_data import ONSET_BUDGET_S, since_walk_onset_s
+
+    period = 0.1
+    labels = []
+    for i in range(40):
+        x = 2.0 + max(0.0, i * period - 1.0) * 0.8
+        labels.append((100.0 + i * period, np.array([[x, 0.1], [x, -0.1]])))
+    speeds = person_speeds(labels)
+    since = since_walk_onset_s(labels, speeds)
+    walking = [i for i, v in enumerate(speeds) if speed_class(v) == "walking"]
+    assert walking and since[walking[0]] == 0.0 and all(since[i] is None for i in range(walking[0]))
+    assert since[walking[-1]] == pytest.approx((walking[-1] - walking[0]) * period)
+    start = walking[0]
+    cycles = [Cycle(t, (0.0, 0.0, 0.0), [(1, legs[0, 0], 0.0)] if 100.0 + (start + 5) * period <= t + 1e-9 else [],
+                    False, None) for t, legs in labels]
+    m = labelled_metrics(Run("/scan", cycles), labels, period)
+    settled = sum(1 for i in walking if since[i] >= ONSET_BUDGET_S)
+    assert 0 < m["labelled_scans"]["walking_after_onset"] == settled < m["labelled_scans"]["walking"]
+    assert m["recall_0.5m"]["walking"] < m["recall_0.5m"]["walking_after_onset"] < 1.0
