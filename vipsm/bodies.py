@@ -15,10 +15,10 @@ can continue one, so a walker who pauses or a slow body inside its own footprint
   phantom; it makes a slow body's confirmation faster.
 
 At the laser's height a walking person is two legs (0.08-0.2 m wide) that scissor: leg-sized
-foreground segments within ``leg_pair_max_m`` of each other are one person, placed at the midpoint of
-the two leg centres (the pelvis); a lone leg (the other hidden) is a person at that leg. Wider
-segments (up to ``max_body_width_m``) are round bodies when a circle fits them (centre behind the
-points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
+foreground segments within ``leg_pair_max_m`` (the people stage's key: :class:`Derived`) of each other
+are one person, placed at the midpoint of the two leg centres (the pelvis); a lone leg (the other hidden)
+is a person at that leg. Wider segments (up to ``max_body_width_m``) are round bodies when a circle fits
+them (centre behind the points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
 candidate when either leg shows evidence: the stance leg stands still while the swing leg moves. A
 leg-sized thing that has stood alone for a while (a post: ``_fixtures``) is never a leg of a pair.
 

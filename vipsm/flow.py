@@ -41,31 +41,48 @@ MORPH_CELLS = 3
 
 @dataclass(frozen=True)
 class FlowConfig:
-    baseline_s: float = 0.30  # flow against the oldest kept frame at most this much older
-    alpha_base_px: float = 0.8  # threshold with the robot at rest
-    alpha_v_px_per_m: float = 10.0  # grows with the distance driven between the two frames
-    alpha_w_px_per_rad: float = 30.0  # ... and with the angle turned
+    """The flow stage's keys: times of the camera's frames, the flow's noise in pixels (at the working width
+    ``WORK_WIDTH_PX``), depth edges in metres, and the switches of its three models. Keys removed in the
+    reduction of issue 29 are listed in ``REMOVED_KEYS``."""
+
+    #: flow against the oldest kept frame at most this much older: a slow body's image motion grows with
+    #: the baseline, the flow's noise does not
+    baseline_s: float = 0.30
+    #: frames further apart than this are not compared (the image moved too far for the flow to follow)
+    max_frame_gap_s: float = 0.5
+    #: the paper's threshold alpha (eq. 1), in px at the working width: the flow's own noise with the robot
+    #: at rest ...
+    alpha_base_px: float = 0.8
+    #: ... growing with the distance driven and the angle turned between the two frames (the odometry's
+    #: errors over that motion, as image motion; 30 px/rad is a 0.1 rad/rad heading error at the 54 deg
+    #: camera's 314 px focal length) ...
+    alpha_v_px_per_m: float = 10.0
+    alpha_w_px_per_rad: float = 30.0
+    #: ... up to this (a fast turn's threshold would hide every body)
     alpha_max_px: float = 6.0
-    alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
-    snap_to_depth: bool = True  # snap blob edges to the laser's depth edges when a foreground run matches
+    #: plus this share of the predicted flow: the depth behind each cell (nearest laser point, the floor
+    #: plane) is good to about a quarter, and the prediction's error scales with it
+    alpha_rel: float = 0.25
+    #: cells with less image gradient than this (grey levels / px) carry no flow: a few times the camera's
+    #: grey-level noise
+    min_texture: float = 6.0
+    #: a blob of moving cells smaller than this (px at the working width) is noise, not a body (a leg
+    #: 0.1 m wide and 0.5 m high at 6 m covers about 6 x 30 px)
+    min_blob_px: int = 250
+    #: a blob's column belongs to the body when this share of its usable cells move (the closing's
+    #: sparse fringe does not)
+    column_share: float = 0.3
+    #: remove a robustly fitted global shift + scale of the predicted flow: the odometry's heading and
+    #: distance errors between the two frames
+    fit_global: bool = True
+    #: trim, on a blob's trailing side, the background the body uncovered since the older frame
+    trim_trailing: bool = True
+    #: snap a blob's edges to the laser's depth edges when a foreground run matches it
+    snap_to_depth: bool = True
+    #: two neighbouring columns are two surfaces when their laser depths differ by more than this ...
     snap_jump_m: float = 0.20
+    #: ... or by this share of the nearer one
     snap_jump_rel: float = 0.05
-    #: a blob with at least this share of its columns on one foreground run is about that body (the rest
-    #: spilled onto the background at the edge it covers or uncovers), however little of it moved clearly
-    #: enough: a slow body's leading side flows most (translation and looming add), its trailing side
-    #: least (the paper's 0.15 m/s cylinder at 45 deg: a third of it at first)
-    snap_blob_share: float = 0.67
-    column_share: float = 0.3  # a blob's column counts when this share of its usable cells move
-    trim_trailing: bool = True  # trim the uncovered background from a blob's trailing side
-    fit_global: bool = True  # remove a fitted global shift + scale of the ego-motion flow (odometry errors)
-    global_shift_max_px: float = 8.0
-    global_scale_max: float = 0.5
-    border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
-    min_texture: float = 6.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
-    min_blob_px: int = 250  # blobs smaller than this many pixels are dropped
-    max_frame_gap_s: float = 0.5  # older previous frames are not used for flow
-    max_depth_m: float = 30.0  # columns without a laser surface get this depth (far background)
-    min_flow_valid_depth_m: float = 0.2
 
     #: keys removed (issue 29: fewer tuned parameters), with what replaced each: a config file that sets one
     #: is refused naming the key and this reason (``app.config``), never silently misread
@@ -79,11 +96,14 @@ class FlowConfig:
                     "unnecessary",
         "fb_tol_px": "the forward-backward check (off by default) was deleted",
         "fb_tol_rel": "the forward-backward check (off by default) was deleted",
+        "global_shift_max_px": "deleted: the global fit is no longer clamped (measured: no figure worse)",
+        "global_scale_max": "deleted: the global fit is no longer clamped (measured: no figure worse)",
+        "snap_blob_share": "replaced by a majority: a blob lying mostly (more than half) on one foreground run is "
+                           "about that body",
+        "border_px": "derived: one DIS patch (8 px), where the flow's patches leave the image",
+        "max_depth_m": "a column with no laser surface is seen as at infinity (its flow is the rotation's only)",
+        "min_flow_valid_depth_m": "deleted: every depth in front of the camera is predicted",
     }
-
-    def __post_init__(self) -> None:
-        if not 0.5 < self.snap_blob_share <= 1.0:
-            raise ValueError(f"need 0.5 < snap_blob_share <= 1, got {self.snap_blob_share}")
 
 
 @dataclass(frozen=True)
@@ -152,13 +172,18 @@ def _project(px, py, pz, fx, fy, cx, cy, pan, tilt, dist=(0.0, 0.0, 0.0, 0.0)):
 def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: FlowConfig) -> tuple[float, float]:
     """Snap a blob's column span to the laser's depth edges: the columns are split where the laser
     depth jumps, and the foreground runs (nearer than both neighbours) that the blob covers for at
-    least half their width, or that lie wholly in the image and hold ``snap_blob_share`` of the blob,
-    replace the span. Without such a run the span is kept."""
+    least half their width, or that lie wholly in the image and hold most (more than half) of the blob,
+    replace the span. Without such a run the span is kept. A blob lying mostly on one foreground run is
+    about that body, however little of it moved clearly enough (the rest spilled onto the background at
+    the edge it covers or uncovers): a slow body's leading side flows most (translation and looming
+    add), its trailing side least (the paper's 0.15 m/s cylinder at 45 deg: a third of it at first).
+    ``col_depth`` is inf where no laser surface lies."""
     d = col_depth
     n = d.size
     if n < 2:
         return u0, u1
-    jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
+    with np.errstate(invalid="ignore"):  # inf - inf: one far background, no edge
+        jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
     starts = np.concatenate(([0], np.flatnonzero(jump) + 1))
     stops = np.concatenate((starts[1:], [n]))
     near = np.add.reduceat(d, starts) / (stops - starts)  # mean depth of each run
@@ -169,7 +194,7 @@ def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: Fl
     overlap = np.minimum(stops, c1) - np.maximum(starts, c0)
     # a run reaching the image's edge may go on beyond it: what a blob lying on it is about is not known
     whole = (starts > 0) & (stops < n)
-    hit = fg & ((overlap >= 0.5 * (stops - starts)) | (whole & (overlap >= cfg.snap_blob_share * (c1 - c0))))
+    hit = fg & ((overlap >= 0.5 * (stops - starts)) | (whole & (overlap > 0.5 * (c1 - c0))))
     if not hit.any():
         return u0, u1
     return float(starts[hit].min() * st), float(stops[hit].max() * st)
@@ -197,7 +222,7 @@ def _remove_global_error(
     starts = [np.ones(idx.size, bool), e0 <= max(2.0 * q25, cfg.alpha_base_px)]
     best, best_n = (0.0, 0.0, 0.0), int(np.count_nonzero(e0 < cfg.alpha_base_px))
     for keep in starts:
-        model = _fit_global(r, p, keep, cfg)
+        model = _fit_global(r, p, keep)
         if model is None:
             continue
         n = int(np.count_nonzero(_global_residual(r, p, model) < cfg.alpha_base_px))
@@ -222,10 +247,9 @@ def _global_residual(r: np.ndarray, p: np.ndarray, model: tuple[float, float, fl
     return np.hypot(r[0] - a - sc * p[0], r[1] - b - sc * p[1])
 
 
-def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray, cfg: FlowConfig) -> tuple[float, float, float] | None:
+def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray) -> tuple[float, float, float] | None:
     """Least squares of residual (2, n) = (a, b) + s * predicted (2, n) over ``keep``, twice, keeping
-    for the second the samples within 3x the median error of the first's; clamped to the configured
-    bounds. None: too few samples."""
+    for the second the samples within 3x the median error of the first's. None: too few samples."""
     model = None
     for _ in range(2):
         k = np.flatnonzero(keep)
@@ -243,9 +267,7 @@ def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray, cfg: FlowConfig)
             a, b, sc = np.linalg.solve(m, np.array([sru, srv, srp]))
         except np.linalg.LinAlgError:
             return model
-        shift, scale = cfg.global_shift_max_px, cfg.global_scale_max
-        model = (min(max(float(a), -shift), shift), min(max(float(b), -shift), shift),
-                 min(max(float(sc), -scale), scale))
+        model = (float(a), float(b), float(sc))
         e = _global_residual(r, p, model)
         keep = e < max(3.0 * float(np.median(e[k])), 0.3)
     return model
@@ -262,6 +284,9 @@ class FlowDetector:
         self.config = config or FlowConfig()
         self.mount = mount or CameraMount()
         self._dis = cv2.DISOpticalFlow_create(DIS_PRESET)
+        #: cells this close to the image's border (in the newest frame or where the motion takes them in
+        #: the older) are not used: one DIS patch, the flow's own window, reaches out of the image there
+        self._border_px = int(self._dis.getPatchSize())
         self._history: list[tuple[np.ndarray, float, Frame, Pose2D]] = []
         self._last_result: FlowResult | None = None
         self._geo: _Geometry | None = None
@@ -315,9 +340,9 @@ class FlowDetector:
             return None
         ogrey, oscale, oframe, opose = old
         geo = self._geometry(frame, grey.shape, scale)
-        depth = _cell_depths(geo, depth_points_robot, self.mount, cfg)
+        depth = _cell_depths(geo, depth_points_robot, self.mount)
         rel = between(opose, odom_pose_at_frame)  # newest robot pose in the older robot frame
-        pred_u, pred_v, valid = _ego_flow(geo, depth, rel, oframe, oscale, self.mount, cfg)
+        pred_u, pred_v, valid = _ego_flow(geo, depth, rel, oframe, oscale, self.mount)
         flow = self._dis.calc(grey, ogrey, None)  # newest -> older
         fl = flow[0 : geo.h : geo.st, 0 : geo.w : geo.st].astype(np.float64)
         ru, rv = fl[..., 0] - pred_u, fl[..., 1] - pred_v
@@ -346,7 +371,7 @@ class FlowDetector:
 
     def _geometry(self, frame: Frame, shape: tuple[int, ...], scale: float) -> _Geometry:
         """The viewing ray of every grid cell of the newest frame (cached per camera state)."""
-        cfg, m, k = self.config, self.mount, frame.intrinsics
+        m, k = self.mount, frame.intrinsics
         h, w = shape[:2]
         st = GRID_STEP_PX
         fx, fy, cx, cy = k.fx_px * scale, k.fy_px * scale, k.cx_px * scale, k.cy_px * scale
@@ -359,17 +384,18 @@ class FlowDetector:
             hn = np.hypot(rx, ry)
             slope = rz / np.maximum(hn, 1e-9)
             floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
-            bd = cfg.border_px
+            bd = self._border_px
             inside = (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
             self._geo = _Geometry(key, h, w, st, (fx, fy, cx, cy), us, vs, rx, ry, rz, hn, np.arctan2(ry, rx),
-                                  floor_d, inside)
+                                  floor_d, inside, bd)
         return self._geo
 
 
 @dataclass(frozen=True, eq=False)
 class _Geometry:
     """Per grid cell of the newest frame: pixel centre (us, vs), viewing ray (rx, ry, rz; hn its
-    horizontal length, az its azimuth), distance to the floor along it, inside the border."""
+    horizontal length, az its azimuth), distance to the floor along it, inside the border (``border_px``
+    from each edge)."""
 
     key: tuple
     h: int
@@ -385,12 +411,13 @@ class _Geometry:
     az: np.ndarray
     floor_d: np.ndarray
     inside: np.ndarray
+    border_px: int
 
 
-def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: CameraMount, cfg: FlowConfig) -> np.ndarray:
-    """Horizontal distance to the laser's surface in each cell's viewing direction (``max_depth_m``
-    outside the laser's points)."""
-    depth = np.full(geo.az.shape, cfg.max_depth_m)
+def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: CameraMount) -> np.ndarray:
+    """Horizontal distance to the laser's surface in each cell's viewing direction; inf outside the
+    laser's points (no surface seen: far background, see :func:`_ego_flow`)."""
+    depth = np.full(geo.az.shape, np.inf)
     if depth_points_robot is None or depth_points_robot.shape[0] < 2:
         return depth
     dx = depth_points_robot[:, 0] - m.x_m
@@ -404,28 +431,32 @@ def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: Camer
     # of a wall) interpolated depths belong to neither surface and fake residual flow
     jj = np.clip(np.searchsorted(pb, az), 1, pb.size - 1)
     jj -= (np.abs(pb[jj - 1] - az) < np.abs(pb[jj] - az)).astype(np.intp)
-    return np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), cfg.max_depth_m, pd[jj])
+    return np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), np.inf, pd[jj])
 
 
-def _ego_flow(geo: _Geometry, depth: np.ndarray, rel: Pose2D, oframe: Frame, oscale: float, m: CameraMount,
-              cfg: FlowConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _ego_flow(geo: _Geometry, depth: np.ndarray, rel: Pose2D, oframe: Frame, oscale: float, m: CameraMount
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The flow (newest -> older, px) a static scene would show in each cell, and where it is valid:
     each cell's 3-D point (laser depth or floor) moved by the robot's motion ``rel`` (newest pose in
-    the older robot frame) and projected into the older frame."""
+    the older robot frame) and projected into the older frame. A cell with neither (no laser surface in
+    its direction, above the horizon) looks at a point at infinity: its direction only turns with the
+    robot, the translation moves it by nothing."""
     dist_h = np.minimum(depth, geo.floor_d)
-    valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
-    t = dist_h / np.maximum(geo.hn, 1e-9)
-    px = m.x_m + geo.rx * t
-    py = m.y_m + geo.ry * t
-    pz = geo.rz * t
+    far = ~np.isfinite(dist_h)
+    valid = dist_h > 0.0
+    t = np.where(far, 1.0, dist_h / np.maximum(geo.hn, 1e-9))  # the far cells: the ray's direction
     c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
-    qx = rel.x_m + c * px - s * py - m.x_m
-    qy = rel.y_m + s * px + c * py - m.y_m
+    # the point (camera + ray * t) moved by ``rel``, relative to the older camera; no translation at infinity
+    shift_x = np.where(far, 0.0, rel.x_m + c * m.x_m - s * m.y_m - m.x_m)
+    shift_y = np.where(far, 0.0, rel.y_m + s * m.x_m + c * m.y_m - m.y_m)
+    qx = shift_x + (c * geo.rx - s * geo.ry) * t
+    qy = shift_y + (s * geo.rx + c * geo.ry) * t
+    pz = geo.rz * t
     ko = oframe.intrinsics
     ofx, ofy, ocx, ocy = ko.fx_px * oscale, ko.fy_px * oscale, ko.cx_px * oscale, ko.cy_px * oscale
     u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad, ko.distortion)
     valid &= f2 > 1e-3
-    bd = cfg.border_px
+    bd = geo.border_px
     with np.errstate(invalid="ignore"):
         valid &= (u2 >= bd) & (u2 < geo.w - bd) & (v2 >= bd) & (v2 < geo.h - bd)
     valid &= geo.inside
