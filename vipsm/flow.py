@@ -41,9 +41,9 @@ MORPH_CELLS = 3
 
 @dataclass(frozen=True)
 class FlowConfig:
-    """The flow stage's keys: times of the camera's frames, the flow's noise in pixels (at the working width
-    ``WORK_WIDTH_PX``), depth edges in metres, and the switches of its three models. Keys removed in the
-    reduction of issue 29 are listed in ``REMOVED_KEYS``."""
+    """The flow stage's keys: times of the camera's frames, the flow's noise and the odometry's errors in
+    pixels (at the working width ``WORK_WIDTH_PX``), depth edges in metres. Keys removed in the reduction of
+    issue 29 are listed in ``REMOVED_KEYS``."""
 
     #: flow against the oldest kept frame at most this much older: a slow body's image motion grows with
     #: the baseline, the flow's noise does not
@@ -72,13 +72,12 @@ class FlowConfig:
     #: a blob's column belongs to the body when this share of its usable cells move (the closing's
     #: sparse fringe does not)
     column_share: float = 0.3
-    #: remove a robustly fitted global shift + scale of the predicted flow: the odometry's heading and
-    #: distance errors between the two frames
-    fit_global: bool = True
-    #: trim, on a blob's trailing side, the background the body uncovered since the older frame
-    trim_trailing: bool = True
-    #: snap a blob's edges to the laser's depth edges when a foreground run matches it
-    snap_to_depth: bool = True
+    #: the global fit of the residual (shift + scale of the predicted flow: the odometry's heading and
+    #: distance errors between the two frames) corrects at most this shift (8 px: 1.5 deg at a 54 deg
+    #: camera's 314 px focal length) ...
+    global_shift_max_px: float = 8.0
+    #: ... and this share of the predicted flow (a distance error of half the distance driven)
+    global_scale_max: float = 0.5
     #: two neighbouring columns are two surfaces when their laser depths differ by more than this ...
     snap_jump_m: float = 0.20
     #: ... or by this share of the nearer one
@@ -96,8 +95,9 @@ class FlowConfig:
                     "unnecessary",
         "fb_tol_px": "the forward-backward check (off by default) was deleted",
         "fb_tol_rel": "the forward-backward check (off by default) was deleted",
-        "global_shift_max_px": "deleted: the global fit is no longer clamped (measured: no figure worse)",
-        "global_scale_max": "deleted: the global fit is no longer clamped (measured: no figure worse)",
+        "fit_global": "the global fit is always on (the switch of a kept model, not a tuned value)",
+        "trim_trailing": "the trailing trim is always on (the switch of a kept model, not a tuned value)",
+        "snap_to_depth": "snapping to depth edges is always on (the switch of a kept model, not a tuned value)",
         "snap_blob_share": "replaced by a majority: a blob lying mostly (more than half) on one foreground run is "
                            "about that body",
         "border_px": "derived: one DIS patch (8 px), where the flow's patches leave the image",
@@ -222,7 +222,7 @@ def _remove_global_error(
     starts = [np.ones(idx.size, bool), e0 <= max(2.0 * q25, cfg.alpha_base_px)]
     best, best_n = (0.0, 0.0, 0.0), int(np.count_nonzero(e0 < cfg.alpha_base_px))
     for keep in starts:
-        model = _fit_global(r, p, keep)
+        model = _fit_global(r, p, keep, cfg)
         if model is None:
             continue
         n = int(np.count_nonzero(_global_residual(r, p, model) < cfg.alpha_base_px))
@@ -247,9 +247,10 @@ def _global_residual(r: np.ndarray, p: np.ndarray, model: tuple[float, float, fl
     return np.hypot(r[0] - a - sc * p[0], r[1] - b - sc * p[1])
 
 
-def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray) -> tuple[float, float, float] | None:
+def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray, cfg: FlowConfig) -> tuple[float, float, float] | None:
     """Least squares of residual (2, n) = (a, b) + s * predicted (2, n) over ``keep``, twice, keeping
-    for the second the samples within 3x the median error of the first's. None: too few samples."""
+    for the second the samples within 3x the median error of the first's; clamped to the configured
+    bounds. None: too few samples."""
     model = None
     for _ in range(2):
         k = np.flatnonzero(keep)
@@ -267,7 +268,9 @@ def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray) -> tuple[float, 
             a, b, sc = np.linalg.solve(m, np.array([sru, srv, srp]))
         except np.linalg.LinAlgError:
             return model
-        model = (float(a), float(b), float(sc))
+        shift, scale = cfg.global_shift_max_px, cfg.global_scale_max
+        model = (min(max(float(a), -shift), shift), min(max(float(b), -shift), shift),
+                 min(max(float(sc), -scale), scale))
         e = _global_residual(r, p, model)
         keep = e < max(3.0 * float(np.median(e[k])), 0.3)
     return model
@@ -347,8 +350,7 @@ class FlowDetector:
         fl = flow[0 : geo.h : geo.st, 0 : geo.w : geo.st].astype(np.float64)
         ru, rv = fl[..., 0] - pred_u, fl[..., 1] - pred_v
         usable = valid & _textured(grey, geo.st, cfg)
-        if cfg.fit_global:
-            ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
+        ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
         alpha = _alpha_px(cfg, speed_mps, turn_radps, frame.stamp_s - oframe.stamp_s)
         res = np.hypot(ru, rv)
         thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
@@ -356,7 +358,7 @@ class FlowDetector:
         self.last_residual = (res, thr, usable, geo.st)
         mask = _clean_mask(moving)
         spans = _merge_spans(_blob_spans(mask, moving, usable, ru, geo.st, cfg))
-        if cfg.snap_to_depth and depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
+        if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
             col_depth = depth[depth.shape[0] // 2]  # laser depth per grid column (horizon row)
             for sp in spans:
                 sp[0], sp[1] = _snap_to_depth(sp[0], sp[1], col_depth, geo.st, cfg)
@@ -507,8 +509,7 @@ def _blob_spans(mask: np.ndarray, moving: np.ndarray, usable: np.ndarray, ru: np
         if dense.size == 0:
             continue
         u0, u1 = float((x0 + int(dense[0])) * st), float((x0 + int(dense[-1]) + 1) * st)
-        if cfg.trim_trailing:
-            u0, u1 = _trim_trailing(u0, u1, ru[(labels == i) & moving], st)
+        u0, u1 = _trim_trailing(u0, u1, ru[(labels == i) & moving], st)
         spans.append([u0, u1, y0 * st, (y0 + hh) * st])
     return spans
 
