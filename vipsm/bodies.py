@@ -30,16 +30,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from .flow import FlowConfig
 from .geometry import scan_points
 from .restore import BearingInterval, _beams_in
 from .seen_through import ScanMemory
-from .static_map import FreeSpaceGrid
+from .static_map import FreeSpaceGrid, StaticMapConfig
 from .tracker import TrackerConfig, locate_body
 from .types import Pose2D
+
+if TYPE_CHECKING:  # vipsm.people imports this module
+    from .people import PeopleConfig
 
 #: the fewest returns a segment needs to be a body: three points define a circle (the round-body fit) and
 #: are what the fixed-radius refinement of a leg's centre needs (:func:`vipsm.tracker.locate_body`); not
@@ -132,7 +136,7 @@ class Derived:
     fixture_own_m: float
 
 
-def derive(bodies: BodiesConfig, people: Any, tracker: TrackerConfig, flow_baseline_s: float,
+def derive(bodies: BodiesConfig, people: PeopleConfig, tracker: TrackerConfig, flow_baseline_s: float,
            cell_m: float) -> Derived:
     """:class:`Derived` from the people stage's person (``PeopleConfig``: ``leg_radius_m``,
     ``leg_pair_max_m``, ``person_radius_m``), the tracker's fastest body, the flow's baseline and the
@@ -147,9 +151,7 @@ def derive(bodies: BodiesConfig, people: Any, tracker: TrackerConfig, flow_basel
 
 def default_derived(bodies: BodiesConfig, tracker: TrackerConfig) -> Derived:
     """:func:`derive` with the other stages' default keys."""
-    from .flow import FlowConfig  # here, not at the top: vipsm.people imports this module
-    from .people import PeopleConfig
-    from .static_map import StaticMapConfig
+    from .people import PeopleConfig  # here, not at the top: vipsm.people imports this module
 
     return derive(bodies, PeopleConfig(), tracker, FlowConfig().baseline_s, StaticMapConfig().cell_m)
 
