@@ -254,6 +254,9 @@ def from_dict(cls: type, data: typing.Mapping[str, Any], prefix: str = "") -> An
     for key, value in data.items():
         dotted = f"{prefix}{key}"
         if key not in fields:
+            removed = getattr(cls, "REMOVED_KEYS", {}).get(key)  # a key an older version had
+            if removed is not None:
+                raise ConfigError(dotted, f"this key was removed ({removed}); delete it from the config file")
             raise ConfigError(dotted, f"unknown key (known: {', '.join(sorted(fields))})")
         hint = hints[key]
         if dataclasses.is_dataclass(hint):

@@ -15,10 +15,10 @@ can continue one, so a walker who pauses or a slow body inside its own footprint
   phantom; it makes a slow body's confirmation faster.
 
 At the laser's height a walking person is two legs (0.08-0.2 m wide) that scissor: leg-sized
-foreground segments within ``leg_pair_max_m`` of each other are one person, placed at the midpoint of
-the two leg centres (the pelvis); a lone leg (the other hidden) is a person at that leg. Wider
-segments (up to ``max_body_width_m``) are round bodies when a circle fits them (centre behind the
-points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
+foreground segments within ``leg_pair_max_m`` (the people stage's key: :class:`Derived`) of each other
+are one person, placed at the midpoint of the two leg centres (the pelvis); a lone leg (the other hidden)
+is a person at that leg. Wider segments (up to ``max_body_width_m``) are round bodies when a circle fits
+them (centre behind the points, a body's radius): a straight wall piece or a room corner is not. A pair counts as a
 candidate when either leg shows evidence: the stance leg stands still while the swing leg moves. A
 leg-sized thing that has stood alone for a while (a post: ``_fixtures``) is never a leg of a pair.
 
@@ -30,22 +30,39 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from .flow import FlowConfig
 from .geometry import scan_points
 from .restore import BearingInterval, _beams_in
 from .seen_through import ScanMemory
-from .static_map import FreeSpaceGrid
+from .static_map import FreeSpaceGrid, StaticMapConfig
 from .tracker import TrackerConfig, locate_body
 from .types import Pose2D
+
+if TYPE_CHECKING:  # vipsm.people imports this module
+    from .people import PeopleConfig
+
+#: the fewest returns a segment needs to be a body: three points define a circle (the round-body fit) and
+#: are what the fixed-radius refinement of a leg's centre needs (:func:`vipsm.tracker.locate_body`); not
+#: a tuned value
+MIN_BEAMS = 3
 
 
 @dataclass(frozen=True)
 class BodiesConfig:
+    """The body stage's own keys; each is a size, a distance or a count of the world or the sensor. Keys
+    removed in the reduction of issue 29 are listed in ``REMOVED_KEYS`` (a config file that still sets
+    one is refused with the reason); the quantities the stage takes from other stages are :class:`Derived`."""
+
+    #: two neighbouring returns further apart in range than this are two surfaces (a leg 0.15 m in front
+    #: of a wall is apart from it) ...
     seg_jump_m: float = 0.15
+    #: ... or than this many times the beam spacing at their range (a surface seen at up to ~70 deg
+    #: incidence, tan = 3, stays one segment)
     seg_jump_range_factor: float = 3.0
-    min_beams: int = 3
     #: a run of at most this many beams with no return between two returns on one surface does not
     #: split the segment (a dropout inside a leg: each half would see the other as the same surface
     #: beside it and neither would be a body); a gap where the pre-filter removed a return is never
@@ -53,40 +70,90 @@ class BodiesConfig:
     max_gap_beams: int = 2
     #: a leg at the laser's height (shin, trousered): 0.05-0.25 m across the segment
     max_leg_width_m: float = 0.25
-    leg_radius_m: float = 0.06
-    #: two legs of one person: centres at most this far apart (stride at laser height ~0.6 m)
-    leg_pair_max_m: float = 0.65
+    #: the widest body tracked (a cart, a person with a bag); wider foreground segments are furniture or walls
     max_body_width_m: float = 1.2
     #: a foreground segment stands at least this far in front of its neighbours (or next to no return)
     foreground_m: float = 0.10
-    neighbour_beams: int = 4
-    #: a return beside a straight segment this close to its line continues the same surface
+    #: a return beside a straight segment this close to its line continues the same surface (5x the
+    #: UTM-30LX's range noise: a wall at grazing incidence broken into pieces by range jumps)
     surface_tol_m: float = 0.05
+    #: a segment with at least this share of its returns where the laser recently saw free floor (and
+    #: saw through at beam resolution) moved there: motion evidence
     min_free_share: float = 0.5
-    #: a camera interval is motion evidence for a segment only when, at the segment's range, it is no
-    #: wider than this: a moving body and the background it uncovers in the flow's 0.3 s baseline (a
-    #: person 0.6 m wide crossing at 1.4 m/s: 1.0 m). A wider one is not about this segment: the flow
-    #: merged the passing cylinder with the far side of the image (47 deg, 3.6 m wide at a box 4.3 m
-    #: away, which became a track)
-    camera_interval_max_m: float = 2.0
-    person_radius_m: float = 0.25
     #: a leg-sized segment whose returns lie in cells the laser has seen occupied in at least this many
     #: (decayed) scans has stood there (15 is ~1.7 s at 10 scans a second under the grid's 6 s memory; a
     #: walker's stance leg stays ~0.6 s, and the cells of a tracked mover get no occupancy); one that
     #: stood alone is a fixture (a post): no motion evidence, never one leg of a person's pair (a post
     #: beside a passer-by made a "person" between them whose track followed the post). See ``_fixtures``
     fixture_occupied: float = 15.0
-    #: ... its own cells: within this of its points' mean (a long-occupied cell further away, within
-    #: ``leg_pair_max_m``, where this scan's beam no longer ends was another leg that stood there)
-    fixture_own_m: float = 0.2
+
+    #: keys removed (issue 29: fewer tuned parameters), with what replaced each: a config file that sets one
+    #: is refused naming the key and this reason (``app.config``), never silently misread
+    REMOVED_KEYS: ClassVar[dict[str, str]] = {
+        "min_beams": "now a constant, 3: three points define a circle (vipsm.bodies.MIN_BEAMS)",
+        "neighbour_beams": "derived: max_gap_beams + 2 (the return after the narrowest gap that splits a segment)",
+        "leg_radius_m": "one key for one person: estimator.people.leg_radius_m",
+        "leg_pair_max_m": "one key for one person: estimator.people.leg_pair_max_m",
+        "person_radius_m": "one key for one person: estimator.people.person_radius_m",
+        "camera_interval_max_m": "derived: bodies.max_body_width_m + tracker.max_speed_mps x flow.baseline_s",
+        "fixture_own_m": "derived: half of bodies.max_leg_width_m + half a static_map cell's diagonal",
+    }
 
     def __post_init__(self) -> None:
-        if self.max_gap_beams < 0 or self.min_beams < 1:
-            raise ValueError(f"need max_gap_beams >= 0 and min_beams >= 1, got {self.max_gap_beams}, {self.min_beams}")
-        if self.camera_interval_max_m <= 0.0:
-            raise ValueError(f"need camera_interval_max_m > 0, got {self.camera_interval_max_m}")
-        if not 0.0 <= self.fixture_own_m < self.leg_pair_max_m:
-            raise ValueError(f"need 0 <= fixture_own_m < leg_pair_max_m, got {self.fixture_own_m}")
+        if self.max_gap_beams < 0:
+            raise ValueError(f"need max_gap_beams >= 0, got {self.max_gap_beams}")
+        if not 0.0 < self.max_leg_width_m < self.max_body_width_m:
+            raise ValueError(f"need 0 < max_leg_width_m < max_body_width_m, got {self.max_leg_width_m}, "
+                             f"{self.max_body_width_m}")
+
+    @property
+    def neighbour_beams(self) -> int:
+        """How far beside a segment its neighbour is looked for: across the narrowest run of missing
+        returns that splits a segment (``max_gap_beams`` + 1 beams) to the return after it. A wider gap
+        is open space beside the segment."""
+        return self.max_gap_beams + 2
+
+
+@dataclass(frozen=True)
+class Derived:
+    """The quantities the body stage takes from other stages' keys, so that one physical quantity has one
+    key (:func:`derive` states each derivation)."""
+
+    #: a leg's radius at the laser's height: its centre lies this far behind the returns
+    leg_radius_m: float
+    #: two legs of one person: centres at most this far apart (stride at the laser's height)
+    leg_pair_max_m: float
+    #: a person's radius (shoulders seen from above)
+    person_radius_m: float
+    #: a camera interval is motion evidence for a segment only when, at the segment's range, it is no wider
+    #: than this: the widest body plus the background it uncovers in the flow's baseline at the fastest
+    #: speed a body moves. A wider one is not about this segment: the flow merged the passing body with the
+    #: far side of the image (47 deg, 3.6 m wide at a box 4.3 m away, which became a track)
+    camera_interval_max_m: float
+    #: a fixture's own cells: within this of its points' mean (its returns lie within half the widest
+    #: leg of their mean, and a return's cell centre within half a cell's diagonal of it); a long-occupied
+    #: cell further away, within ``leg_pair_max_m``, where this scan's beam no longer ends was another leg
+    fixture_own_m: float
+
+
+def derive(bodies: BodiesConfig, people: PeopleConfig, tracker: TrackerConfig, flow_baseline_s: float,
+           cell_m: float) -> Derived:
+    """:class:`Derived` from the people stage's person (``PeopleConfig``: ``leg_radius_m``,
+    ``leg_pair_max_m``, ``person_radius_m``), the tracker's fastest body, the flow's baseline and the
+    static map's cell. Raises ValueError when a leg's own reach is not inside a leg pair's."""
+    own = 0.5 * bodies.max_leg_width_m + 0.5 * math.sqrt(2.0) * cell_m
+    if not own < people.leg_pair_max_m:
+        raise ValueError(f"need max_leg_width_m / 2 + cell diagonal / 2 ({own:.3f} m) < people.leg_pair_max_m "
+                         f"({people.leg_pair_max_m} m)")
+    return Derived(people.leg_radius_m, people.leg_pair_max_m, people.person_radius_m,
+                   bodies.max_body_width_m + tracker.max_speed_mps * flow_baseline_s, own)
+
+
+def default_derived(bodies: BodiesConfig, tracker: TrackerConfig) -> Derived:
+    """:func:`derive` with the other stages' default keys."""
+    from .people import PeopleConfig  # here, not at the top: vipsm.people imports this module
+
+    return derive(bodies, PeopleConfig(), tracker, FlowConfig().baseline_s, StaticMapConfig().cell_m)
 
 
 @dataclass(frozen=True)
@@ -218,7 +285,7 @@ def _violating(world: np.ndarray, finite: np.ndarray, grid: FreeSpaceGrid, memor
 
 
 def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
-                        camera: list[BearingInterval], cfg: BodiesConfig, ahead: np.ndarray | None,
+                        camera: list[BearingInterval], cfg: BodiesConfig, der: Derived, ahead: np.ndarray | None,
                         memory: ScanMemory | None, dropped: np.ndarray | None) -> list[_Segment]:
     finite = np.isfinite(r)
     in_camera = [_beams_in(iv, np.where(finite, r, np.nan), b, 0.0) for iv in camera]
@@ -227,7 +294,7 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
     out = []
     for a, z in segments(r, b, cfg, dropped):
         beams = a + np.flatnonzero(finite[a:z])  # a bridged gap's beams hold no return
-        if beams.size < cfg.min_beams:
+        if beams.size < MIN_BEAMS:
             continue
         fg, occluders = _foreground(r, a, z, cfg)
         if not fg:
@@ -239,23 +306,23 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
         share = float(np.mean(violating[beams]))
         near_m = float(np.median(r[beams])) if camera else 0.0
         narrow = [m for m, iv in zip(in_camera, camera, strict=True)
-                  if (iv.bearing_max_rad - iv.bearing_min_rad) * near_m <= cfg.camera_interval_max_m]
+                  if (iv.bearing_max_rad - iv.bearing_min_rad) * near_m <= der.camera_interval_max_m]
         cue = _camera_cue(narrow, beams, [k for k in occluders if 0 <= k < r.size])
         if ahead is not None and width > cfg.max_leg_width_m:
             cue = cue or bool(np.mean(ahead[beams]) >= 0.6)
         stood = width <= cfg.max_leg_width_m and float(np.median(grid.occupied(pts))) >= cfg.fixture_occupied
-        vacated = stood and _vacated_near(pts, r, b, laser, grid, cfg)
+        vacated = stood and _vacated_near(pts, r, b, laser, grid, cfg, der)
         out.append(_Segment(a, z, pts, width, share, cue, tuple(occluders), stood, vacated))
     return out
 
 
 def _vacated_near(pts: np.ndarray, r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
-                  cfg: BodiesConfig) -> bool:
+                  cfg: BodiesConfig, der: Derived) -> bool:
     """A long-occupied cell within a leg pair's reach of the segment where this scan's beam does not
     end: it returns from more than a cell beyond it (what stood there left) or nearer than it (the
     other leg of a person who stood, now stepping towards the laser, hides its own old cell)."""
     cx, cy = (float(v) for v in pts.mean(axis=0))
-    cells = grid.occupied_cells_around(cx, cy, cfg.fixture_own_m, cfg.leg_pair_max_m, cfg.fixture_occupied)
+    cells = grid.occupied_cells_around(cx, cy, der.fixture_own_m, der.leg_pair_max_m, cfg.fixture_occupied)
     if not cells.size:
         return False
     dist = np.hypot(cells[:, 0] - laser.x_m, cells[:, 1] - laser.y_m)
@@ -268,14 +335,14 @@ def _vacated_near(pts: np.ndarray, r: np.ndarray, b: np.ndarray, laser: Pose2D, 
     return bool(np.any(left & (np.abs(b[k] - bearing) < cell_m / dist)))
 
 
-def _fixtures(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[_Segment, float, float]]:
+def _fixtures(legs: list[tuple[_Segment, float, float]], der: Derived) -> list[tuple[_Segment, float, float]]:
     """The legs with each fixture marked and stripped of motion evidence: a leg-sized thing that has
     stood here for a while alone, with no other such thing within a leg pair's reach (a standing
     person's other leg) and no long-occupied cell there where this scan's beam no longer ends (the
     other leg of a person who stood and took the first step). A post stands alone."""
     out = []
     for i, (sg, x, y) in enumerate(legs):
-        partner = any(o.stood and math.hypot(ox - x, oy - y) <= cfg.leg_pair_max_m
+        partner = any(o.stood and math.hypot(ox - x, oy - y) <= der.leg_pair_max_m
                       for j, (o, ox, oy) in enumerate(legs) if j != i)
         if sg.stood and not sg.vacated_near and not partner:
             sg = replace(sg, free_share=0.0, camera=False, fixture=True)
@@ -292,7 +359,7 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
     return bool(own) and float(np.mean(np.logical_or.reduce(own)[beams])) >= 0.5
 
 
-def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> list[tuple[int, int | None]]:
+def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived) -> list[tuple[int, int | None]]:
     """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture; the rest alone."""
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
@@ -301,7 +368,7 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
     used: set[int] = set()
     out: list[tuple[int, int | None]] = []
     for d, i, j in pairs:
-        if d > cfg.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
+        if d > der.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
             continue
         used |= {i, j}
         out.append((i, j))
@@ -312,30 +379,32 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], cfg: BodiesConfig) -> 
 def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                    camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig,
                    ahead: np.ndarray | None = None, memory: ScanMemory | None = None,
-                   dropped: np.ndarray | None = None) -> list[Body]:
+                   dropped: np.ndarray | None = None, derived: Derived | None = None) -> list[Body]:
     """The foreground bodies of one scan (world frame, placed with the matched laser pose), each with
     its motion evidence. ``ahead`` (per beam, optional): the return stands clearly in front of what the
     keyframe saw in that direction (counts like the camera's motion cue). ``memory`` (optional): recent
     scans; a free-space violation must then also have been seen through at beam resolution.
-    ``dropped`` (per beam, optional): the pre-filter removed a return there (see :func:`segments`)."""
+    ``dropped`` (per beam, optional): the pre-filter removed a return there (see :func:`segments`).
+    ``derived``: the quantities taken from the other stages' keys (:func:`derive`; None: their defaults)."""
     sensor = (laser.x_m, laser.y_m)
-    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, ahead, memory, dropped)
+    der = derived or default_derived(cfg, tracker_cfg)
+    segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, der, ahead, memory, dropped)
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:
-            lx, ly, _, _ = locate_body(sg.points, sensor, cfg.leg_radius_m, tracker_cfg)
+            lx, ly, _, _ = locate_body(sg.points, sensor, der.leg_radius_m, tracker_cfg)
             legs.append((sg, lx, ly))
         else:
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
             if fitted:  # a round body; a wall piece or a room corner fits no circle behind its points
                 bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
-    legs = _fixtures(legs, cfg)
-    for i, j in _pair_legs(legs, cfg):
+    legs = _fixtures(legs, der)
+    for i, j in _pair_legs(legs, der):
         group = [legs[i]] + ([legs[j]] if j is not None else [])
         x = float(np.mean([g[1] for g in group]))
         y = float(np.mean([g[2] for g in group]))
         kind = "person" if j is not None else "leg"
-        bodies.append(_body(x, y, cfg.person_radius_m, False, kind, [g[0] for g in group], bearings_rad, cfg))
+        bodies.append(_body(x, y, der.person_radius_m, False, kind, [g[0] for g in group], bearings_rad, cfg))
     return bodies
 
 

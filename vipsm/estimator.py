@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from .bodies import BodiesConfig, Body, extract_bodies
+from .bodies import BodiesConfig, Body, Derived, derive, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
 from .keyframes import KeyframeMatcher, MatchOutcome
@@ -160,10 +160,16 @@ class EstimatorConfig:
             raise ValueError(f"deskew must be one of {', '.join(DESKEW_MODES)}, got {self.deskew!r}")
         if self.motion_prior not in MOTION_PRIORS:
             raise ValueError(f"motion_prior must be one of {', '.join(MOTION_PRIORS)}, got {self.motion_prior!r}")
+        self.bodies_derived  # noqa: B018 (raises when the derived body quantities are inconsistent)
 
     @property
     def laser_mount(self) -> Pose2D:
         return Pose2D(self.laser_x_m, self.laser_y_m, self.laser_theta_rad)
+
+    @property
+    def bodies_derived(self) -> Derived:
+        """The body stage's quantities taken from the people, tracker, flow and static map keys."""
+        return derive(self.bodies, self.people, self.tracker, self.flow.baseline_s, self.static_map.cell_m)
 
     @property
     def camera_mount(self) -> CameraMount:
@@ -205,6 +211,7 @@ class Estimator:
         self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
+        self._bodies_derived = cfg.bodies_derived
         self._last_pose: Pose2D | None = None
         self._last_obstacle_s: float | None = None
         self._last_odo: Pose2D | None = None
@@ -258,7 +265,8 @@ class Estimator:
             return [], [(t, None) for t in self._tracker.tracks]
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
-                                self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped)
+                                self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped,
+                                self._bodies_derived)
         sigma = self._heading_sigma_rad
         sigma = self.config.seen_through.heading_sigma_rad if sigma is None else sigma
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, sigma) for b in bodies])

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -24,46 +25,89 @@ from .geometry import between, inverse, transform_point
 from .restore import BearingInterval
 from .types import Frame, Odometry, Pose2D
 
+#: Numerical-method constants (not tuned parameters of the scene; issue 29 moved them out of the config):
+#: frames wider than this are scaled down to it first (the flow's cost, and the pixel unit of the
+#: thresholds below, are set at this working width)
+WORK_WIDTH_PX = 320
+#: OpenCV's DIS optical flow preset: ultrafast (patch 8 px, 12 gradient-descent steps, no variational step)
+DIS_PRESET = cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST
+#: the residual flow is evaluated on a grid of this step (px at the working width)
+GRID_STEP_PX = 4
+#: the moving cells are opened (specks gone) and closed (one body's fragments joined) with a square of
+#: this many grid cells: the smallest symmetric kernel (the former ``open_px`` 6 and ``close_px`` 10 both
+#: rounded to it at the 4 px grid)
+MORPH_CELLS = 3
+
 
 @dataclass(frozen=True)
 class FlowConfig:
-    max_width_px: int = 320  # larger frames are scaled down to this width first
-    dis_preset: int = 0  # cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST=0, FAST=1, MEDIUM=2
-    grid_step_px: int = 4  # the residual flow is evaluated on this pixel grid
-    baseline_s: float = 0.30  # flow against the oldest kept frame at most this much older
-    alpha_base_px: float = 0.8  # threshold with the robot at rest
-    alpha_v_px_per_m: float = 10.0  # grows with the distance driven between the two frames
-    alpha_w_px_per_rad: float = 30.0  # ... and with the angle turned
-    alpha_max_px: float = 6.0
-    alpha_rel: float = 0.25  # plus this share of the predicted ego-motion flow (depth errors scale with it)
-    fb_check: bool = False  # drop pixels failing the forward-backward flow consistency check
-    fb_tol_px: float = 1.0
-    fb_tol_rel: float = 0.2
-    snap_to_depth: bool = True  # snap blob edges to the laser's depth edges when a foreground run matches
-    snap_jump_m: float = 0.20
-    snap_jump_rel: float = 0.05
-    #: a blob with at least this share of its columns on one foreground run is about that body (the rest
-    #: spilled onto the background at the edge it covers or uncovers), however little of it moved clearly
-    #: enough: a slow body's leading side flows most (translation and looming add), its trailing side
-    #: least (the paper's 0.15 m/s cylinder at 45 deg: a third of it at first)
-    snap_blob_share: float = 0.67
-    column_share: float = 0.3  # a blob's column counts when this share of its usable cells move
-    trim_trailing: bool = True  # trim the uncovered background from a blob's trailing side
-    fit_global: bool = True  # remove a fitted global shift + scale of the ego-motion flow (odometry errors)
-    global_shift_max_px: float = 8.0
-    global_scale_max: float = 0.5
-    border_px: int = 6  # pixels this close to the border (before or after the motion) are not used
-    min_texture: float = 6.0  # minimum gradient magnitude (grey levels/px) for a pixel to count
-    min_blob_px: int = 250  # blobs smaller than this many pixels are dropped
-    open_px: int = 6  # morphological opening of the moving mask (pixels; odd number of grid cells)
-    close_px: int = 10  # closing to merge fragments of one body
-    max_frame_gap_s: float = 0.5  # older previous frames are not used for flow
-    max_depth_m: float = 30.0  # columns without a laser surface get this depth (far background)
-    min_flow_valid_depth_m: float = 0.2
+    """The flow stage's keys: times of the camera's frames, the flow's noise and the odometry's errors in
+    pixels (at the working width ``WORK_WIDTH_PX``), depth edges in metres. Keys removed in the reduction of
+    issue 29 are listed in ``REMOVED_KEYS``."""
 
-    def __post_init__(self) -> None:
-        if not 0.5 < self.snap_blob_share <= 1.0:
-            raise ValueError(f"need 0.5 < snap_blob_share <= 1, got {self.snap_blob_share}")
+    #: flow against the oldest kept frame at most this much older: a slow body's image motion grows with
+    #: the baseline, the flow's noise does not
+    baseline_s: float = 0.30
+    #: frames further apart than this are not compared (the image moved too far for the flow to follow)
+    max_frame_gap_s: float = 0.5
+    #: the paper's threshold alpha (eq. 1), in px at the working width: the flow's own noise with the robot
+    #: at rest ...
+    alpha_base_px: float = 0.8
+    #: ... growing with the distance driven and the angle turned between the two frames (the odometry's
+    #: errors over that motion, as image motion; 30 px/rad is a 0.1 rad/rad heading error at the 54 deg
+    #: camera's 314 px focal length) ...
+    alpha_v_px_per_m: float = 10.0
+    alpha_w_px_per_rad: float = 30.0
+    #: ... up to this (a fast turn's threshold would hide every body)
+    alpha_max_px: float = 6.0
+    #: plus this share of the predicted flow: the depth behind each cell (nearest laser point, the floor
+    #: plane) is good to about a quarter, and the prediction's error scales with it
+    alpha_rel: float = 0.25
+    #: cells with less image gradient than this (grey levels / px) carry no flow: a few times the camera's
+    #: grey-level noise
+    min_texture: float = 6.0
+    #: a blob of moving cells smaller than this (px at the working width) is noise, not a body (a leg
+    #: 0.1 m wide and 0.5 m high at 6 m covers about 6 x 30 px)
+    min_blob_px: int = 250
+    #: a blob's column belongs to the body when this share of its usable cells move (the closing's
+    #: sparse fringe does not)
+    column_share: float = 0.3
+    #: the global fit of the residual (shift + scale of the predicted flow: the odometry's heading and
+    #: distance errors between the two frames) corrects at most this shift (8 px: 1.5 deg at a 54 deg
+    #: camera's 314 px focal length) ...
+    global_shift_max_px: float = 8.0
+    #: ... and this share of the predicted flow (a distance error of half the distance driven)
+    global_scale_max: float = 0.5
+    #: cells this close to the image's border (px at the working width, in the newest frame or where the
+    #: motion takes them in the older) are not used: the flow's 8 px patches reach out of the image there
+    #: (one whole patch, 8 px, was measured worse: realistic cylinder_clutter seed 7 located 94.4 % instead
+    #: of 95.5 %)
+    border_px: int = 6
+    #: two neighbouring columns are two surfaces when their laser depths differ by more than this ...
+    snap_jump_m: float = 0.20
+    #: ... or by this share of the nearer one
+    snap_jump_rel: float = 0.05
+
+    #: keys removed (issue 29: fewer tuned parameters), with what replaced each: a config file that sets one
+    #: is refused naming the key and this reason (``app.config``), never silently misread
+    REMOVED_KEYS: ClassVar[dict[str, str]] = {
+        "max_width_px": "a numerical constant now, vipsm.flow.WORK_WIDTH_PX (320)",
+        "dis_preset": "a numerical constant now, vipsm.flow.DIS_PRESET (ultrafast)",
+        "grid_step_px": "a numerical constant now, vipsm.flow.GRID_STEP_PX (4)",
+        "open_px": "a numerical constant now, vipsm.flow.MORPH_CELLS (3 grid cells, what 6 px gave)",
+        "close_px": "a numerical constant now, vipsm.flow.MORPH_CELLS (3 grid cells, what 10 px gave)",
+        "fb_check": "the forward-backward check (off by default) was deleted: the nearest-depth prediction made it "
+                    "unnecessary",
+        "fb_tol_px": "the forward-backward check (off by default) was deleted",
+        "fb_tol_rel": "the forward-backward check (off by default) was deleted",
+        "fit_global": "the global fit is always on (the switch of a kept model, not a tuned value)",
+        "trim_trailing": "the trailing trim is always on (the switch of a kept model, not a tuned value)",
+        "snap_to_depth": "snapping to depth edges is always on (the switch of a kept model, not a tuned value)",
+        "snap_blob_share": "replaced by a majority: a blob lying mostly (more than half) on one foreground run is "
+                           "about that body",
+        "max_depth_m": "a column with no laser surface is seen as at infinity (its flow is the rotation's only)",
+        "min_flow_valid_depth_m": "deleted: every depth in front of the camera is predicted",
+    }
 
 
 @dataclass(frozen=True)
@@ -132,13 +176,18 @@ def _project(px, py, pz, fx, fy, cx, cy, pan, tilt, dist=(0.0, 0.0, 0.0, 0.0)):
 def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: FlowConfig) -> tuple[float, float]:
     """Snap a blob's column span to the laser's depth edges: the columns are split where the laser
     depth jumps, and the foreground runs (nearer than both neighbours) that the blob covers for at
-    least half their width, or that lie wholly in the image and hold ``snap_blob_share`` of the blob,
-    replace the span. Without such a run the span is kept."""
+    least half their width, or that lie wholly in the image and hold most (more than half) of the blob,
+    replace the span. Without such a run the span is kept. A blob lying mostly on one foreground run is
+    about that body, however little of it moved clearly enough (the rest spilled onto the background at
+    the edge it covers or uncovers): a slow body's leading side flows most (translation and looming
+    add), its trailing side least (the paper's 0.15 m/s cylinder at 45 deg: a third of it at first).
+    ``col_depth`` is inf where no laser surface lies."""
     d = col_depth
     n = d.size
     if n < 2:
         return u0, u1
-    jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
+    with np.errstate(invalid="ignore"):  # inf - inf: one far background, no edge
+        jump = np.abs(np.diff(d)) > np.maximum(cfg.snap_jump_m, cfg.snap_jump_rel * np.minimum(d[1:], d[:-1]))
     starts = np.concatenate(([0], np.flatnonzero(jump) + 1))
     stops = np.concatenate((starts[1:], [n]))
     near = np.add.reduceat(d, starts) / (stops - starts)  # mean depth of each run
@@ -149,7 +198,7 @@ def _snap_to_depth(u0: float, u1: float, col_depth: np.ndarray, st: int, cfg: Fl
     overlap = np.minimum(stops, c1) - np.maximum(starts, c0)
     # a run reaching the image's edge may go on beyond it: what a blob lying on it is about is not known
     whole = (starts > 0) & (stops < n)
-    hit = fg & ((overlap >= 0.5 * (stops - starts)) | (whole & (overlap >= cfg.snap_blob_share * (c1 - c0))))
+    hit = fg & ((overlap >= 0.5 * (stops - starts)) | (whole & (overlap > 0.5 * (c1 - c0))))
     if not hit.any():
         return u0, u1
     return float(starts[hit].min() * st), float(stops[hit].max() * st)
@@ -241,7 +290,8 @@ class FlowDetector:
     def __init__(self, config: FlowConfig | None = None, mount: CameraMount | None = None) -> None:
         self.config = config or FlowConfig()
         self.mount = mount or CameraMount()
-        self._dis = cv2.DISOpticalFlow_create(self.config.dis_preset)
+        self._dis = cv2.DISOpticalFlow_create(DIS_PRESET)
+        self._border_px = self.config.border_px
         self._history: list[tuple[np.ndarray, float, Frame, Pose2D]] = []
         self._last_result: FlowResult | None = None
         self._geo: _Geometry | None = None
@@ -286,7 +336,7 @@ class FlowDetector:
         if self._history and self._history[-1][2].stamp_s == frame.stamp_s:
             # the same frame again (a camera slower than the estimator's cycle): same answer
             return self._last_result
-        grey, scale = _grey(frame, cfg.max_width_px)
+        grey, scale = _grey(frame, WORK_WIDTH_PX)
         old = self._pick_old(frame.stamp_s, grey.shape)
         self._history.append((grey, scale, frame, odom_pose_at_frame))
         self._history = [it for it in self._history if frame.stamp_s - it[2].stamp_s <= cfg.max_frame_gap_s + 1e-9][-8:]
@@ -295,25 +345,22 @@ class FlowDetector:
             return None
         ogrey, oscale, oframe, opose = old
         geo = self._geometry(frame, grey.shape, scale)
-        depth = _cell_depths(geo, depth_points_robot, self.mount, cfg)
+        depth = _cell_depths(geo, depth_points_robot, self.mount)
         rel = between(opose, odom_pose_at_frame)  # newest robot pose in the older robot frame
-        pred_u, pred_v, valid = _ego_flow(geo, depth, rel, oframe, oscale, self.mount, cfg)
+        pred_u, pred_v, valid = _ego_flow(geo, depth, rel, oframe, oscale, self.mount)
         flow = self._dis.calc(grey, ogrey, None)  # newest -> older
         fl = flow[0 : geo.h : geo.st, 0 : geo.w : geo.st].astype(np.float64)
         ru, rv = fl[..., 0] - pred_u, fl[..., 1] - pred_v
         usable = valid & _textured(grey, geo.st, cfg)
-        if cfg.fb_check:
-            usable &= self._comes_back(grey, ogrey, fl, geo)
-        if cfg.fit_global:
-            ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
+        ru, rv = _remove_global_error(ru, rv, pred_u, pred_v, usable, cfg)
         alpha = _alpha_px(cfg, speed_mps, turn_radps, frame.stamp_s - oframe.stamp_s)
         res = np.hypot(ru, rv)
         thr = alpha + cfg.alpha_rel * np.hypot(pred_u, pred_v)
         moving = usable & (res > thr)
         self.last_residual = (res, thr, usable, geo.st)
-        mask = _clean_mask(moving, geo.st, cfg)
+        mask = _clean_mask(moving)
         spans = _merge_spans(_blob_spans(mask, moving, usable, ru, geo.st, cfg))
-        if cfg.snap_to_depth and depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
+        if depth_points_robot is not None and depth_points_robot.shape[0] >= 2:
             col_depth = depth[depth.shape[0] // 2]  # laser depth per grid column (horizon row)
             for sp in spans:
                 sp[0], sp[1] = _snap_to_depth(sp[0], sp[1], col_depth, geo.st, cfg)
@@ -328,9 +375,9 @@ class FlowDetector:
 
     def _geometry(self, frame: Frame, shape: tuple[int, ...], scale: float) -> _Geometry:
         """The viewing ray of every grid cell of the newest frame (cached per camera state)."""
-        cfg, m, k = self.config, self.mount, frame.intrinsics
+        m, k = self.mount, frame.intrinsics
         h, w = shape[:2]
-        st = max(1, cfg.grid_step_px)
+        st = GRID_STEP_PX
         fx, fy, cx, cy = k.fx_px * scale, k.fy_px * scale, k.cx_px * scale, k.cy_px * scale
         key = (h, w, st, fx, fy, cx, cy, k.distortion, frame.pan_rad, frame.tilt_rad, m.z_m)
         if self._geo is None or self._geo.key != key:
@@ -341,28 +388,18 @@ class FlowDetector:
             hn = np.hypot(rx, ry)
             slope = rz / np.maximum(hn, 1e-9)
             floor_d = np.where(slope < -1e-6, m.z_m / np.maximum(-slope, 1e-9), np.inf)
-            bd = cfg.border_px
+            bd = self._border_px
             inside = (us >= bd) & (us < w - bd) & (vs >= bd) & (vs < h - bd)
             self._geo = _Geometry(key, h, w, st, (fx, fy, cx, cy), us, vs, rx, ry, rz, hn, np.arctan2(ry, rx),
-                                  floor_d, inside)
+                                  floor_d, inside, bd)
         return self._geo
-
-    def _comes_back(self, grey: np.ndarray, ogrey: np.ndarray, fl: np.ndarray, geo: _Geometry) -> np.ndarray:
-        """Forward-backward consistency: cells whose backward flow does not come back (regions
-        uncovered by a moving body, textureless patches) carry no flow information."""
-        cfg = self.config
-        fwd = self._dis.calc(ogrey, grey, None)
-        mx = (geo.us + fl[..., 0]).astype(np.float32)
-        my = (geo.vs + fl[..., 1]).astype(np.float32)
-        back = cv2.remap(fwd, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        fb_err = np.hypot(fl[..., 0] + back[..., 0], fl[..., 1] + back[..., 1])
-        return fb_err < cfg.fb_tol_px + cfg.fb_tol_rel * np.hypot(fl[..., 0], fl[..., 1])
 
 
 @dataclass(frozen=True, eq=False)
 class _Geometry:
     """Per grid cell of the newest frame: pixel centre (us, vs), viewing ray (rx, ry, rz; hn its
-    horizontal length, az its azimuth), distance to the floor along it, inside the border."""
+    horizontal length, az its azimuth), distance to the floor along it, inside the border (``border_px``
+    from each edge)."""
 
     key: tuple
     h: int
@@ -378,12 +415,13 @@ class _Geometry:
     az: np.ndarray
     floor_d: np.ndarray
     inside: np.ndarray
+    border_px: int
 
 
-def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: CameraMount, cfg: FlowConfig) -> np.ndarray:
-    """Horizontal distance to the laser's surface in each cell's viewing direction (``max_depth_m``
-    outside the laser's points)."""
-    depth = np.full(geo.az.shape, cfg.max_depth_m)
+def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: CameraMount) -> np.ndarray:
+    """Horizontal distance to the laser's surface in each cell's viewing direction; inf outside the
+    laser's points (no surface seen: far background, see :func:`_ego_flow`)."""
+    depth = np.full(geo.az.shape, np.inf)
     if depth_points_robot is None or depth_points_robot.shape[0] < 2:
         return depth
     dx = depth_points_robot[:, 0] - m.x_m
@@ -397,28 +435,32 @@ def _cell_depths(geo: _Geometry, depth_points_robot: np.ndarray | None, m: Camer
     # of a wall) interpolated depths belong to neither surface and fake residual flow
     jj = np.clip(np.searchsorted(pb, az), 1, pb.size - 1)
     jj -= (np.abs(pb[jj - 1] - az) < np.abs(pb[jj] - az)).astype(np.intp)
-    return np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), cfg.max_depth_m, pd[jj])
+    return np.where((az < pb[0] - 0.01) | (az > pb[-1] + 0.01), np.inf, pd[jj])
 
 
-def _ego_flow(geo: _Geometry, depth: np.ndarray, rel: Pose2D, oframe: Frame, oscale: float, m: CameraMount,
-              cfg: FlowConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _ego_flow(geo: _Geometry, depth: np.ndarray, rel: Pose2D, oframe: Frame, oscale: float, m: CameraMount
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The flow (newest -> older, px) a static scene would show in each cell, and where it is valid:
     each cell's 3-D point (laser depth or floor) moved by the robot's motion ``rel`` (newest pose in
-    the older robot frame) and projected into the older frame."""
+    the older robot frame) and projected into the older frame. A cell with neither (no laser surface in
+    its direction, above the horizon) looks at a point at infinity: its direction only turns with the
+    robot, the translation moves it by nothing."""
     dist_h = np.minimum(depth, geo.floor_d)
-    valid = np.isfinite(dist_h) & (dist_h > cfg.min_flow_valid_depth_m)
-    t = dist_h / np.maximum(geo.hn, 1e-9)
-    px = m.x_m + geo.rx * t
-    py = m.y_m + geo.ry * t
-    pz = geo.rz * t
+    far = ~np.isfinite(dist_h)
+    valid = dist_h > 0.0
+    t = np.where(far, 1.0, dist_h / np.maximum(geo.hn, 1e-9))  # the far cells: the ray's direction
     c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
-    qx = rel.x_m + c * px - s * py - m.x_m
-    qy = rel.y_m + s * px + c * py - m.y_m
+    # the point (camera + ray * t) moved by ``rel``, relative to the older camera; no translation at infinity
+    shift_x = np.where(far, 0.0, rel.x_m + c * m.x_m - s * m.y_m - m.x_m)
+    shift_y = np.where(far, 0.0, rel.y_m + s * m.x_m + c * m.y_m - m.y_m)
+    qx = shift_x + (c * geo.rx - s * geo.ry) * t
+    qy = shift_y + (s * geo.rx + c * geo.ry) * t
+    pz = geo.rz * t
     ko = oframe.intrinsics
     ofx, ofy, ocx, ocy = ko.fx_px * oscale, ko.fy_px * oscale, ko.cx_px * oscale, ko.cy_px * oscale
     u2, v2, f2 = _project(qx, qy, pz, ofx, ofy, ocx, ocy, oframe.pan_rad, oframe.tilt_rad, ko.distortion)
     valid &= f2 > 1e-3
-    bd = cfg.border_px
+    bd = geo.border_px
     with np.errstate(invalid="ignore"):
         valid &= (u2 >= bd) & (u2 < geo.w - bd) & (v2 >= bd) & (v2 < geo.h - bd)
     valid &= geo.inside
@@ -444,16 +486,11 @@ def _textured(grey: np.ndarray, st: int, cfg: FlowConfig) -> np.ndarray:
     return cv2.dilate(mag, np.ones((3, 3), np.uint8))[0:h:st, 0:w:st] > cfg.min_texture
 
 
-def _clean_mask(moving: np.ndarray, st: int, cfg: FlowConfig) -> np.ndarray:
-    """The moving cells opened (specks gone) and closed (one body's fragments joined)."""
-    mask = moving.astype(np.uint8)
-    k_open = max(1, int(round(cfg.open_px / st)) | 1)
-    k_close = max(1, int(round(cfg.close_px / st)) | 1)
-    if k_open > 1:
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
-    if k_close > 1:
-        mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((k_close, k_close), np.uint8))
-    return mask
+def _clean_mask(moving: np.ndarray) -> np.ndarray:
+    """The moving cells opened (specks gone) and closed (one body's fragments joined), ``MORPH_CELLS``."""
+    kernel = np.ones((MORPH_CELLS, MORPH_CELLS), np.uint8)
+    mask = cv2.morphologyEx(moving.astype(np.uint8), cv2.MORPH_OPEN, kernel)
+    return cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
 
 
 def _blob_spans(mask: np.ndarray, moving: np.ndarray, usable: np.ndarray, ru: np.ndarray, st: int,
@@ -474,8 +511,7 @@ def _blob_spans(mask: np.ndarray, moving: np.ndarray, usable: np.ndarray, ru: np
         if dense.size == 0:
             continue
         u0, u1 = float((x0 + int(dense[0])) * st), float((x0 + int(dense[-1]) + 1) * st)
-        if cfg.trim_trailing:
-            u0, u1 = _trim_trailing(u0, u1, ru[(labels == i) & moving], st)
+        u0, u1 = _trim_trailing(u0, u1, ru[(labels == i) & moving], st)
         spans.append([u0, u1, y0 * st, (y0 + hh) * st])
     return spans
 

@@ -47,8 +47,8 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.tracker.accel_sigmas_mps2=[]", "estimator.tracker", "at least one positive"),
         ("estimator.tracker.mode_switch_per_s=-1", "estimator.tracker", "mode_switch_per_s must be >= 0"),
         ("estimator.bodies.max_gap_beams=-1", "estimator.bodies", "max_gap_beams >= 0"),
-        ("estimator.bodies.fixture_own_m=0.9", "estimator.bodies", "fixture_own_m < leg_pair_max_m"),
-        ("estimator.bodies.camera_interval_max_m=0", "estimator.bodies", "camera_interval_max_m > 0"),
+        ("estimator.bodies.max_leg_width_m=1.5", "estimator.bodies", "max_leg_width_m < max_body_width_m"),
+        ("estimator.people.leg_pair_max_m=0.15", "estimator", "< people.leg_pair_max_m"),
         ("estimator.tracker.confirm_vacated_m=-1", "estimator.tracker", "confirm_vacated_m >= 0"),
         ("estimator.tracker.anisotropic_min_speed_mps=0", "estimator.tracker", "anisotropic_min_speed_mps > 0"),
         ("estimator.tracker.confirm_onset_rows=1", "estimator.tracker", "confirm_onset_rows >= 2"),
@@ -61,6 +61,26 @@ def test_bad_values_name_their_key(override: str, key: str, words: str) -> None:
         load_config(None, [override])
     assert info.value.key == key
     assert words in str(info.value) and f"'{key}'" in str(info.value)
+
+
+@pytest.mark.parametrize("key", ["estimator.bodies.leg_radius_m", "estimator.bodies.camera_interval_max_m",
+                                 "estimator.bodies.min_beams", "estimator.flow.fb_check",
+                                 "estimator.flow.grid_step_px", "estimator.flow.fit_global",
+                                 "estimator.flow.max_depth_m"])
+def test_a_removed_key_is_refused_as_removed_never_ignored(key: str) -> None:
+    """A key an older version had (issue 29 removed or derived it): an old config file that sets it is refused
+    with the key named and what replaced it, not read as if the value still applied."""
+    with pytest.raises(ConfigError) as info:
+        load_config(None, [f"{key}=1"])
+    assert info.value.key == key and "was removed" in str(info.value) and "unknown key" not in str(info.value)
+
+
+def test_an_old_config_file_with_a_removed_key_is_refused(tmp_path: Path) -> None:
+    old = tmp_path / "old.toml"
+    old.write_text("[estimator.bodies]\nseg_jump_m = 0.15\nperson_radius_m = 0.3\n")
+    with pytest.raises(ConfigError, match="estimator.people.person_radius_m") as info:
+        load_config(old)
+    assert info.value.key == "estimator.bodies.person_radius_m"
 
 
 def test_unreadable_files_are_config_errors(tmp_path: Path) -> None:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
-from vipsm.bodies import BodiesConfig, extract_bodies
+from vipsm.bodies import BodiesConfig, default_derived, extract_bodies
 from vipsm.static_map import FreeSpaceGrid
 from vipsm.tracker import TrackerConfig
 from vipsm.types import Pose2D
@@ -14,6 +15,7 @@ from vipsm.types import Pose2D
 from .sim import UTM_BEARINGS, Circle, box_room
 
 CFG = BodiesConfig()
+DERIVED = default_derived(CFG, TrackerConfig())
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 
 
@@ -289,4 +291,49 @@ def test_a_long_occupied_cell_left_or_hidden_counts_as_vacated_one_still_ending_
     for beam_m, vacated in ((dist, False), (2.2, True), (4.0, True)):
         ranges = np.full(bearings.size, 4.0)
         ranges[near_cell] = beam_m
-        assert _vacated_near(stance, ranges, bearings, ORIGIN, grid, CFG) is vacated, beam_m
+        assert _vacated_near(stance, ranges, bearings, ORIGIN, grid, CFG, DERIVED) is vacated, beam_m
+
+
+def test_the_derived_quantities_follow_the_keys_they_come_from() -> None:
+    """Issue 29: one physical quantity, one key. The person's sizes are the people stage's keys, the widest
+    camera interval about one body is the widest body plus what the fastest body uncovers in the flow's
+    baseline, a fixture's own reach half the widest leg plus half a cell's diagonal, the neighbour search
+    the narrowest splitting gap plus one."""
+    from dataclasses import replace
+
+    from vipsm.estimator import EstimatorConfig
+    from vipsm.flow import FlowConfig
+    from vipsm.people import PeopleConfig
+    from vipsm.static_map import StaticMapConfig
+
+    d = EstimatorConfig().bodies_derived
+    assert (d.leg_radius_m, d.leg_pair_max_m, d.person_radius_m) == (0.06, 0.65, 0.25)
+    assert d.camera_interval_max_m == pytest.approx(1.2 + 2.5 * 0.3)
+    assert d.fixture_own_m == pytest.approx(0.125 + 0.05 * math.sqrt(2.0))
+    cfg = EstimatorConfig(people=PeopleConfig(leg_radius_m=0.05, leg_pair_max_m=0.5, person_radius_m=0.3),
+                          tracker=replace(TrackerConfig(), max_speed_mps=1.5), flow=FlowConfig(baseline_s=0.2),
+                          bodies=BodiesConfig(max_body_width_m=1.0, max_leg_width_m=0.2),
+                          static_map=StaticMapConfig(cell_m=0.2))
+    d = cfg.bodies_derived
+    assert (d.leg_radius_m, d.leg_pair_max_m, d.person_radius_m) == (0.05, 0.5, 0.3)
+    assert d.camera_interval_max_m == pytest.approx(1.0 + 1.5 * 0.2)
+    assert d.fixture_own_m == pytest.approx(0.1 + 0.1 * math.sqrt(2.0))
+    assert BodiesConfig(max_gap_beams=0).neighbour_beams == 2 and CFG.neighbour_beams == 4
+    with pytest.raises(ValueError, match="people.leg_pair_max_m"):
+        EstimatorConfig(people=PeopleConfig(leg_pair_max_m=0.15))
+
+
+def test_the_people_stages_pair_distance_is_the_one_the_body_stage_pairs_legs_with() -> None:
+    """Two legs 0.32 m apart are one person with the default stride, two lone legs when the people stage's
+    ``leg_pair_max_m`` is shorter than that: the body stage has no key of its own for it."""
+    from vipsm.bodies import derive
+    from vipsm.people import PeopleConfig
+
+    world = box_room(8.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+    world.circles = [Circle(2.5, 0.6, 0.06), Circle(2.7, 0.35, 0.06)]
+    scan = world.scan(ORIGIN)
+    args = (scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig(), None, None, None)
+    assert [b.kind for b in extract_bodies(*args, DERIVED)] == ["person"]
+    short = derive(CFG, PeopleConfig(leg_pair_max_m=0.3), TrackerConfig(), 0.3, 0.1)
+    assert [b.kind for b in extract_bodies(*args, short)] == ["leg", "leg"]

@@ -275,8 +275,8 @@ def test_a_blob_lying_mostly_on_a_body_snaps_to_it_however_little_of_the_body_it
     assert _snap_to_depth(33 * st, 57 * st, depth, st, cfg) == (40 * st, 100 * st)
     assert _snap_to_depth(25 * st, 50 * st, depth, st, cfg) == (25 * st, 50 * st)
     assert _snap_to_depth(5 * st, 30 * st, depth, st, cfg) == (5 * st, 30 * st)
-    only_half = FlowConfig(snap_blob_share=1.0)  # the share is the config's
-    assert _snap_to_depth(33 * st, 57 * st, depth, st, only_half) == (33 * st, 57 * st)
+    assert _snap_to_depth(30 * st, 50 * st, depth, st, cfg) == (30 * st, 50 * st)  # half and half: neither
+    assert _snap_to_depth(31 * st, 50 * st, depth, st, cfg) == (40 * st, 100 * st)  # most on the body
 
 
 def test_a_blob_on_a_surface_that_reaches_the_image_edge_is_not_snapped_to_it() -> None:
@@ -292,7 +292,33 @@ def test_a_blob_on_a_surface_that_reaches_the_image_edge_is_not_snapped_to_it() 
     assert _snap_to_depth(20 * st, 62 * st, cut, st, cfg) == (0, 60 * st)
 
 
-@pytest.mark.parametrize("share", [0.5, 0.0, 1.2])
-def test_a_blob_share_that_could_pick_two_bodies_is_refused(share: float) -> None:
-    with pytest.raises(ValueError, match="snap_blob_share"):
-        FlowConfig(snap_blob_share=share)
+def test_a_body_against_open_space_snaps_to_its_edges() -> None:
+    """Columns with no laser surface (beyond the laser's reach or field of view) are far background (inf):
+    a body in front of them is a foreground run."""
+    st, cfg = 4, FlowConfig()
+    depth = _depth_with_body()
+    depth[:40] = np.inf
+    depth[100:] = np.inf
+    assert _snap_to_depth(60 * st, 95 * st, depth, st, cfg) == (40 * st, 100 * st)
+
+
+def test_a_cell_with_no_surface_is_at_infinity_its_flow_the_turns_alone() -> None:
+    """A cell above the horizon with no laser surface in its direction looks at a point at infinity:
+    driving straight moves it by nothing, turning moves it as the rotation does (as any far point)."""
+    from vipsm.flow import _cell_depths, _ego_flow
+
+    det = FlowDetector(FlowConfig(), MOUNT)
+    img = np.zeros((240, 320), np.uint8)
+    frame = Frame(img, 0.0, CAM.intrinsics, 0.0, 0.0, 0)
+    geo = det._geometry(frame, img.shape, 1.0)
+    depth = _cell_depths(geo, None, MOUNT)
+    assert np.all(np.isinf(depth))
+    sky = geo.rz > 0.05  # above the horizon: no floor either
+    u, v, ok = _ego_flow(geo, depth, Pose2D(0.3, 0.0, 0.0), frame, 1.0, MOUNT)
+    assert ok[sky].any() and np.all(np.abs(u[sky & ok]) < 1e-9) and np.all(np.abs(v[sky & ok]) < 1e-9)
+    far = np.full(depth.shape, 1e7)  # a very far surface: the same flow within a pixel's thousandth
+    for rel in (Pose2D(0.3, 0.0, 0.0), Pose2D(0.0, 0.0, 0.05), Pose2D(0.2, 0.05, -0.03)):
+        u, v, ok = _ego_flow(geo, depth, rel, frame, 1.0, MOUNT)
+        uf, vf, okf = _ego_flow(geo, far, rel, frame, 1.0, MOUNT)
+        both = sky & ok & okf
+        assert both.any() and np.allclose(u[both], uf[both], atol=1e-3) and np.allclose(v[both], vf[both], atol=1e-3)
