@@ -229,7 +229,8 @@ def recorded_estimator_config(path: str | Path) -> EstimatorConfig | None:
             try:
                 return from_dict(EstimatorConfig, msg.data["estimator"], "estimator.")  # type: ignore[no-any-return]
             except (KeyError, ValueError) as exc:
-                raise LogFormatError(f"{path}: the recorded configuration does not fit this version: {exc}") from exc
+                raise LogFormatError(f"{path}: the recorded configuration does not fit this version: {exc}; replay "
+                                     "it with this version's configuration: add --config FILE or --set") from exc
         if msg.topic == "/vipsm/cycle":
             break
     return None

@@ -112,3 +112,22 @@ def test_a_log_with_only_malformed_cycles_says_why_in_one_line(tmp_path: Path) -
                           timeout=120)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "2 malformed" in proc.stderr and "ranges_m" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_a_log_recorded_with_a_removed_config_key_is_refused_with_the_way_out(tmp_path) -> None:
+    """A field log whose recorded configuration sets a key this version removed is not silently replayed
+    with another configuration: the error names the key, its replacement and the replay options to use."""
+    from app.replay import LogFormatError, recorded_estimator_config
+
+    path = tmp_path / "old.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        cid = w.register_channel("/vipsm/config", "json", w.register_schema("vipsm.Config", "jsonschema", b"{}"))
+        payload = {"estimator": {"bodies": {"leg_radius_m": 0.06}}, "log_version": 3}
+        w.add_message(cid, log_time=0, publish_time=0, data=json.dumps(payload).encode())
+        w.finish()
+    with pytest.raises(LogFormatError) as exc:
+        recorded_estimator_config(path)
+    msg = str(exc.value)
+    assert "estimator.bodies.leg_radius_m" in msg and "people.leg_radius_m" in msg and "--config" in msg
