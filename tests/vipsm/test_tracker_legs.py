@@ -101,3 +101,45 @@ def test_a_person_standing_with_its_legs_apart_is_not_reported_as_striding() -> 
             reported = _stands_on_a_wide_stance(Tracker(TrackerConfig()), period_s, seed)
             late = int(math.ceil(0.5 / period_s))
             assert not any(reported[late:]), (period_s, seed, reported)
+
+
+def _side_by_side(tr: Tracker, in_step: bool, seed: int) -> list[tuple[float, float, float, float]]:
+    """Two walkers 0.4 m apart side by side (y = 2.0 and 2.4), 0.9 m/s along +x at 10 scans a second, seen as
+    leg pairs for 1.5 s, then each by one lone leg a scan: the leg ahead of the pelvis and the one behind it
+    (0.2 m), the left and the right (0.1 m) alternating, in step or out of step, with 2 cm of noise. Returns,
+    per lone-leg cycle and walker, the track's (worst) position error, its velocity error, and whether each
+    walker's track was the one it started with (1.0) or not (0.0)."""
+    rng = np.random.default_rng(seed)
+    lanes = (2.0, 2.4)
+    for k in range(15):
+        tr.step(0.1 * k, [_pair(0.09 * k + rng.normal(0, 0.02), y + rng.normal(0, 0.02)) for y in lanes])
+    first = {lanes[0]: 1, lanes[1]: 2}
+    out = []
+    for k in range(15, 45):
+        dets = []
+        for n, y in enumerate(lanes):
+            phase = k + (0 if in_step or n == 0 else 1)
+            ahead = 0.2 if phase % 2 else -0.2
+            side = 0.1 if (phase // 2) % 2 else -0.1
+            dets.append(_leg(0.09 * k + ahead + rng.normal(0, 0.02), y + side + rng.normal(0, 0.02), evidence=True))
+        live = {t.track_id: t for t, _ in tr.step(0.1 * k, dets)}
+        for y in lanes:
+            t = live.get(first[y])
+            if t is None:
+                out.append((math.inf, math.inf, 0.0))
+                continue
+            out.append((math.hypot(t.state[0] - 0.09 * k, t.state[1] - y), math.hypot(t.state[2] - 0.9, t.state[3]),
+                        1.0))
+    return out
+
+
+def test_two_walkers_side_by_side_seen_by_one_lone_leg_each_keep_their_tracks() -> None:
+    """Two walkers 0.4 m apart, each seen by one leg at a time (a lone leg 0.2 m ahead of or behind its pelvis,
+    0.1 m to either side): each track keeps its own walker, never takes the other's leg, within 0.15 m of its
+    pelvis and 0.15 m/s of its velocity (a crowd's walkers side by side, given their own legs)."""
+    for in_step in (True, False):
+        for seed in range(5):
+            rows = np.array(_side_by_side(Tracker(TrackerConfig()), in_step, seed))
+            assert rows[:, 2].min() == 1.0, (in_step, seed)
+            assert rows[:, 0].max() < 0.15, (in_step, seed, rows[:, 0].max())
+            assert rows[:, 1].max() < 0.15, (in_step, seed, rows[:, 1].max())
