@@ -117,7 +117,7 @@ class TrackerConfig:
     max_speed_mps: float = 2.5
     step_noise_m: float = 0.1
     #: ... plus this when the detection's kind changes between them: a lone leg's centre lies up to half
-    #: the widest leg pair (``BodiesConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
+    #: the widest leg pair (``PeopleConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
     kind_change_m: float = 0.33
     #: confirmed tracks slower than this (a body that stopped) are not reported: both the filter's
     #: speed and the net displacement of the detections over the last ``report_window`` of them
