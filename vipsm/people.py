@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .assignment import assign
-from .bodies import BodiesConfig, segments
+from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
@@ -536,6 +536,21 @@ class PeopleTracker:
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
+
+    def known_legs(self, stamp_s: float) -> list[KnownLeg]:
+        """The live leg tracks predicted to ``stamp_s`` (before this cycle's :meth:`step`), each with its
+        reach (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen, as the leg
+        association gates it) and the person track it is a leg of (None: no person) with that person's number
+        of legs: the body stage pairs no two legs that cannot be one person's (:func:`vipsm.bodies._may_pair`)."""
+        c = self.config
+        person = {k: t for t in self.tracks for k in t.leg_ids}
+        out = []
+        for k, lt in self.legs.items():
+            x, y = lt.predicted(stamp_s, c.leg_memory_s)
+            reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+            t = person.get(k)
+            out.append(KnownLeg(x, y, reach, None if t is None else t.track_id, 0 if t is None else len(t.leg_ids)))
+        return out
 
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
