@@ -362,16 +362,14 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
 
 @dataclass(frozen=True)
 class KnownLeg:
-    """A leg the people stage (:mod:`vipsm.people`) tracks, predicted to this scan: where it should be,
-    how far from that its detection may lie (a leg's reach in the elapsed time), and the person it is a
-    leg of (None: no person yet)."""
+    """A leg the people stage (:mod:`vipsm.people`) tracks, predicted to this scan: where it should be, how
+    far from that its detection may lie (a leg's reach in the elapsed time), and the walking person whose
+    two leg tracks it is one of (None: a leg of no such person)."""
 
     x_m: float
     y_m: float
     reach_m: float
     person: int | None
-    #: how many leg tracks that person holds (a person holds at most two)
-    person_legs: int = 0
 
 
 def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
@@ -396,18 +394,10 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
 
 
 def _may_pair(a: KnownLeg | None, b: KnownLeg | None) -> bool:
-    """Two legs that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one person's: legs
-    of the same person, or of no person yet, or one of no person and the other of a person short of a
-    leg (who would adopt it). A person holding two leg tracks has its own other leg; two people's legs are
-    never one body."""
-    pa = None if a is None else a.person
-    pb = None if b is None else b.person
-    if pa is None and pb is None:
-        return True
-    if pa is not None and pb is not None:
-        return pa == pb
-    held = a if pa is not None else b
-    return held is not None and held.person_legs < 2
+    """Two legs that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one person's: a
+    walking person who holds two leg tracks has both its legs, so its legs pair only with each other; the
+    other legs pair among themselves."""
+    return (None if a is None else a.person) == (None if b is None else b.person)
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
