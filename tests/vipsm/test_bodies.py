@@ -355,8 +355,9 @@ def test_two_walkers_side_by_side_in_step_each_get_a_pair_of_their_own_legs() ->
     """In step, each leg has the other walker's same leg 0.4 m across, nearer than its own other leg (up
     to a stride and a hip's width away): nearest-first pairing alone pairs one leg of each walker into a
     "person" between them. With the people stage's leg tracks (a person is two leg tracks whose
-    association persists, leg_tracker's model), two legs of two different people are never paired: after
-    the people stage has told the walkers apart, every leg pair is one walker's own, at its pelvis."""
+    association persists, leg_tracker's model), a moving person's legs pair only with each other: once the
+    people stage has told the walkers apart (they walk from the first scan), every leg pair is one walker's
+    own, at its pelvis."""
     from app.legmodel import default_leg_model
     from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
 
