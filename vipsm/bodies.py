@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from .assignment import assign
 from .flow import FlowConfig
 from .geometry import scan_points
 from .restore import BearingInterval, _beams_in
@@ -359,8 +360,53 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
     return bool(own) and float(np.mean(np.logical_or.reduce(own)[beams])) >= 0.5
 
 
-def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived) -> list[tuple[int, int | None]]:
-    """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture; the rest alone."""
+@dataclass(frozen=True)
+class KnownLeg:
+    """A leg the people stage (:mod:`vipsm.people`) tracks, predicted to this scan: where it should be, how
+    far from that its detection may lie (a leg's reach in the elapsed time), and the walking person whose
+    two leg tracks it is one of (None: a leg of no such person)."""
+
+    x_m: float
+    y_m: float
+    reach_m: float
+    person: int | None
+
+
+def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
+    """Per leg, the tracked leg it continues: global nearest neighbour of the leg centres to the tracked
+    legs' predictions within their reach (:func:`vipsm.assignment.assign`); None for a leg that continues
+    none."""
+    out: list[KnownLeg | None] = [None] * len(legs)
+    if not legs or not known:
+        return out
+    big = 1e6
+    cost = np.full((len(legs), len(known)), big)
+    for i, (_, x, y) in enumerate(legs):
+        for j, k in enumerate(known):
+            d = math.hypot(x - k.x_m, y - k.y_m)
+            if d <= k.reach_m:
+                cost[i, j] = d
+    rows, cols = assign(cost)
+    for r, k in zip(rows, cols, strict=True):
+        if cost[r, k] < big:
+            out[int(r)] = known[int(k)]
+    return out
+
+
+def _may_pair(a: KnownLeg | None, b: KnownLeg | None) -> bool:
+    """Two legs that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one person's: a
+    walking person who holds two leg tracks has both its legs, so its legs pair only with each other; the
+    other legs pair among themselves."""
+    return (None if a is None else a.person) == (None if b is None else b.person)
+
+
+def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
+               ) -> list[tuple[int, int | None]]:
+    """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture, never two legs that
+    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`). leg_tracker's model:
+    a person is two leg tracks whose association persists (two people walking side by side in step have
+    each leg 0.4 m from the other's same leg, nearer than their own other leg a stride away); the rest alone."""
+    owner = _leg_people(legs, known or [])
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
         for i in range(len(legs)) for j in range(i + 1, len(legs))
@@ -369,6 +415,8 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived) -> list[
     out: list[tuple[int, int | None]] = []
     for d, i, j in pairs:
         if d > der.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
+            continue
+        if not _may_pair(owner[i], owner[j]):
             continue
         used |= {i, j}
         out.append((i, j))
@@ -379,13 +427,16 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived) -> list[
 def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, grid: FreeSpaceGrid,
                    camera: list[BearingInterval], cfg: BodiesConfig, tracker_cfg: TrackerConfig,
                    ahead: np.ndarray | None = None, memory: ScanMemory | None = None,
-                   dropped: np.ndarray | None = None, derived: Derived | None = None) -> list[Body]:
+                   dropped: np.ndarray | None = None, derived: Derived | None = None,
+                   known_legs: list[KnownLeg] | None = None) -> list[Body]:
     """The foreground bodies of one scan (world frame, placed with the matched laser pose), each with
     its motion evidence. ``ahead`` (per beam, optional): the return stands clearly in front of what the
     keyframe saw in that direction (counts like the camera's motion cue). ``memory`` (optional): recent
     scans; a free-space violation must then also have been seen through at beam resolution.
     ``dropped`` (per beam, optional): the pre-filter removed a return there (see :func:`segments`).
-    ``derived``: the quantities taken from the other stages' keys (:func:`derive`; None: their defaults)."""
+    ``derived``: the quantities taken from the other stages' keys (:func:`derive`; None: their defaults).
+    ``known_legs`` (optional): the people stage's tracked legs predicted to this scan; two legs that
+    continue two different people's are never paired (:func:`_pair_legs`)."""
     sensor = (laser.x_m, laser.y_m)
     der = derived or default_derived(cfg, tracker_cfg)
     segs = _candidate_segments(ranges_m, bearings_rad, laser, grid, camera, cfg, der, ahead, memory, dropped)
@@ -399,7 +450,7 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
             if fitted:  # a round body; a wall piece or a room corner fits no circle behind its points
                 bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
     legs = _fixtures(legs, der)
-    for i, j in _pair_legs(legs, der):
+    for i, j in _pair_legs(legs, der, known_legs):
         group = [legs[i]] + ([legs[j]] if j is not None else [])
         x = float(np.mean([g[1] for g in group]))
         y = float(np.mean([g[2] for g in group]))

@@ -266,7 +266,8 @@ class Estimator:
         self._last_obstacle_s = scan.stamp_s
         bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, laser, self._static, camera, self.config.bodies,
                                 self.config.tracker, self._ahead_of_keyframe(scan, match), self._memory, dropped,
-                                self._bodies_derived)
+                                self._bodies_derived,
+                                self._people.known_legs(scan.stamp_s) if self._people is not None else None)
         sigma = self._heading_sigma_rad
         sigma = self.config.seen_through.heading_sigma_rad if sigma is None else sigma
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, sigma) for b in bodies])

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .assignment import assign
-from .bodies import BodiesConfig, segments
+from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
@@ -536,6 +536,24 @@ class PeopleTracker:
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
+
+    def known_legs(self, stamp_s: float) -> list[KnownLeg]:
+        """The live leg tracks predicted to ``stamp_s`` (before this cycle's :meth:`step`), each with its
+        reach (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen, as the leg
+        association gates it) and, if it is one of the two leg tracks of a moving person (``moving``), that
+        person's id: the body stage pairs such a leg only with the person's other leg
+        (:func:`vipsm.bodies._may_pair`). Only a walker's pairing says more than the legs' distance: its
+        legs pair along its line of walking (``_one_body``, ``_split``) and were kept as they moved; a
+        standing person's legs were paired by distance alone (a standing cart pusher's leg and a leg of
+        the cart, which then kept the pusher's own legs apart)."""
+        c = self.config
+        walker = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.moving for k in t.leg_ids}
+        out = []
+        for k, lt in self.legs.items():
+            x, y = lt.predicted(stamp_s, c.leg_memory_s)
+            reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+            out.append(KnownLeg(x, y, reach, walker.get(k)))
+        return out
 
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D

@@ -337,3 +337,54 @@ def test_the_people_stages_pair_distance_is_the_one_the_body_stage_pairs_legs_wi
     assert [b.kind for b in extract_bodies(*args, DERIVED)] == ["person"]
     short = derive(CFG, PeopleConfig(leg_pair_max_m=0.3), TrackerConfig(), 0.3, 0.1)
     assert [b.kind for b in extract_bodies(*args, short)] == ["leg", "leg"]
+
+
+def _in_step(t_s: float) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+    """Two walkers side by side 0.4 m apart (pelvises at y = +-0.2), walking along +x at 1 m/s in step:
+    (the pelvises, the four legs: walker 0's two, then walker 1's). Each leg stands for half a gait cycle
+    (1 s) and swings for the other half, up to 0.6 m along and a hip's 0.16 m across from its other leg."""
+    x = 2.0 + 1.0 * t_s
+    phase = (t_s % 1.0) / 1.0
+    along = 0.3 * (1.0 - 4.0 * phase if phase < 0.5 else 4.0 * phase - 3.0)  # +0.3 -> -0.3 -> +0.3
+    pelvis = [(x, 0.2), (x, -0.2)]
+    legs = [(px + s * along, py + s * 0.08) for px, py in pelvis for s in (1.0, -1.0)]
+    return pelvis, legs
+
+
+def test_two_walkers_side_by_side_in_step_each_get_a_pair_of_their_own_legs() -> None:
+    """In step, each leg has the other walker's same leg 0.4 m across, nearer than its own other leg (up
+    to a stride and a hip's width away): nearest-first pairing alone pairs one leg of each walker into a
+    "person" between them. With the people stage's leg tracks (a person is two leg tracks whose
+    association persists, leg_tracker's model), a moving person's legs pair only with each other: once the
+    people stage has told the walkers apart (they walk from the first scan), every leg pair is one walker's
+    own, at its pelvis."""
+    from app.legmodel import default_leg_model
+    from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
+
+    world = box_room(10.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+    people = PeopleTracker(PeopleConfig(), default_leg_model())
+    rng = np.random.default_rng(29)
+    own = cross = alone_off = 0
+    for k in range(30):
+        t = 0.1 * k
+        pelvis, legs = _in_step(t)
+        world.circles = [Circle(x, y, 0.06) for x, y in legs]
+        scan = world.scan(ORIGIN, t_s=t, stamp_s=t)
+        known = people.known_legs(t)
+        bodies = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig(),
+                                known_legs=known)
+        plain = extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig())
+        # the people stage's legs (its detector is tested in test_people.py): each leg, 2 cm of noise
+        people.step(t, [LegDetection(x + rng.normal(0, 0.02), y + rng.normal(0, 0.02), 0.9, 2 * i, 2 * i + 1)
+                        for i, (x, y) in enumerate(legs)])
+        if t < 1.0:  # the people stage tells the walkers apart once they walk (stage 6b)
+            continue
+        for b in (b for b in bodies if b.kind == "person"):
+            near = min(math.hypot(b.x_m - px, b.y_m - py) for px, py in pelvis)
+            own += near < 0.05
+            alone_off += near >= 0.05
+        cross += sum(b.kind == "person" and min(math.hypot(b.x_m - px, b.y_m - py) for px, py in pelvis) > 0.1
+                     for b in plain)
+    assert cross >= 6  # nearest-first alone: a pair between the walkers whenever the strides are long (8 of 40)
+    assert own == 40 and alone_off == 0  # two pairs, each at its walker's pelvis, in each of the 20 scans
