@@ -14,16 +14,19 @@ Two rules, per short run of the scan; a beam either rule marks is a mixed pixel:
   surfaces; or a single return (nothing real at the laser's ranges is narrower than one 0.25 deg step and
   a range jump on both sides), which is a lone return.
 * *A ramp between two surfaces* (the physics of the echo, where the jump is too small for the first rule:
-  a leg 0.1-0.6 m before a wall): a run of 1 to ``MAX_RAMP_BEAMS`` returns between two surfaces, each
-  continuing over two returns within ``surface_tol_m``; every return of the run lies farther than
-  ``surface_tol_m`` from both surfaces and in the middle 80 % of the depth gap between them (a footprint
-  on both surfaces: the receiver merges the two echoes into one range between them); a run of 2-3 returns
-  runs from one surface towards the other (the footprint slides across the edge). The recorded UTM-30LX
-  (``psm_diosi_examples``, 25 scans, ``tools/laser_edges.py``) returns such points at 0.62-0.83 of its
-  edges 0.05-1 m deep, in runs of 1, 2 and 3 beams (118 / 92 / 52 at its 347 edges under 1 m; 131 of 143
-  runs of 2-3 are ramps); the first rule alone dropped 0 / 0.10 / 0.58 / 0.94 of them at edges 0.05-0.15 /
-  0.15-0.3 / 0.3-0.6 / 0.6-1 m deep. A return within 10 % of the gap from one surface is that surface's
-  echo pulled by the other's (the recorded edges' "pulled"), kept.
+  a leg 0.1-0.6 m before a wall): a run of 1 to ``MAX_RAMP_BEAMS`` returns between two surfaces of
+  ``SURFACE_RETURNS`` returns each continuing within ``surface_tol_m`` (or a beam spacing at that range:
+  a wall at 45 deg), at least the first rule's jump and at most ``MIXED_GAP_M`` apart in range (and not
+  explained by the surfaces' own slopes); every return of the run lies farther than that tolerance from
+  both surfaces (from the surface's last return and along its slope) and in the middle 80 % of the gap
+  (a footprint on both surfaces: the receiver merges the two echoes into one range between them); a run
+  of 2-3 returns rises from one surface towards the other (the footprint slides across the edge). The
+  recorded UTM-30LX (``psm_diosi_examples``, 25 scans, ``tools/laser_edges.py``) returns such points at
+  0.62-0.83 of its edges 0.05-1 m deep, in runs of 1, 2 and 3 beams (118 / 92 / 52 at its 347 edges under
+  1 m; 131 of 143 runs of 2-3 are ramps); of those points (in the middle 80 % of the gap) the first rule
+  alone dropped 0 / 0.05 / 0.36 / 0.72 at edges 0.05-0.15 / 0.15-0.3 / 0.3-0.6 / 0.6-1 m deep, both rules
+  0.09 / 0.49 / 0.75 / 0.79. A return within 10 % of the gap from one surface is that surface's echo
+  pulled by the other's (the recorded edges' "pulled"), kept.
 
 A thin real object at long range can be lost too; it is never a body the tracker could follow anyway.
 """
@@ -37,6 +40,13 @@ import numpy as np
 #: the longest run of mixed pixels the ramp rule drops: the recorded UTM-30LX's mixed runs are 1-3 beams
 #: long (its footprint straddles an edge for up to three 0.25 deg steps)
 MAX_RAMP_BEAMS = 3
+#: two surfaces farther apart in range than this give no mixed pixel (a pulsed receiver's two echoes no
+#: longer merge): the recorded UTM-30LX mixes at 0.69-0.83 of its edges 0.15-1 m deep, 0.20 at 1-1.5 m and
+#: 0.02-0.04 beyond 1.5 m (the recordings' Hokuyo 0.04 beyond 1 m)
+MIXED_GAP_M = 1.5
+#: a surface beside a ramp is this many returns continuing one another (two could be a sloping wall's
+#: noisy or repeated ranges)
+SURFACE_RETURNS = 3
 #: a ramp's returns lie in the middle of the gap: within this share of it from one surface, a return is
 #: that surface's echo pulled towards the other (kept)
 PULLED_SHARE = 0.1
@@ -91,7 +101,9 @@ def veiling_masks(ranges_m: np.ndarray, bearings_rad: np.ndarray, cfg: Prefilter
     # the range jump between two different surfaces, per beam
     thr = np.maximum(cfg.jump_m, cfg.jump_range_factor * np.where(np.isfinite(r), r, 0.0) * dphi)
     mixed, lone = _island_masks(r, thr, cfg.max_island_beams)
-    mixed |= ramp_mask(r, cfg.surface_tol_m, thr)
+    # a surface continues within the noise, or along a slope of a beam spacing (a wall at 45 deg)
+    tol = np.maximum(cfg.surface_tol_m, np.where(np.isfinite(r), r, 0.0) * dphi)
+    mixed |= ramp_mask(r, tol, thr)
     return mixed, lone & ~mixed
 
 
@@ -127,25 +139,33 @@ def _island_masks(r: np.ndarray, thr: np.ndarray, max_island_beams: int) -> tupl
     return mixed, lone
 
 
-def ramp_mask(ranges_m: np.ndarray, surface_tol_m: float, min_gap_m: np.ndarray | float) -> np.ndarray:
+def ramp_mask(ranges_m: np.ndarray, tol_m: np.ndarray | float, min_gap_m: np.ndarray | float) -> np.ndarray:
     """The second rule: per beam, whether it belongs to a run of 1 to ``MAX_RAMP_BEAMS`` returns between
-    two surfaces at least ``min_gap_m`` (per beam, or one value) apart in range (see the module's docstring;
+    two surfaces of ``SURFACE_RETURNS`` returns each, at least ``min_gap_m`` apart in range; neighbouring
+    returns within ``tol_m`` continue one surface (both per beam, or one value; see the module's docstring;
     NaN is no return, and breaks a surface)."""
-    gaps = np.broadcast_to(np.asarray(min_gap_m, dtype=float), np.shape(ranges_m))
     r = np.asarray(ranges_m, dtype=float)
     n = r.size
+    tol = np.broadcast_to(np.asarray(tol_m, dtype=float), r.shape)
+    gaps = np.broadcast_to(np.asarray(min_gap_m, dtype=float), r.shape)
     out = np.zeros(n, dtype=bool)
+    m = SURFACE_RETURNS - 1  # steps within a surface
+    if n < 2 * SURFACE_RETURNS + 1:
+        return out
     with np.errstate(invalid="ignore"):
-        # cont[i]: returns i and i+1 continue one surface
-        cont = np.abs(np.diff(r)) <= surface_tol_m
-        # the beams where a run may start: a surface of two returns ends just before, and i leaves it
-        starts = np.flatnonzero(cont[:-1] & ~cont[1:]) + 2  # cont[i-2] (i-2, i-1 continue), not cont[i-1]
+        cont = np.abs(np.diff(r)) <= tol[1:]  # cont[i]: returns i and i+1 continue one surface
+    # surf[i]: returns i .. i + m continue one surface
+    surf = np.ones(n - m, dtype=bool)
+    for j in range(m):
+        surf &= cont[j : j + n - m]
+    # a run may start at i0 where a surface ends at i0 - 1 and i0 leaves it
+    starts = np.flatnonzero(surf[: n - m - 1] & ~cont[m : n - 1]) + SURFACE_RETURNS
     for i0 in starts:
         for k in range(1, MAX_RAMP_BEAMS + 1):
-            i1 = i0 + k - 1  # the run's last beam; the far surface is i1+1, i1+2
-            if i1 + 2 >= n or not cont[i1 + 1]:
+            i1 = i0 + k - 1  # the run's last beam; the far surface starts at i1 + 1
+            if i1 + SURFACE_RETURNS >= n or not surf[i1 + 1]:
                 continue
-            if _is_ramp(r[i0 - 2 : i0], r[i0 : i1 + 1], r[i1 + 1 : i1 + 3], surface_tol_m, float(gaps[i0])):
+            if _is_ramp(r[i0 - 2 : i0], r[i0 : i1 + 1], r[i1 + 1 : i1 + 3], float(tol[i0]), float(gaps[i0])):
                 out[i0 : i1 + 1] = True
                 break
     return out
@@ -162,7 +182,7 @@ def _is_ramp(left: np.ndarray, run: np.ndarray, right: np.ndarray, tol_m: float,
     # the step the two surfaces' own slopes do not explain (a sloping wall's noisy steps are none)
     slope = 0.5 * ((near_l - left[0]) + (right[1] - near_r))
     step = abs(near_r - near_l - (run.size + 1) * slope)
-    if not np.all(np.isfinite(run)) or min(gap, step) < max(min_gap_m, 2.0 * tol_m):
+    if not np.all(np.isfinite(run)) or min(gap, step) < max(min_gap_m, 2.0 * tol_m) or gap > MIXED_GAP_M:
         return False
     k = np.arange(1, run.size + 1)
     on_left = np.abs(run - (near_l + k * (near_l - left[0]))) <= tol_m
