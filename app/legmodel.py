@@ -20,7 +20,7 @@ import numpy as np
 
 from vipsm.bodies import BodiesConfig, segments
 from vipsm.legs import LegConfig, LegModel, ModelError, model_from_arrays, segment_features
-from vipsm.prefilter import PULLED_SHARE, PrefilterConfig, veiling_masks
+from vipsm.prefilter import PULLED_SHARE, PrefilterConfig, ramp_masks, veiling_masks
 
 
 def default_model_path() -> Path:
@@ -53,10 +53,13 @@ def leg_candidates(r: np.ndarray, b: np.ndarray) -> tuple[list[tuple[int, int, n
 
 
 def prefiltered(r: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The scan's ranges with the pre-filter's mixed pixels and lone returns set to NaN, and those beams."""
-    mixed, lone = veiling_masks(r, b, PrefilterConfig())
-    dropped = mixed | lone
-    return np.where(dropped, np.nan, r), dropped
+    """The scan's ranges as the estimator's leg detector sees them, and the beams removed: the pre-filter's
+    mixed pixels and lone returns set to NaN, then its ramps of mixed pixels."""
+    cfg = PrefilterConfig()
+    mixed, lone = veiling_masks(r, b, cfg, ramps=False)
+    rr = np.where(mixed | lone, np.nan, r)
+    ramps = ramp_masks(rr, b, cfg)
+    return np.where(ramps, np.nan, rr), mixed | lone | ramps
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vipsm.prefilter import PrefilterConfig, drop_veiling, ramp_mask, veiling_masks
+from vipsm.prefilter import PrefilterConfig, drop_veiling, ramp_mask, ramp_masks, veiling_masks
 
 from .sim import UTM_BEARINGS, Circle, box_room
 
@@ -136,3 +136,12 @@ def test_recorded_utm30lx_mixed_pixels_are_dropped(shared_data) -> None:
                 dropped += int(mixed[i])
     assert clear >= 10 and dropped == clear
     assert removed <= 0.04 * returns
+
+
+def test_the_ramp_rule_can_be_left_out_and_is_off_with_the_stage() -> None:
+    r = _leg_before_wall((2.11,))
+    b = UTM_BEARINGS[: r.size]
+    assert not veiling_masks(r, b, CFG, ramps=False)[0].any()  # the island rule alone misses it
+    assert np.flatnonzero(ramp_masks(r, b, CFG)).tolist() == [18]
+    off = PrefilterConfig(enabled=False)
+    assert not ramp_masks(r, b, off).any() and not veiling_masks(r, b, off)[0].any()
