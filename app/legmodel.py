@@ -3,7 +3,8 @@ read for the estimator, which does no I/O itself (:func:`vipsm.legs.model_from_a
 leg-candidate segments of a scan outside the estimator (training and checks; the labelled legs of a
 recording: :func:`app.evaluation.real_data.labelled_leg_rows`), and a recorded segment re-seen from
 farther (:func:`reseen_farther`: the training's model of how a leg, or anything else, looks from a
-longer range)."""
+longer range) or before a wall with the UTM-30LX's depth edges (:func:`before_wall`: its model of the
+other edges a scanner shows beside a segment)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import functools
 import math
 import zipfile
 import zlib
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -18,7 +20,7 @@ import numpy as np
 
 from vipsm.bodies import BodiesConfig, segments
 from vipsm.legs import LegConfig, LegModel, ModelError, model_from_arrays, segment_features
-from vipsm.prefilter import PrefilterConfig, veiling_masks
+from vipsm.prefilter import PULLED_SHARE, PrefilterConfig, ramp_masks, veiling_masks
 
 
 def default_model_path() -> Path:
@@ -51,10 +53,13 @@ def leg_candidates(r: np.ndarray, b: np.ndarray) -> tuple[list[tuple[int, int, n
 
 
 def prefiltered(r: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The scan's ranges with the pre-filter's mixed pixels and lone returns set to NaN, and those beams."""
-    mixed, lone = veiling_masks(r, b, PrefilterConfig())
-    dropped = mixed | lone
-    return np.where(dropped, np.nan, r), dropped
+    """The scan's ranges as the estimator's leg detector sees them, and the beams removed: the pre-filter's
+    mixed pixels and lone returns set to NaN, then its ramps of mixed pixels."""
+    cfg = PrefilterConfig()
+    mixed, lone = veiling_masks(r, b, cfg, ramps=False)
+    rr = np.where(mixed | lone, np.nan, r)
+    ramps = ramp_masks(rr, b, cfg)
+    return np.where(ramps, np.nan, rr), mixed | lone | ramps
 
 
 # ---------------------------------------------------------------------------------------------
@@ -116,15 +121,15 @@ def cast(surfaces: list[np.ndarray], bearings: np.ndarray) -> tuple[np.ndarray, 
 
 
 def reseen_farther(r: np.ndarray, b: np.ndarray, span: tuple[int, int], range_m: float, step_rad: float,
-                   rng: np.random.Generator) -> np.ndarray | None:
+                   rng: np.random.Generator, wall: Wall | None = None) -> np.ndarray | None:
     """The leg-candidate features of the segment ``span`` of the pre-filtered scan (r, b) seen from
     ``range_m`` (at least its own range) by a laser with beams every ``step_rad``: the segment and the
     scene beside it moved together away from the laser along the segment's bearing (so what lies behind or
     beside it stays where it was relative to it), the moved surfaces cast with beams at that step (a
     random phase: where the first beam falls on the segment is chance), and the range noise of a return
-    from the new range added on top of the recorded one (the difference of variances). None when the
-    re-seen returns are no leg candidate there (fewer than ``LegConfig.min_points``, or merged with what
-    lies beside it)."""
+    from the new range added on top of the recorded one (the difference of variances); with ``wall``, the
+    cast scene then stands before a wall (:func:`before_wall`). None when the re-seen returns are no leg
+    candidate there (fewer than ``LegConfig.min_points``, or merged with what lies beside it)."""
     a, z = span
     k = a + np.flatnonzero(np.isfinite(r[a:z]))
     c = np.array([np.mean(r[k] * np.cos(b[k])), np.mean(r[k] * np.sin(b[k]))])
@@ -141,6 +146,8 @@ def reseen_farther(r: np.ndarray, b: np.ndarray, span: tuple[int, int], range_m:
     ang = np.arctan2(ends[:, 1], ends[:, 0])
     mid = math.atan2(c[1], c[0])
     rel = np.angle(np.exp(1j * (ang - mid)))
+    if wall is not None:  # the wall stands beside the segment where the recording saw nothing too
+        rel = np.concatenate([rel, [rel.min() - WALL_BEAMS * step_rad, rel.max() + WALL_BEAMS * step_rad]])
     first = mid + (math.floor(rel.min() / step_rad) + rng.uniform(0.0, 1.0)) * step_rad
     bearings = first + step_rad * np.arange(int((rel.max() - rel.min()) / step_rad) + 1)
     ranges, at = cast(surfaces, bearings)
@@ -148,10 +155,130 @@ def reseen_farther(r: np.ndarray, b: np.ndarray, span: tuple[int, int], range_m:
     kept_var = range_sigma_m(ranges - (range_m - r0)) ** 2 * ((1.0 - at) ** 2 + at**2)
     extra = np.sqrt(np.maximum(range_sigma_m(ranges) ** 2 - kept_var, 0.0))
     ranges = ranges + rng.standard_normal(ranges.size) * np.nan_to_num(extra)
-    kept, x = leg_candidates(ranges, bearings)
+    if wall is None:
+        hit = matched_candidate(ranges, bearings, c + shift)
+        return None if hit is None else hit[2]
+    return walled_features(ranges, bearings, c + shift, wall, rng)
+
+
+def matched_candidate(r: np.ndarray, b: np.ndarray, target: np.ndarray) -> tuple[int, int, np.ndarray] | None:
+    """The leg candidate of the scan (r, b) whose centroid lies within ``LEG_MATCH_M`` of ``target`` (laser
+    frame): (start, stop, features), or None."""
+    kept, x = leg_candidates(r, b)
     if not kept:
         return None
-    target = c + shift
     dist = [float(np.hypot(*(pts.mean(axis=0) - target))) for _, _, pts in kept]
     i = int(np.argmin(dist))
-    return x[i] if dist[i] <= LEG_MATCH_M else None
+    return (kept[i][0], kept[i][1], x[i]) if dist[i] <= LEG_MATCH_M else None
+
+
+# ---------------------------------------------------------------------------------------------
+# a real segment before a wall, with the UTM-30LX's depth edges (the training script's augmentation)
+#
+# The recordings' laser saw most legs before open space (no return beside them); the UTM-30LX in a room
+# sees them before a wall, and at such a depth edge returns a mixed pixel, or the near surface's echo
+# pulled towards the far one, at rates measured on the recorded UTM-30LX (``psm_diosi_examples``, 25
+# scans, 678 edges: ``PYTHONPATH=. python tools/laser_edges.py --only utm30lx_diosi --fine``; the runs'
+# lengths and positions with ``hil_fakes.world.edges.classify_edges`` on the same scans). This is this
+# module's own model of those edges (the simulated world's is another), stated in :func:`before_wall`.
+
+#: per depth gap (upper bound, m): the share of edges with a mixed run, and with a pulled return
+UTM30LX_EDGE_RATES = ((0.15, 0.62, 0.0), (0.3, 0.83, 0.0), (0.6, 0.80, 0.11), (1.0, 0.69, 0.08),
+                      (1.5, 0.19, 0.40), (2.5, 0.02, 0.44), (math.inf, 0.04, 0.36))
+#: a mixed run's length, 1 / 2 / 3 beams (118 / 92 / 52 of the recorded runs at edges under 1 m)
+MIXED_RUN_SHARES = (0.45, 0.35, 0.20)
+#: a mixed return's place in the gap (0: the near surface): the recorded quantiles q10 / q50 / q90 are
+#: 0.1-0.3 / 0.33-0.49 / 0.64-0.87 per gap bin, about uniform over the middle 80 %
+MIXED_T = (0.1, 0.9)
+#: a pulled return is the near surface's echo 2-10 cm behind it (recorded median 4 cm) at 0.54-0.85 of the
+#: pulled edges, else the far surface's 3-22 cm before it (median 7 cm)
+PULLED_NEAR_SHARE = 0.7
+PULLED_NEAR_M = (0.02, 0.10)
+PULLED_FAR_M = (0.03, 0.22)
+#: beams on each side of the segment the wall fills (``vipsm.legs.front_of`` looks 4 out, the pre-filter
+#: and the segmentation 2-3 beyond)
+WALL_BEAMS = 8
+
+
+@dataclass(frozen=True)
+class Wall:
+    """A flat wall ``depth_m`` behind a segment's nearest return (along its bearing), turned by
+    ``slant_rad`` (0: square to the beam, |slant| < pi/2)."""
+
+    depth_m: float
+    slant_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (self.depth_m > 0.0 and abs(self.slant_rad) < 0.5 * math.pi):
+            raise ValueError(f"need depth_m > 0 and |slant_rad| < pi/2, got {self.depth_m}, {self.slant_rad}")
+
+
+def _edge_rates(gap_m: float) -> tuple[float, float]:
+    for upper, mixed, pulled in UTM30LX_EDGE_RATES:
+        if gap_m < upper:
+            return mixed, pulled
+    return UTM30LX_EDGE_RATES[-1][1:]
+
+
+def before_wall(r: np.ndarray, b: np.ndarray, span: tuple[int, int], wall: Wall, rng: np.random.Generator
+                ) -> np.ndarray:
+    """The ranges ``r`` (bearings ``b``) with the segment ``span`` standing before ``wall``: on up to
+    ``WALL_BEAMS`` beams each side of it, a beam with no return or one beyond the wall returns the wall
+    (with the range noise of its range); a nearer return stays (it hides the wall). Then each end of the
+    segment that now meets the wall (not a nearer thing) becomes a UTM-30LX depth edge, drawn at the
+    recorded rates for its gap g (``UTM30LX_EDGE_RATES``): a *mixed* run of 1-3 beams (``MIXED_RUN_SHARES``)
+    at the near range + t g, t uniform over ``MIXED_T`` and rising away from the segment, on the beams
+    beyond the segment or, half the time, starting on the segment's own last beam (the beam the footprint
+    straddled, which the recordings' laser returned on the leg before open space); or a *pulled* return
+    on the first beam beyond (the near echo ``PULLED_NEAR_M`` behind the segment's end, or the wall's
+    ``PULLED_FAR_M`` before it); or a clean edge. The segment's inside is not changed."""
+    a, z = span
+    out = np.array(r, dtype=float)
+    k = a + np.flatnonzero(np.isfinite(out[a:z]))
+    if k.size == 0:
+        return out
+    near = float(np.min(out[k]))
+    mid = float(np.mean(b[k]))
+    foot = (near + wall.depth_m) * math.cos(wall.slant_rad)  # the wall's distance from the laser
+    for ends, end in ((np.arange(a - 1, max(a - WALL_BEAMS, 0) - 1, -1), k[0]),
+                      (np.arange(z, min(z + WALL_BEAMS, out.size)), k[-1])):
+        cos = np.cos(b[ends] - mid - wall.slant_rad)
+        wall_m = np.where(cos > 0.05, foot / np.maximum(cos, 0.05), np.inf)
+        behind = ~(out[ends] < wall_m)  # no return, or one beyond the wall
+        noisy = wall_m + rng.standard_normal(ends.size) * range_sigma_m(np.where(np.isfinite(wall_m), wall_m, 0.0))
+        out[ends] = np.where(behind & np.isfinite(wall_m), noisy, out[ends])
+        if ends.size and behind[0] and np.isfinite(wall_m[0]):
+            _edge(out, end, ends, float(out[end]), float(wall_m[0]), rng)
+    return out
+
+
+def _edge(out: np.ndarray, end: int, ends: np.ndarray, near_m: float, far_m: float, rng: np.random.Generator) -> None:
+    """One UTM-30LX depth edge between the segment's last beam ``end`` (range ``near_m``) and the wall
+    (``far_m`` on the first beam beyond, ``ends[0]``), drawn at the recorded rates (in place)."""
+    gap = far_m - near_m
+    if gap <= 0.0:
+        return
+    p_mixed, p_pulled = _edge_rates(gap)
+    u = rng.uniform()
+    if u < p_mixed:
+        n = int(rng.choice(len(MIXED_RUN_SHARES), p=MIXED_RUN_SHARES)) + 1
+        beams = np.concatenate([[end], ends]) if rng.uniform() < 0.5 else ends
+        beams = beams[:n]
+        out[beams] = near_m + np.sort(rng.uniform(*MIXED_T, size=beams.size)) * gap
+    elif u < p_mixed + p_pulled:
+        if rng.uniform() < PULLED_NEAR_SHARE:
+            out[ends[0]] = near_m + min(rng.uniform(*PULLED_NEAR_M), PULLED_SHARE * gap)
+        else:
+            out[ends[0]] = far_m - min(rng.uniform(*PULLED_FAR_M), PULLED_SHARE * gap)
+
+
+def walled_features(r: np.ndarray, b: np.ndarray, target: np.ndarray, wall: Wall, rng: np.random.Generator
+                    ) -> np.ndarray | None:
+    """The leg-candidate features of the candidate of (r, b) at ``target`` (laser frame) once it stands
+    before ``wall`` (:func:`before_wall`); None when it is no candidate before or after (too few returns
+    left, or merged with the wall: the estimator would not see it as a leg candidate either)."""
+    hit = matched_candidate(r, b, target)
+    if hit is None:
+        return None
+    again = matched_candidate(before_wall(r, b, hit[:2], wall, rng), b, target)
+    return None if again is None else again[2]

@@ -18,12 +18,20 @@ each sample, leg or not alike, is also trained on as seen from ``COPIES`` longer
 its bearing, cast again with beams at the recording's or the UTM-30LX's step, with the range noise of the
 new range); a copy stays in its original's fold and set.
 
+Before a wall: the recordings' laser saw most legs before open space, the robot's UTM-30LX in a room sees
+them before a wall, with a mixed pixel or a pulled return at most such depth edges. So each sample, leg or
+not alike, is also trained on as standing ``WALL_DEPTH_M`` before a wall (uniform depth, turned up to
+``WALL_SLANT_RAD``) with the UTM-30LX's depth edges at their recorded rates (:func:`app.legmodel.before_wall`:
+this project's own model of those edges, measured on the recorded UTM-30LX, not the simulated world's):
+``WALL_COPIES`` copies, at its recorded range and step, and re-seen farther at the UTM-30LX's step. A copy
+that is no leg candidate there (merged with the wall, too few returns left) is dropped.
+
 Split (honest validation): ``HELD_OUT`` is never trained on, and of the drive only the first half (by
 time) is; the held-out recording's positives with the drive's second half are the validation set. The
 classifier is a random forest (scikit-learn, balanced class weights); the operating point is the
 probability at which out-of-fold estimates (one trained recording, with a third of the drive's first
 half, left out per fold) pass ``TARGET_FPR`` of the recorded non-legs. The validation is reported per
-range band, for the held-out sets as recorded and re-seen farther (``--baseline``: another model file's
+range band, for the held-out sets as recorded, re-seen farther and before a wall (``--baseline``: another model file's
 figures beside them). The
 forest is written as plain arrays (no pickle), so the run time needs neither scikit-learn nor a version
 of it.
@@ -42,7 +50,15 @@ import numpy as np
 from app.bagread import BagTopics, read_bag
 from app.cmd_eval import default_real_data_dir
 from app.evaluation.real_data import DRIVE_BAG, DRIVE_TOPICS, LABEL_M, read_labels, scan_topics
-from app.legmodel import default_model_path, leg_candidates, load_leg_model, prefiltered, reseen_farther
+from app.legmodel import (
+    Wall,
+    default_model_path,
+    leg_candidates,
+    load_leg_model,
+    prefiltered,
+    reseen_farther,
+    walled_features,
+)
 from vipsm.legs import FEATURE_NAMES, LegModel, ModelError
 
 LABELLED = ("positive_1", "positive_2", "positive_3", "positive_6")
@@ -61,6 +77,14 @@ COPIES = 4
 FAR_RANGE_M = 10.0
 #: the re-seen beams' spacing alternates between the recording's own and the robot's UTM-30LX's
 UTM30LX_STEP_RAD = float(np.radians(0.25))
+#: every real segment, leg or not, is also trained on before a wall this many times (the first at its recorded
+#: range and step, the others re-seen farther at the UTM-30LX's step)
+WALL_COPIES = 2
+#: the wall's depth behind the segment's nearest return, uniform (m): from a leg at a wall to twice the
+#: UTM-30LX's echo separation (its mixed pixels stop beyond about 1.1 m, its pulled returns do not)
+WALL_DEPTH_M = (0.05, 2.0)
+#: the wall turned from square to the beam by up to this, uniform (rad)
+WALL_SLANT_RAD = float(np.radians(60.0))
 #: the range bands of the validation tables (m)
 BANDS_M = (0.0, 2.0, 3.5, 5.0, 6.5, 8.0, 10.0, np.inf)
 
@@ -185,6 +209,38 @@ def farther(samples: Samples, copies: int, rng: np.random.Generator) -> tuple[np
     return np.array(rows).reshape(-1, len(FEATURE_NAMES)), np.array(src, dtype=np.intp)
 
 
+def random_wall(rng: np.random.Generator) -> Wall:
+    return Wall(float(rng.uniform(*WALL_DEPTH_M)), float(rng.uniform(-WALL_SLANT_RAD, WALL_SLANT_RAD)))
+
+
+def walled(samples: Samples, copies: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample before ``copies`` random walls (:func:`app.legmodel.before_wall`): the first at its
+    recorded range and step, the others re-seen farther (up to ``FAR_RANGE_M``) at the UTM-30LX's step;
+    the features and, per row, the index of the sample it came from (a copy that is no leg candidate
+    there is dropped)."""
+    rows, src = [], []
+    for i, (scan, span) in enumerate(samples.spans):
+        r, b = samples.scans[scan]
+        a, z = span
+        k = a + np.flatnonzero(np.isfinite(r[a:z]))
+        target = np.array([np.mean(r[k] * np.cos(b[k])), np.mean(r[k] * np.sin(b[k]))])
+        own = float(abs(b[-1] - b[0]) / max(b.size - 1, 1))
+        r0 = float(np.hypot(*target))
+        for c in range(copies):
+            lo = max(r0, r0 * own / UTM30LX_STEP_RAD)
+            if c == 0:
+                row = walled_features(r, b, target, random_wall(rng), rng)
+            elif lo < FAR_RANGE_M:
+                row = reseen_farther(r, b, span, float(rng.uniform(lo, FAR_RANGE_M)), UTM30LX_STEP_RAD, rng,
+                                     random_wall(rng))
+            else:
+                continue
+            if row is not None:
+                rows.append(row)
+                src.append(i)
+    return np.array(rows).reshape(-1, len(FEATURE_NAMES)), np.array(src, dtype=np.intp)
+
+
 def banded(p: np.ndarray, x: np.ndarray, thr: float) -> dict[str, Any]:
     """The share of rows at or above ``thr`` per range band (``BANDS_M``), with the rows' count."""
     rng_m = x[:, FEATURE_NAMES.index("range_m")]
@@ -196,16 +252,18 @@ def banded(p: np.ndarray, x: np.ndarray, thr: float) -> dict[str, Any]:
     return out
 
 
-def validation(model: LegModel, held: tuple[np.ndarray, np.ndarray], held_far: tuple[np.ndarray, np.ndarray]
-               ) -> dict[str, Any]:
+def validation(model: LegModel, held: tuple[np.ndarray, np.ndarray], held_far: tuple[np.ndarray, np.ndarray],
+               held_wall: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
     """Per range band: recall on the held-out recording's legs, false-positive rate on the drive's
-    second half; as recorded, and each re-seen from farther (the only legs beyond 5 m there are)."""
+    second half; as recorded, each re-seen from farther (the only legs beyond 5 m there are) and, with
+    ``held_wall``, each before a wall with the UTM-30LX's depth edges."""
     thr = model.threshold_p
-    (pos, neg), (pos_far, neg_far) = held, held_far
-    return {"recorded": {"recall_" + HELD_OUT: banded(model.predict(pos), pos, thr),
-                         "false_positive_rate_drive_second_half": banded(model.predict(neg), neg, thr)},
-            "reseen_farther": {"recall_" + HELD_OUT: banded(model.predict(pos_far), pos_far, thr),
-                               "false_positive_rate_drive_second_half": banded(model.predict(neg_far), neg_far, thr)}}
+    sets = {"recorded": held, "reseen_farther": held_far}
+    if held_wall is not None:
+        sets["before_wall"] = held_wall
+    return {name: {"recall_" + HELD_OUT: banded(model.predict(pos), pos, thr),
+                   "false_positive_rate_drive_second_half": banded(model.predict(neg), neg, thr)}
+            for name, (pos, neg) in sets.items()}
 
 
 def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None) -> dict[str, Any]:
@@ -217,9 +275,13 @@ def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None) 
     parts = [pos[n] for n in trained] + [drive_train]
     labels = [1.0] * len(trained) + [0.0]
     xs, ys, gs, real = [], [], [], []
+    n_walled = 0
     for k, (smp, lab) in enumerate(zip(parts, labels, strict=True)):
         x0 = smp.matrix()
         xf, src = farther(smp, COPIES, rng)
+        xw, srcw = walled(smp, WALL_COPIES, rng)
+        n_walled += len(xw)
+        xf, src = np.concatenate([xf, xw]), np.concatenate([src, srcw])
         # folds: each trained recording's positives with a third of the drive's first half (in time order
         # per laser, so about one laser each); a re-seen copy stays in its original's fold
         g0 = (np.full(len(x0), k) if lab else np.arange(len(x0)) * len(trained) // max(len(x0), 1))
@@ -241,24 +303,28 @@ def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None) 
     vrng = np.random.default_rng(SEED + 1)
     held = (pos[HELD_OUT].matrix(), drive_val.matrix())
     held_far = (farther(pos[HELD_OUT], COPIES, vrng)[0], farther(drive_val, COPIES, vrng)[0])
+    held_wall = (walled(pos[HELD_OUT], WALL_COPIES, vrng)[0], walled(drive_val, WALL_COPIES, vrng)[0])
     p_held, p_val = model.predict(held[0]), model.predict(held[1])
     report = {
         "model": str(out), "trees": len(forest.estimators_), "depth": model.depth, "nodes": int(model.feature.size),
         "threshold_p": round(thr, 4), "held_out": HELD_OUT, "drive_split": "first half trained, second half held out",
-        "reseen_copies": COPIES, "reseen_up_to_m": FAR_RANGE_M,
-        "training_rows": {"recorded": int(real_rows.sum()), "reseen_farther": int((~real_rows).sum())},
+        "reseen_copies": COPIES, "reseen_up_to_m": FAR_RANGE_M, "wall_copies": WALL_COPIES,
+        "wall_depth_m": list(WALL_DEPTH_M),
+        "training_rows": {"recorded": int(real_rows.sum()), "reseen_farther": int((~real_rows).sum()) - n_walled,
+                          "before_wall": n_walled},
         "training_out_of_fold": figures(oof[(y == 1) & real_rows], oof[(y == 0) & real_rows], thr),
         "validation": {"held_out_recording_positives": figures(p_held, np.zeros(0), thr),
                        "drive_second_half_negatives": figures(np.zeros(0), p_val, thr),
                        "recall_at_drive_fpr": {f"{f:g}": round(float(np.mean(p_held > np.quantile(p_val, 1 - f))), 3)
                                                for f in (0.02, 0.05, 0.1, 0.2)},
-                       "by_range": validation(model, held, held_far)},
+                       "by_range": validation(model, held, held_far, held_wall)},
         "positives_per_recording": {n: len(pos[n].rows) for n in LABELLED},
         "feature_importance": {n: round(float(v), 4) for n, v in zip(FEATURE_NAMES, forest.feature_importances_,
                                                                        strict=True)},
     }
     if baseline is not None:
-        report["baseline"] = {"model": str(baseline[0]), "by_range": validation(baseline[1], held, held_far)}
+        report["baseline"] = {"model": str(baseline[0]),
+                              "by_range": validation(baseline[1], held, held_far, held_wall)}
     return report
 
 

@@ -43,7 +43,7 @@ from .keyframes import KeyframeMatcher, MatchOutcome
 from .legs import LegModel
 from .motion import ConstantVelocity, Twist2D, deskew, laser_twist
 from .people import LegDetection, PeopleConfig, PeopleTracker, detect_legs
-from .prefilter import PrefilterConfig, veiling_masks
+from .prefilter import PrefilterConfig, ramp_masks, veiling_masks
 from .psm import PsmConfig, prepare_scan
 from .restore import BearingInterval, Restoration, RestoreConfig, restore
 from .seen_through import ScanMemory, SeenThroughConfig
@@ -272,8 +272,11 @@ class Estimator:
         sigma = self.config.seen_through.heading_sigma_rad if sigma is None else sigma
         tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, sigma) for b in bodies])
         if self._people is not None:
-            legs = _with_evidence(detect_legs(scan.ranges_m, scan.bearings_rad, laser, self._people.model,
-                                              self.config.people, self.config.bodies, dropped), bodies)
+            # the leg detector's view also without the ramps of mixed pixels (stage 1's second rule)
+            ramps = ramp_masks(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
+            legs = _with_evidence(detect_legs(np.where(ramps, np.nan, scan.ranges_m), scan.bearings_rad, laser,
+                                              self._people.model, self.config.people, self.config.bodies,
+                                              dropped | ramps), bodies)
             self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
@@ -338,7 +341,7 @@ class Estimator:
     def _prefilter(self, scan: Scan) -> tuple[Scan, np.ndarray, np.ndarray]:
         """The scan without mixed pixels and lone returns, the lone returns (NaN elsewhere), and the
         beams it removed."""
-        mixed, lone = veiling_masks(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
+        mixed, lone = veiling_masks(scan.ranges_m, scan.bearings_rad, self.config.prefilter, ramps=False)
         ranges = np.where(mixed | lone, np.nan, scan.ranges_m)
         lone_m = np.where(lone, scan.ranges_m, np.nan)
         scan = Scan(ranges, scan.bearings_rad, scan.stamp_s, scan.seq, scan.beam_dt_s, scan.intensities)
