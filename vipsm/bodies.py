@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -42,9 +42,6 @@ from .seen_through import ScanMemory
 from .static_map import FreeSpaceGrid, StaticMapConfig
 from .tracker import TrackerConfig, locate_body
 from .types import Pose2D
-
-if TYPE_CHECKING:  # vipsm.people imports this module
-    from .people import PeopleConfig
 
 #: the fewest returns a segment needs to be a body: three points define a circle (the round-body fit) and
 #: are what the fixed-radius refinement of a leg's centre needs (:func:`vipsm.tracker.locate_body`); not
@@ -137,7 +134,29 @@ class Derived:
     fixture_own_m: float
 
 
-def derive(bodies: BodiesConfig, people: PeopleConfig, tracker: TrackerConfig, flow_baseline_s: float,
+class PersonKeys(Protocol):
+    """A person at the laser's height, as the people stage's keys give it (``vipsm.people.PeopleConfig``,
+    whose defaults are :class:`PersonSize`'s: one key for one physical quantity)."""
+
+    leg_radius_m: float
+    leg_pair_max_m: float
+    person_radius_m: float
+
+
+@dataclass(frozen=True)
+class PersonSize:
+    """The defaults of :class:`PersonKeys` (``PeopleConfig`` takes its defaults from here, so that this
+    module need not import the people stage, which imports it)."""
+
+    #: a leg's radius at the laser's height
+    leg_radius_m: float = 0.06
+    #: two legs of one person: centres at most this far apart (stride at the laser's height)
+    leg_pair_max_m: float = 0.65
+    #: a person's radius (shoulders seen from above)
+    person_radius_m: float = 0.25
+
+
+def derive(bodies: BodiesConfig, people: PersonKeys, tracker: TrackerConfig, flow_baseline_s: float,
            cell_m: float) -> Derived:
     """:class:`Derived` from the people stage's person (``PeopleConfig``: ``leg_radius_m``,
     ``leg_pair_max_m``, ``person_radius_m``), the tracker's fastest body, the flow's baseline and the
@@ -152,9 +171,7 @@ def derive(bodies: BodiesConfig, people: PeopleConfig, tracker: TrackerConfig, f
 
 def default_derived(bodies: BodiesConfig, tracker: TrackerConfig) -> Derived:
     """:func:`derive` with the other stages' default keys."""
-    from .people import PeopleConfig  # here, not at the top: vipsm.people imports this module
-
-    return derive(bodies, PeopleConfig(), tracker, FlowConfig().baseline_s, StaticMapConfig().cell_m)
+    return derive(bodies, PersonSize(), tracker, FlowConfig().baseline_s, StaticMapConfig().cell_m)
 
 
 @dataclass(frozen=True)

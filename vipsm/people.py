@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .assignment import assign
-from .bodies import BodiesConfig, KnownLeg, segments
+from .bodies import BodiesConfig, KnownLeg, PersonSize, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
@@ -54,7 +54,7 @@ class PeopleConfig:
     legs: LegConfig = field(default_factory=LegConfig)
     imm: ImmConfig = field(default_factory=ImmConfig)
     #: a leg's radius at the laser's height (shin): the centre lies this far behind the returns
-    leg_radius_m: float = 0.06
+    leg_radius_m: float = PersonSize.leg_radius_m
     #: a leg moves at most this fast (a swing leg: about twice the walking speed) ...
     leg_max_speed_mps: float = 3.0
     #: ... plus this (its centre's noise) between two detections
@@ -67,7 +67,7 @@ class PeopleConfig:
     #: only: a static leg's position drifts with the robot's pose error
     leg_travel_m: float = 0.2
     #: two legs of one person: centres at most this far apart (stride at the laser's height)
-    leg_pair_max_m: float = 0.65
+    leg_pair_max_m: float = PersonSize.leg_pair_max_m
     #: ... and, while it walks, at most this far apart across its line of walking: the feet swing along
     #: it a hip's width apart (0.1-0.2 m at the laser's height) plus each centre's few cm of noise. Two
     #: people walking side by side, each seen by one leg, are two people, not one person's stride
@@ -103,7 +103,7 @@ class PeopleConfig:
     report_moving: bool = True
     #: a person's radius as an obstacle (shoulders seen from above); two people stand at least twice
     #: this apart, so a track takes no detection further than that from its prediction
-    person_radius_m: float = 0.25
+    person_radius_m: float = PersonSize.person_radius_m
     #: bound on the number of person tracks (the least likely to exist go first); leg tracks: twice it
     max_tracks: int = 40
 
