@@ -3,14 +3,18 @@
 The Hungarian method with potentials and shortest augmenting paths (Kuhn-Munkres as in Jonker and
 Volgenant), O(n^2 m) for n rows and m >= n columns: one row at a time is added, growing a
 shortest-path tree over the reduced costs until a free column is reached, then the matching is
-flipped along that path. Forbidden pairs are given a cost above every allowed one by the caller and
-dropped from the result by it (scipy's ``linear_sum_assignment`` gives the same matchings; it is not
-a dependency of the estimator).
+flipped along that path. :func:`assign_gated` takes forbidden pairs (outside a gate) as ``inf``: they
+are given a cost above every allowed one and dropped from the result (scipy's ``linear_sum_assignment``
+gives the same matchings; it is not a dependency of the estimator).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+#: the cost a forbidden pair is given in :func:`assign_gated`: above every allowed one (the callers' costs
+#: are distances in metres)
+FORBIDDEN_COST = 1e6
 
 
 def assign(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,3 +59,13 @@ def assign(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rows = p[1:][cols] - 1
     order = np.argsort(rows)
     return rows[order], cols[order]
+
+
+def assign_gated(cost: np.ndarray) -> dict[int, int]:
+    """Row -> column of a minimum-cost assignment over the allowed pairs of ``cost`` (n x m; ``inf``: not
+    allowed, e.g. outside the gate); a row left with no allowed column is not in the result."""
+    c = np.where(np.isfinite(cost), cost, FORBIDDEN_COST)
+    if c.size == 0:
+        return {}
+    rows, cols = assign(c)
+    return {int(r): int(k) for r, k in zip(rows, cols, strict=True) if c[r, k] < FORBIDDEN_COST}

@@ -34,7 +34,7 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
-from .assignment import assign
+from .assignment import assign_gated
 from .flow import FlowConfig
 from .geometry import scan_points
 from .restore import BearingInterval, _beams_in
@@ -396,17 +396,14 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
     out: list[KnownLeg | None] = [None] * len(legs)
     if not legs or not known:
         return out
-    big = 1e6
-    cost = np.full((len(legs), len(known)), big)
+    cost = np.full((len(legs), len(known)), np.inf)
     for i, (_, x, y) in enumerate(legs):
         for j, k in enumerate(known):
             d = math.hypot(x - k.x_m, y - k.y_m)
             if d <= k.reach_m:
                 cost[i, j] = d
-    rows, cols = assign(cost)
-    for r, k in zip(rows, cols, strict=True):
-        if cost[r, k] < big:
-            out[int(r)] = known[int(k)]
+    for r, k in assign_gated(cost).items():
+        out[r] = known[k]
     return out
 
 

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .assignment import assign
+from .assignment import assign_gated
 from .bodies import BodiesConfig, KnownLeg, PersonSize, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
@@ -285,8 +285,7 @@ class PeopleTracker:
             lt.det = None
         got: dict[int, int] = {}
         if tracks and detections:
-            big = 1e6
-            cost = np.full((len(tracks), len(detections)), big)
+            cost = np.full((len(tracks), len(detections)), np.inf)
             for i, lt in enumerate(tracks):
                 px, py = lt.predicted(stamp_s, c.leg_memory_s)
                 reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
@@ -294,8 +293,7 @@ class PeopleTracker:
                     dist = math.hypot(d.x_m - px, d.y_m - py)
                     if dist <= reach:
                         cost[i, j] = dist
-            rows, cols = assign(cost)
-            got = {int(r): int(k) for r, k in zip(rows, cols, strict=True) if cost[r, k] < big}
+            got = assign_gated(cost)
         for i, j in got.items():
             lt, d = tracks[i], detections[j]
             dt = stamp_s - lt.seen_s
@@ -491,14 +489,12 @@ class PeopleTracker:
         empty = [t for t in self.tracks if not t.leg_ids]
         got: dict[int, int] = {}
         if empty and dets:
-            big = 1e6
-            cost = np.full((len(empty), len(dets)), big)
+            cost = np.full((len(empty), len(dets)), np.inf)
             for ti, t in enumerate(empty):
                 for di, (x, y, s, _) in enumerate(dets):
                     if self._in_gate(t, x, y, s):
                         cost[ti, di] = math.hypot(x - t.filt.mean[0], y - t.filt.mean[1])
-            rows, cols = assign(cost)
-            got = {int(r): int(k) for r, k in zip(rows, cols, strict=True) if cost[r, k] < big}
+            got = assign_gated(cost)
         out = []
         for ti, di in got.items():
             t = empty[ti]
@@ -611,17 +607,14 @@ def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float
     out: list[int | None] = [None] * len(people)
     if not people or not bodies:
         return out
-    big = 1e6
-    cost = np.full((len(people), len(bodies)), big)
+    cost = np.full((len(people), len(bodies)), np.inf)
     for i, p in enumerate(people):
         for j, o in enumerate(bodies):
             d = math.hypot(o.x_m - p.x_m, o.y_m - p.y_m)
             if d <= o.radius_m + (pair_m if o.person else radius_m):
                 cost[i, j] = d
-    rows, cols = assign(cost)
-    for r, k in zip(rows, cols, strict=True):
-        if cost[r, k] < big:
-            out[int(r)] = int(k)
+    for r, k in assign_gated(cost).items():
+        out[r] = k
     return out
 
 

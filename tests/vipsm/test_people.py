@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from app.legmodel import default_leg_model, default_model_path, load_leg_model
-from vipsm.assignment import assign
+from vipsm.assignment import assign, assign_gated
 from vipsm.bodies import BodiesConfig
 from vipsm.imm import Imm, ImmConfig
 from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
@@ -521,6 +521,16 @@ def test_assignment_is_optimal_and_agrees_with_scipy() -> None:
         assert cost[rows, cols].sum() == pytest.approx(cost[r2, c2].sum(), abs=1e-9)
     with pytest.raises(ValueError):
         assign(np.array([[1.0, np.inf]]))
+
+
+def test_gated_assignment_leaves_out_forbidden_pairs() -> None:
+    """``inf`` is outside the gate: never assigned, even where it leaves a row without a column; the allowed
+    pairs still form the minimum-cost matching."""
+    inf = np.inf
+    assert assign_gated(np.array([[1.0, inf], [0.5, 2.0]])) == {0: 0, 1: 1}
+    assert assign_gated(np.array([[inf, inf], [0.3, 0.2]])) == {1: 1}
+    assert assign_gated(np.array([[0.1, 0.2], [0.15, inf], [inf, inf]])) == {0: 1, 1: 0}
+    assert assign_gated(np.zeros((0, 3))) == {}
 
 
 def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
