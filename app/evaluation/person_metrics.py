@@ -5,7 +5,11 @@ Definitions (docs/evaluation.md, "Per person"):
 * **in view**: the laser sees the person: at least ``PERSON_BEAMS_IN_VIEW`` beams of the cycle's sweep
   hit the person's legs. The world's ray caster returns each beam's first hit, so a person hidden behind
   another body, a cart or a wall gets no beams and is not in view; nor is one behind the robot (outside
-  the laser's 270 deg) or out of range. The camera plays no part.
+  the laser's 270 deg) or out of range. The camera plays no part. Nor is a person whose body overlaps a
+  wall (its centre nearer to the wall than its radius): the crowd's walkers come and go through doorways
+  the world does not model (the walls are drawn unbroken), so on their way in and out their legs stand in
+  the wall's face, returns a few cm before it that no sensor could tell from the wall (a real doorway
+  would show them against the room beyond).
 * **walking**: the person's true speed is not zero at the cycle's time; **standing** otherwise; *standing
   still for more than 0.5 s* counts from the last instant it moved (before its first step: from t = 0).
 * **located while walking** (``located_moving_fraction``): over the cycles in view and walking, the share
@@ -100,6 +104,16 @@ def _assign(est: list[tuple[float, float]], truth: list[tuple[int, float, float]
     return out
 
 
+def _in_a_wall(body: Any, walls: np.ndarray) -> bool:
+    """The body's centre lies nearer to one of ``walls`` ((k, 4): x0, y0, x1, y1) than its radius."""
+    if not walls.size:
+        return False
+    p0, d = walls[:, :2], walls[:, 2:] - walls[:, :2]
+    xy = np.array([body.x_m, body.y_m])
+    u = np.clip(np.einsum("ij,ij->i", xy - p0, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-12), 0.0, 1.0)
+    return bool(np.min(np.hypot(*(p0 + u[:, None] * d - xy).T)) < body.radius_m)
+
+
 class PeopleScore:
     """Scores one method's ``Estimate.obstacles`` and ``Estimate.people`` against every true person."""
 
@@ -108,10 +122,13 @@ class PeopleScore:
             i: PersonLog(i, list(o.walk_starts_s()))
             for i, o in enumerate(scenario.obstacles) if getattr(o, "kind", "") == "person"
         }
+        walls = getattr(scenario, "walls", ())
+        self.walls = np.array([[w.x0_m, w.y0_m, w.x1_m, w.y1_m] for w in walls], float).reshape(-1, 4)
 
     def update(self, t_s: float, estimate: Any, truth: Truth, hits: np.ndarray) -> None:
         """One cycle: ``truth`` at the estimate's stamp, ``hits`` the beams per true body."""
-        view = {i: int(hits[i]) >= PERSON_BEAMS_IN_VIEW for i in self.persons}
+        view = {i: int(hits[i]) >= PERSON_BEAMS_IN_VIEW and not _in_a_wall(truth.obstacles[i], self.walls)
+                for i in self.persons}
         for i, p in self.persons.items():
             if truth.obstacles[i].moving:
                 p.standing_since_s = math.inf

@@ -12,7 +12,7 @@ import pytest
 from app.evaluation import metrics
 from app.evaluation.person_metrics import PERSON_BEAMS_IN_VIEW, PeopleScore, summary
 from hil_fakes.world import ObstaclePath, ObstacleTruth, Truth
-from hil_fakes.world.geometry import Gait
+from hil_fakes.world.geometry import Gait, Wall
 from hil_fakes.world.scenes import walk_profile
 
 GAIT = Gait()
@@ -41,8 +41,9 @@ def _person(x: float, y: float, moving: bool) -> Any:
 
 
 def _run(paths: list[ObstaclePath], report: Callable[[float, Truth], tuple[list[Any], list[Any]]],
-         view: Callable[[float], bool] = lambda t: True, until_s: float = 7.0) -> list[dict[str, Any]]:
-    score = PeopleScore(SimpleNamespace(obstacles=tuple(paths)))
+         view: Callable[[float], bool] = lambda t: True, until_s: float = 7.0, walls: tuple[Wall, ...] = ()
+         ) -> list[dict[str, Any]]:
+    score = PeopleScore(SimpleNamespace(obstacles=tuple(paths), walls=walls))
     for t in np.round(np.arange(0.0, until_s, 0.1), 3):
         truth = _truth(float(t), paths)
         obstacles, people = report(float(t), truth)
@@ -77,6 +78,19 @@ def test_a_walker_coming_into_view_is_timed_from_its_first_cycle_in_view() -> No
     (p,) = _run([_walker()], report, view=lambda t: t >= 1.95, until_s=3.0)
     assert p["first_report_s"] == [pytest.approx(0.2)]  # in view from 2.0 s, reported at 2.2 s
     assert p["cycles_in_view"] == 10 and p["located_fraction"] == 0.0  # no people entries at all
+
+
+def test_a_walker_whose_body_overlaps_a_wall_is_not_in_view() -> None:
+    """The crowd's walkers pass through walls drawn unbroken (doorways the world does not model): while the
+    body's centre is nearer to a wall than its radius (0.25 m) the cycle is not scored."""
+    def report(t: float, truth: Truth) -> tuple[list[Any], list[Any]]:
+        return [], []
+
+    wall = Wall(1.5, -2.0, 1.5, 2.0)  # across the walk
+    (free,) = _run([_walker()], report, until_s=3.0)
+    (walled,) = _run([_walker()], report, until_s=3.0, walls=(wall,))
+    # x = t - 1 from 1 s: 1.25 < x < 1.75 at t = 2.3 ... 2.7 s (5 cycles); before 1 s it stands at 0
+    assert free["cycles_in_view"] - walled["cycles_in_view"] == 5
 
 
 def test_one_report_cannot_locate_two_people_side_by_side() -> None:
