@@ -127,9 +127,13 @@ def _moving_times(path: ObstaclePath) -> np.ndarray:
 
 
 def companion(path: ObstaclePath, offset_m: float) -> ObstaclePath:
-    """A second person beside ``path``'s walker, body centres ``offset_m`` apart (to its left), in step."""
+    """A second person beside ``path``'s walker, body centres ``offset_m`` apart (to its left), in step,
+    beside its line of walking over the last stride: a walker's path sways by a few degrees within a stride
+    (recorded paths: heading sigma 8 deg), and a companion held square to each sway would swing its own
+    speed by the offset times that turn rate (0.5-1.2 m/s beside a steady 0.9 m/s)."""
     t = _moving_times(path)
-    left = _headings(path, t, 0.3) @ np.array([[0.0, 1.0], [-1.0, 0.0]])
+    stride_m = path.gait.stride_m if path.gait is not None else 1.0
+    left = _headings(path, t, stride_m) @ np.array([[0.0, 1.0], [-1.0, 0.0]])
     pts = path.positions(t) + offset_m * left
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
     keep = np.concatenate([[True], np.diff(s) > 1e-9])

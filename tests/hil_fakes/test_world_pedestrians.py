@@ -5,7 +5,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hil_fakes.world.pedestrians import RecordedPath, TrajectoryFileError, fitted_waypoints, load_paths
+from hil_fakes.world.pedestrians import (
+    RecordedPath,
+    TrajectoryFileError,
+    annotation_stride,
+    fitted_waypoints,
+    load_paths,
+    smoothed,
+)
 from hil_fakes.world.scenarios import ScenarioError, build_scenario, suite_scenario
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "pedestrian_trajectories"
@@ -52,8 +59,10 @@ def test_fitted_waypoints_keep_the_shape_between_the_new_ends():
     pts = np.array(fitted_waypoints(rec, (1.0, 1.0), (1.0, 3.0)))
     np.testing.assert_allclose(pts[0], [1.0, 1.0], atol=1e-12)
     np.testing.assert_allclose(pts[-1], [1.0, 3.0], atol=1e-12)
-    # chord 4 m -> 2 m (scale 0.5), rotated +90 deg: the apex 1 m left of the chord is now 0.5 m to -x
-    np.testing.assert_allclose(pts[1], [0.5, 2.0], atol=1e-12)
+    # chord 4 m -> 2 m (scale 0.5), rotated +90 deg: the apex 1 m left of the chord is now 0.5 m to -x, and
+    # the smoothed path still passes through it (an annotation), rounded on either side
+    assert float(np.min(np.hypot(*(pts - [0.5, 2.0]).T))) < 1e-9
+    assert float(np.min(pts[:, 0])) == pytest.approx(0.5, abs=1e-9)
     with pytest.raises(TrajectoryFileError, match="ends"):
         fitted_waypoints(RecordedPath(1, np.array([0.0, 1.0]), np.array([[0.0, 0.0], [0.1, 0.0]])), (0, 0), (1, 0))
 
@@ -80,3 +89,18 @@ def test_default_is_the_scripted_line():
     a = suite_scenario("cross_90").obstacles
     b = suite_scenario("cross_90", overrides={"person_path_source": "scripted"}).obstacles
     assert a == b and len(a[0].waypoints) == 2
+
+
+def test_annotation_stride_and_a_smoothed_path_without_corners():
+    # annotations every 4 samples, linearly interpolated: a zigzag whose heading jumps 90 deg at each
+    ann = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0], [3.0, 1.0], [4.0, 0.0]])
+    xy = np.vstack([a + (b - a) * k / 4 for a, b in zip(ann[:-1], ann[1:], strict=True) for k in range(4)] + [ann[-1:]])
+    assert annotation_stride(xy) == 4
+    assert annotation_stride(ann) == 1
+    out = smoothed(xy, 4)
+    for a in ann:  # every annotation kept
+        assert float(np.min(np.hypot(*(out - a).T))) < 1e-9
+    heading = np.arctan2(*np.diff(out, axis=0).T[::-1])
+    assert float(np.max(np.abs(np.diff(heading)))) < 0.25  # no corner: <= 14 deg between 5 cm steps
+    lin = np.diff(np.arctan2(*np.diff(xy, axis=0).T[::-1]))
+    assert float(np.max(np.abs(lin))) > 1.5  # the interpolated file turns 90 deg at once

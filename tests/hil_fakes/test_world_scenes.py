@@ -52,7 +52,12 @@ def test_crowd_eight_recorded_walkers_two_side_by_side_0_4_m_apart(shared_data: 
     v = a.velocities(t)
     walking = np.hypot(v[:, 0], v[:, 1]) > 0.3
     across = np.abs(np.sum(d * v, axis=1)) / np.maximum(np.hypot(v[:, 0], v[:, 1]), 1e-9)
-    assert walking.sum() > 50 and np.percentile(across[walking], 90) < 0.05  # side by side, not one behind
+    # side by side, not one behind: beside the line of walking over a stride, so the walker's own sway
+    # (a few deg within a stride) puts it at most 0.4 m x sin 15 deg ahead or behind
+    assert walking.sum() > 50 and np.percentile(across[walking], 90) < 0.1
+    # and not swinging its speed with each sway: steady beside a steady walker
+    both = walking & (np.hypot(*b.velocities(t).T) > 0.3)
+    assert float(np.std(np.hypot(*b.velocities(t)[both].T) - np.hypot(*v[both].T))) < 0.1
     legs_a = leg_centres(a, a.gait, t, 0.3)
     legs_b = leg_centres(b, b.gait, t, 0.3)
     gap = min(float(np.min(np.hypot(*(legs_a[:, i] - legs_b[:, j]).T))) for i in range(2) for j in range(2))
