@@ -39,6 +39,7 @@ import numpy as np
 from .bodies import BodiesConfig, Body, Derived, derive, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
+from .identity import ObstacleIdentity
 from .keyframes import KeyframeMatcher, MatchOutcome
 from .legs import LegModel
 from .motion import ConstantVelocity, Twist2D, deskew, laser_twist
@@ -209,6 +210,7 @@ class Estimator:
         self._memory = ScanMemory(cfg.seen_through)
         self._tracker = Tracker(cfg.tracker, self._memory)
         self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
+        self._identity = ObstacleIdentity(cfg.people.person_radius_m)  # one obstacle id per person
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._bodies_derived = cfg.bodies_derived
@@ -457,7 +459,10 @@ class Estimator:
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
         if self._people is not None:
             bodies = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held)
-            obstacles += self._people.obstacles(people, bodies, laser)
+            obstacles = self._identity.relabel(obstacles, self._people.obstacles(people, bodies, laser),
+                                               self._people.bodies_standing_for(people, bodies),
+                                               {t.track_id for t in tr.tracks},
+                                               {t.track_id for t in self._people.tracks})
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
