@@ -210,7 +210,9 @@ class Estimator:
         self._memory = ScanMemory(cfg.seen_through)
         self._tracker = Tracker(cfg.tracker, self._memory)
         self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
-        self._identity = ObstacleIdentity(cfg.people.person_radius_m)  # one obstacle id per person
+        # one obstacle id per person across the two trackers and across a body track lost and found again
+        self._identity = ObstacleIdentity(cfg.people.person_radius_m, cfg.tracker.max_missed_s,
+                                          cfg.tracker.max_speed_mps, cfg.tracker.step_noise_m)
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._bodies_derived = cfg.bodies_derived
@@ -462,7 +464,7 @@ class Estimator:
             obstacles = self._identity.relabel(obstacles, self._people.obstacles(people, bodies, laser),
                                                self._people.bodies_standing_for(people, bodies),
                                                {t.track_id for t in tr.tracks},
-                                               {t.track_id for t in self._people.tracks})
+                                               {t.track_id for t in self._people.tracks}, scan.stamp_s)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,

@@ -77,3 +77,50 @@ def test_positions_are_unchanged() -> None:
 def test_bad_radius_is_refused() -> None:
     with pytest.raises(ValueError, match="same_m"):
         ObstacleIdentity(0.0)
+
+
+def mover(tid: int, x: float, y: float, vx: float, vy: float) -> Obstacle:
+    return Obstacle(tid, x, y, vx, vy, 0.25, 0.0, 0.1, -1, -1)
+
+
+def stitcher() -> ObstacleIdentity:
+    return ObstacleIdentity(0.25, gap_s=1.0, speed_mps=2.5, step_m=0.1)
+
+
+def test_a_walker_dropped_and_found_again_within_its_reach_keeps_its_id() -> None:
+    """The body tracker dropped a walker missed for a scan (its beams passed through the walker's centre)
+    and started it afresh 0.7 s later, 0.35 m on, walking on: one id."""
+    idn = stitcher()
+    assert ids(idn.relabel((mover(40, 3.2, 0.4, 0.0, -0.5),), (), {}, {40}, set(), 10.0)) == [40]
+    assert ids(idn.relabel((), (), {}, set(), set(), 10.3)) == []  # dropped
+    assert ids(idn.relabel((mover(41, 3.15, 0.05, -0.1, -0.5),), (), {}, {41}, set(), 10.7)) == [40]
+    assert ids(idn.relabel((mover(41, 3.1, 0.0, -0.1, -0.5),), (), {}, {41}, set(), 10.8)) == [40]
+
+
+def test_a_new_track_out_of_reach_too_late_or_coming_towards_it_is_another_body() -> None:
+    for new, stamp in ((mover(41, 3.2, -0.8, 0.0, -0.5), 10.7),  # 1.2 m in 0.7 s at 0.5 m/s
+                       (mover(41, 3.2, 0.1, 0.0, -0.5), 11.2),  # after the tracker's 1 s
+                       (mover(41, 3.2, 0.1, 0.0, 0.5), 10.7)):  # walking back towards where the other was
+        idn = stitcher()
+        idn.relabel((mover(40, 3.2, 0.4, 0.0, -0.5),), (), {}, {40}, set(), 10.0)
+        idn.relabel((), (), {}, set(), set(), 10.1)
+        assert ids(idn.relabel((new,), (), {}, {41}, set(), stamp)) == [41]
+
+
+def test_an_ended_track_passes_its_id_once_and_the_memory_is_bounded() -> None:
+    idn = stitcher()
+    idn.relabel((mover(40, 3.2, 0.4, 0.0, -0.5),), (), {}, {40}, set(), 10.0)
+    idn.relabel((), (), {}, set(), set(), 10.1)
+    out = idn.relabel((mover(41, 3.2, 0.3, 0.0, -0.5), mover(42, 3.2, 0.2, 0.0, -0.5)), (), {}, {41, 42}, set(), 10.3)
+    assert sorted(ids(out)) == [40, 42]
+    idn.relabel((), (), {}, set(), set(), 20.0)
+    assert not idn._ended and not idn._last
+
+
+def test_without_a_gap_nothing_is_stitched() -> None:
+    idn = ObstacleIdentity(0.25)
+    idn.relabel((mover(40, 3.2, 0.4, 0.0, -0.5),), (), {}, {40}, set(), 10.0)
+    idn.relabel((), (), {}, set(), set(), 10.1)
+    assert ids(idn.relabel((mover(41, 3.2, 0.35, 0.0, -0.5),), (), {}, {41}, set(), 10.2)) == [41]
+    with pytest.raises(ValueError, match="gap_s"):
+        ObstacleIdentity(0.25, gap_s=-1.0)
