@@ -459,12 +459,14 @@ class Estimator:
         held = [(t, d) for t, d in tracked if id(t) in alive and t.confirmed and tr.recently_seen(t)]
         obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held if tr.reported(t))
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
+        persons, links, live = (), {}, set()
         if self._people is not None:
             bodies = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held)
-            obstacles = self._identity.relabel(obstacles, self._people.obstacles(people, bodies, laser),
-                                               self._people.bodies_standing_for(people, bodies),
-                                               {t.track_id for t in tr.tracks},
-                                               {t.track_id for t in self._people.tracks}, scan.stamp_s)
+            persons = self._people.obstacles(people, bodies, laser)
+            links = self._people.bodies_standing_for(people, bodies)
+            live = {t.track_id for t in self._people.tracks}
+        obstacles = self._identity.relabel(obstacles, persons, links, {t.track_id for t in tr.tracks}, live,
+                                           scan.stamp_s)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,
