@@ -14,6 +14,10 @@ once) takes that body's reported id if it has none yet; a body track reported fo
 person with an id stands for it takes the person's id; a person reported itself keeps its id (its own
 track id unless it took one). An id once given to a track is kept for the track's life (a body's reports
 stay one track), and no id is given twice in one cycle (the later one keeps its own track id then).
+The body tracker also drops a coasting track whose centre a beam of the scan passes through, which it
+does too when the scanner misses a walker's legs for a scan; the walker is then started afresh. A track
+reported for the first time shortly after, where the ended one could have got to and moving on from there,
+takes its id (``ObstacleIdentity(gap_s=...)``: the tracker's own coast time and reach).
 Positions, velocities and what is reported are unchanged: only ``track_id``.
 """
 
