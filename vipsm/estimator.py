@@ -39,6 +39,7 @@ import numpy as np
 from .bodies import BodiesConfig, Body, Derived, derive, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
 from .geometry import between, compose, scan_points, wrap_angle
+from .identity import ObstacleIdentity
 from .keyframes import KeyframeMatcher, MatchOutcome
 from .legs import LegModel
 from .motion import ConstantVelocity, Twist2D, deskew, laser_twist
@@ -209,6 +210,9 @@ class Estimator:
         self._memory = ScanMemory(cfg.seen_through)
         self._tracker = Tracker(cfg.tracker, self._memory)
         self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
+        # one obstacle id per person across the two trackers and across a body track lost and found again
+        self._identity = ObstacleIdentity(cfg.people.person_radius_m, cfg.tracker.max_missed_s,
+                                          cfg.tracker.max_speed_mps, cfg.tracker.step_noise_m)
         self._matcher = KeyframeMatcher(cfg)
         self._static = FreeSpaceGrid(cfg.static_map)
         self._bodies_derived = cfg.bodies_derived
@@ -455,9 +459,14 @@ class Estimator:
         held = [(t, d) for t, d in tracked if id(t) in alive and t.confirmed and tr.recently_seen(t)]
         obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held if tr.reported(t))
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
+        persons, links, live = (), {}, set()
         if self._people is not None:
             bodies = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held)
-            obstacles += self._people.obstacles(people, bodies, laser)
+            persons = self._people.obstacles(people, bodies, laser)
+            links = self._people.bodies_standing_for(people, bodies)
+            live = {t.track_id for t in self._people.tracks}
+        obstacles = self._identity.relabel(obstacles, persons, links, {t.track_id for t in tr.tracks}, live,
+                                           scan.stamp_s)
         return Estimate(
             stamp_s=scan.stamp_s,
             pose=self._last_pose,

@@ -581,6 +581,16 @@ class PeopleTracker:
                                 -1, -1, age_cycles=t.age_cycles, covariance=cov, person=True))
         return tuple(out)
 
+    def bodies_standing_for(self, people: tuple[Person, ...], others: tuple[Obstacle, ...]
+                            ) -> dict[int, tuple[int, float]]:
+        """Per body of ``others`` that a moving person seen this cycle stands for (as in :meth:`obstacles`),
+        the person's track id and its distance from the body (``vipsm.identity`` gives both one id)."""
+        c = self.config
+        moving = [p for p in people if p.moving and p.legs]
+        found = _explained(moving, others, c.leg_pair_max_m, c.person_radius_m)
+        return {others[k].track_id: (p.track_id, math.hypot(p.x_m - others[k].x_m, p.y_m - others[k].y_m))
+                for p, k in zip(moving, found, strict=True) if k is not None}
+
     def people(self, stamp_s: float) -> tuple[Person, ...]:
         """The confirmed tracks at ``stamp_s`` (positions predicted at constant velocity)."""
         out = []
