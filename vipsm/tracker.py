@@ -86,10 +86,7 @@ class TrackerConfig:
     confirm_displacement_m: float = 0.06
     #: ... or this far when every detection of the window (at least 4) showed motion evidence
     confirm_displacement_sustained_m: float = 0.03
-    #: ... or, between lone legs, this far: a static leg's centre placed from 4-5 returns drifts up to
-    #: 7 cm in half a second as the robot drives past (a table leg); a walker
-    #: covers 10 cm in 0.1-0.3 s
-    confirm_displacement_leg_m: float = 0.10
+    #: (between lone legs: ``step_noise_m``, what a static leg's placed centre drifts by)
     confirm_window: int = 6
     #: ... from a place the body left: no other detection came within this much of the window's first
     #: position after it (a leg's width plus its centre's jitter). A track that hopped between two
@@ -115,6 +112,10 @@ class TrackerConfig:
     #: detections of one body never jump faster than this plus ``step_noise_m`` between cycles (a flip
     #: of the association between two nearby things, e.g. a chair's legs, does)
     max_speed_mps: float = 2.5
+    #: how far a static body's placed centre drifts between its detections: the noisiest kind, a lone leg
+    #: placed from 4-5 returns a leg's radius behind them, drifts up to 7 cm in half a second as the robot
+    #: drives past (a table leg); also the displacement lone legs must show to confirm (a walker covers
+    #: 10 cm in 0.1-0.3 s)
     step_noise_m: float = 0.1
     #: ... plus this when the detection's kind changes between them: a lone leg's centre lies up to half
     #: the widest leg pair (``PeopleConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
@@ -620,7 +621,7 @@ class Tracker:
         # circle-fitted body (good to 2-3 cm) with evidence in every detection of the window needs less
         kind = hist[-1, 4]
         if kind == _KIND_CODE["leg"]:
-            needed = c.confirm_displacement_leg_m
+            needed = c.step_noise_m  # the drift of a static leg's placed centre
         elif kind == _KIND_CODE["body"] and recent == len(t.history) and hist.shape[0] >= 4:
             needed = c.confirm_displacement_sustained_m
         else:

@@ -1043,7 +1043,7 @@ def _rear(x: float, y: float, kind: str, evidence: bool, laser: tuple[float, ...
 
 def test_a_static_post_whose_lone_leg_centres_drift_in_a_turn_does_not_confirm() -> None:
     """The drive's rear laser: a static object 3.0 m away, seen as lone legs in a turn, its placed centres 12
-    cm apart in 0.5 s as its visible part grew. A lone leg's centre drifts up to ``confirm_displacement_leg_m``
+    cm apart in 0.5 s as its visible part grew. A lone leg's centre drifts up to ``step_noise_m``
     as the view changes, and the two scans' relative pose error adds ``_pose_allowance_m`` (8 cm there):
     independent errors, they add in quadrature (13 cm). Taking the larger of the two alone, it confirmed and
     was reported."""
