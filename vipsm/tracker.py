@@ -646,11 +646,12 @@ class Tracker:
         and of their relative position error). A still laser's scans differ by a match's few centimetres,
         which the fixed displacements already hold; a laser that drove or turned between them carries one
         match error per keyframe step, which at 6 m is 10 cm (a dark post "moved" that far sideways in a
-        turn of 13 degrees). A centre placed an assumed radius behind the visible part (a lone leg, a pair's
-        legs, an unfitted body) drifts with the view by itself, independently of the pose error, so the two add
-        in quadrature: a static object 3 m behind the rear laser in a 16 degree turn, seen as lone legs whose
-        visible part grew, "moved" 12 cm, beyond either alone (10 and 8 cm), not beyond both (13 cm). A fitted
-        circle's centre does not drift with the view (its radius is checked): the larger of the two."""
+        turn of 13 degrees). Confirmation adds it to a fixed displacement in quadrature where the centre was
+        placed an assumed radius behind the visible part (a lone leg, a pair's legs, an unfitted body): that
+        drifts with the view by itself, independently of the pose error; a static object 3 m behind the rear
+        laser in a 16 degree turn, seen as lone legs whose visible part grew, "moved" 12 cm, beyond either alone
+        (10 and 8 cm), not beyond both (13 cm). A fitted circle's centre does not drift with the view (its
+        radius is checked): the larger of the two."""
         a, b = hist[0], hist[-1]
         if self._poses is None or hist.shape[1] < 13 or not np.all(np.isfinite(np.r_[a[9:13], b[9:13]])):
             return 0.0
