@@ -86,10 +86,7 @@ class TrackerConfig:
     confirm_displacement_m: float = 0.06
     #: ... or this far when every detection of the window (at least 4) showed motion evidence
     confirm_displacement_sustained_m: float = 0.03
-    #: ... or, between lone legs, this far: a static leg's centre placed from 4-5 returns drifts up to
-    #: 7 cm in half a second as the robot drives past (a table leg); a walker
-    #: covers 10 cm in 0.1-0.3 s
-    confirm_displacement_leg_m: float = 0.10
+    #: (between lone legs: ``step_noise_m``, what a static leg's placed centre drifts by)
     confirm_window: int = 6
     #: ... from a place the body left: no other detection came within this much of the window's first
     #: position after it (a leg's width plus its centre's jitter). A track that hopped between two
@@ -115,6 +112,10 @@ class TrackerConfig:
     #: detections of one body never jump faster than this plus ``step_noise_m`` between cycles (a flip
     #: of the association between two nearby things, e.g. a chair's legs, does)
     max_speed_mps: float = 2.5
+    #: how far a static body's placed centre drifts between its detections: the noisiest kind, a lone leg
+    #: placed from 4-5 returns a leg's radius behind them, drifts up to 7 cm in half a second as the robot
+    #: drives past (a table leg); also the displacement lone legs must show to confirm (a walker covers
+    #: 10 cm in 0.1-0.3 s)
     step_noise_m: float = 0.1
     #: ... plus this when the detection's kind changes between them: a lone leg's centre lies up to half
     #: the widest leg pair (``PeopleConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
@@ -620,12 +621,15 @@ class Tracker:
         # circle-fitted body (good to 2-3 cm) with evidence in every detection of the window needs less
         kind = hist[-1, 4]
         if kind == _KIND_CODE["leg"]:
-            needed = c.confirm_displacement_leg_m
+            needed = c.step_noise_m  # the drift of a static leg's placed centre
         elif kind == _KIND_CODE["body"] and recent == len(t.history) and hist.shape[0] >= 4:
             needed = c.confirm_displacement_sustained_m
         else:
             needed = c.confirm_displacement_m
-        needed = max(needed, self._pose_allowance_m(hist))
+        allowance = self._pose_allowance_m(hist)
+        # a centre placed an assumed radius behind the visible part drifts with the view, independently of the
+        # two scans' pose error: they add; a fitted circle's centre does not drift with the view
+        needed = max(needed, allowance) if np.isfinite(hist[-1, 7]) else math.hypot(needed, allowance)
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
         if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
@@ -642,7 +646,12 @@ class Tracker:
         and of their relative position error). A still laser's scans differ by a match's few centimetres,
         which the fixed displacements already hold; a laser that drove or turned between them carries one
         match error per keyframe step, which at 6 m is 10 cm (a dark post "moved" that far sideways in a
-        turn of 13 degrees)."""
+        turn of 13 degrees). Confirmation adds it to a fixed displacement in quadrature where the centre was
+        placed an assumed radius behind the visible part (a lone leg, a pair's legs, an unfitted body): that
+        drifts with the view by itself, independently of the pose error; a static object 3 m behind the rear
+        laser in a 16 degree turn, seen as lone legs whose visible part grew, "moved" 12 cm, beyond either alone
+        (10 and 8 cm), not beyond both (13 cm). A fitted circle's centre does not drift with the view (its
+        radius is checked): the larger of the two."""
         a, b = hist[0], hist[-1]
         if self._poses is None or hist.shape[1] < 13 or not np.all(np.isfinite(np.r_[a[9:13], b[9:13]])):
             return 0.0
