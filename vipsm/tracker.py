@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numba import njit
@@ -141,6 +141,12 @@ class TrackerConfig:
     #: a cell's width of motion), and that stretch already shows whether it moves. They are remembered,
     #: not judged: confirmation comes at the earliest with the next cycle's detection.
     retro_s: float = 0.5
+
+    #: keys removed (issue 29: fewer tuned parameters), with what replaced each: a config file that sets one
+    #: is refused naming the key and this reason (``app.config``), never silently misread
+    REMOVED_KEYS: ClassVar[dict[str, str]] = {
+        "confirm_displacement_leg_m": "the same drift of a placed centre as step_noise_m, which now sets it",
+    }
 
     def __post_init__(self) -> None:
         if not self.accel_sigmas_mps2 or min(self.accel_sigmas_mps2) <= 0.0:

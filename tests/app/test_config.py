@@ -66,7 +66,7 @@ def test_bad_values_name_their_key(override: str, key: str, words: str) -> None:
 @pytest.mark.parametrize("key", ["estimator.bodies.leg_radius_m", "estimator.bodies.camera_interval_max_m",
                                  "estimator.bodies.min_beams", "estimator.flow.fb_check",
                                  "estimator.flow.grid_step_px", "estimator.flow.fit_global",
-                                 "estimator.flow.max_depth_m"])
+                                 "estimator.flow.max_depth_m", "estimator.tracker.confirm_displacement_leg_m"])
 def test_a_removed_key_is_refused_as_removed_never_ignored(key: str) -> None:
     """A key an older version had (issue 29 removed or derived it): an old config file that sets it is refused
     with the key named and what replaced it, not read as if the value still applied."""
