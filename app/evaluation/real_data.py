@@ -18,9 +18,10 @@ leg_tracker scans in ``../shared/data/real_people_laser`` (PROVENANCE.md there),
   frame is the laser frame. Reports on the static background: the report's range is at least the beam's
   ``BACKGROUND_PERCENTILE`` percentile range over the recording (no return counting as open space,
   infinitely far) less ``BACKGROUND_MARGIN_M`` (a report at or behind the farthest surface that beam
-  usually sees: a wall, not a person in front of it); tracks that never move: reported tracks whose
-  reports all lie within ``STILL_TRACK_M`` of their mean. In a labelled scan a report within 0.5 m of a
-  labelled leg is the person, counted in neither.
+  usually sees: a wall, not a person in front of it; a report outside the field of view or on beams the
+  robot itself blocks, nearer than ``SELF_M``, is out of view, counted apart); tracks that never move:
+  reported tracks whose reports all lie within ``STILL_TRACK_M`` of their mean. In a labelled scan a
+  report within 0.5 m of a labelled leg is the person, counted in neither.
 * **The drive** (``negative_2.bag``, nobody present, no odometry): every report is false (per minute);
   the matcher's path is compared with an independent scan-to-map registration of the same scans by
   ``kiss-icp`` (run here only, never in the product's loop).
@@ -58,6 +59,9 @@ FAR_M = 1.0
 BACKGROUND_PERCENTILE = 95.0
 BACKGROUND_MARGIN_M = 0.3
 STILL_TRACK_M = 0.3
+#: a beam that returns nearer than this in ``BACKGROUND_PERCENTILE`` percent of the scans sees the robot that
+#: carries the laser (its frame, a mount): what lies behind is never seen there
+SELF_M = 0.5
 #: no return, as a range: open space, farther than any report (finite, so the percentile interpolates cleanly)
 OPEN_SPACE_M = 1e9
 #: two labelled legs this close are one person's pair (a walker's legs at the laser's height lie within a
@@ -308,12 +312,15 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
     scan with no return there counting as open space (infinitely far): where a walker crosses open space
     the walker is the only thing the beam ever returns from, and is not the background. In a labelled scan
     a report within ``max(RECALL_RADII_M)`` of a labelled leg is the labelled person, neither a background
-    report nor part of a still track."""
+    report nor part of a still track. A report at a bearing the laser never sees past (outside its field of
+    view, or on beams its own robot blocks: background nearer than ``SELF_M``) is out of view: a track
+    coasting where the laser cannot look is judged neither on nor off the background, and counted apart."""
     assert run.bearings is not None
     stack = np.array(run.ranges)
     bg = np.percentile(np.where(np.isfinite(stack), stack, OPEN_SPACE_M), BACKGROUND_PERCENTILE, axis=0)
     b = run.bearings
-    on_bg = 0
+    half_beam = 0.5 * float(np.median(np.diff(b))) if b.size > 1 else 0.0
+    on_bg = unseen = 0
     tracks: dict[int, list[tuple[float, float]]] = {}
     on_person: set[int] = set()
     for c in run.cycles:
@@ -323,14 +330,18 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
                 on_person.add(tid)
                 continue
             tracks.setdefault(tid, []).append((x, y))
-            i = int(np.clip(np.searchsorted(b, math.atan2(y, x)), 0, b.size - 1))
-            if math.hypot(x, y) >= bg[i] - BACKGROUND_MARGIN_M:
+            bearing = math.atan2(y, x)
+            i = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
+            if not b[0] - half_beam <= bearing <= b[-1] + half_beam or bg[i] < SELF_M:
+                unseen += 1
+            elif math.hypot(x, y) >= bg[i] - BACKGROUND_MARGIN_M:
                 on_bg += 1
     still = sum(1 for tid, p in tracks.items() if tid not in on_person
                 and np.hypot(*(np.array(p) - np.mean(p, axis=0)).T).max() <= STILL_TRACK_M)
     m = run.minutes
     return {
         "background_reports_per_min": round(on_bg / m, 1) if m > 0 else None,
+        "out_of_view_reports_per_min": round(unseen / m, 1) if m > 0 else None,
         "still_tracks_per_min": round(still / m, 2) if m > 0 else None,
         "tracks": len(tracks.keys() | on_person),
     }

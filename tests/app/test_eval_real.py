@@ -85,6 +85,24 @@ def test_background_reports_and_still_tracks() -> None:
     assert m["still_tracks_per_min"] == pytest.approx(10.0) and m["tracks"] == 2
 
 
+def test_a_report_where_the_laser_cannot_look_is_out_of_view_not_background() -> None:
+    """Beams the robot's own frame blocks (0.3 m, every scan) and bearings outside the field of view see
+    nothing behind: a track coasting there is counted apart, not as on the background."""
+    b = np.linspace(-1.0, 1.0, 101)
+    r = np.full(101, 4.0)
+    r[90:] = 0.3  # the robot's frame on the last 11 beams
+    cycles = [Cycle(i * 0.1, (0.0, 0.0, 0.0), [(1, 2.0 * math.cos(0.9), 2.0 * math.sin(0.9)),  # behind the frame
+                                               (2, 2.0 * math.cos(1.2), 2.0 * math.sin(1.2)),  # beyond the view
+                                               (3, 4.0, 0.0)], False, None)  # on the wall
+              for i in range(60)]
+    run = Run("/scan", cycles, [r] * 60, b)
+    m = background_metrics(run)
+    assert m["background_reports_per_min"] == pytest.approx(60 / run.minutes, abs=0.1)  # the wall report alone
+    assert m["out_of_view_reports_per_min"] == pytest.approx(120 / run.minutes, abs=0.1)
+    m_near = background_metrics(Run("/scan", cycles, [np.where(np.arange(101) >= 90, 0.6, 4.0)] * 60, b))
+    assert m_near["out_of_view_reports_per_min"] == pytest.approx(60 / run.minutes, abs=0.1)  # 0.6 m: no robot
+
+
 def test_a_walker_in_open_space_and_a_labelled_person_are_not_background() -> None:
     """A beam with no return most of the time looks into open space: a walker it returns from now and
     then is in front of the background, not on it (before, the percentile over returns only made the
