@@ -9,7 +9,9 @@ is a pair of leg tracks):
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
    ``leg_max_speed_mps`` per second); a leg track unseen for ``leg_memory_s`` ends. A static leg's
-   detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint;
+   detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint. A
+   track that took a detection where something else already stood (the laser returned there when it last
+   saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
 3. **people from leg tracks**: a person keeps its leg tracks (at most two) for as long as they live.
    Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg was
    last seen while the person stands, the visible leg alone with a hip's half-width of noise while it
