@@ -333,6 +333,26 @@ def test_a_leg_stepping_over_its_own_returns_still_travels() -> None:
     assert tr.tracks[0].p_dynamic > before + 0.2
 
 
+def test_a_swing_leg_landing_a_short_stride_beside_its_partner_still_travels() -> None:
+    """The laser's returns beside the person's other leg are the person's own: a slow walker's swing leg
+    that lands 0.13 m past where its partner stands (both legs in line along the walk) arrived at a place
+    the partner's returns held, not another thing's, and its travel of 0.27 m counts."""
+    def near_partner(x: float, y: float) -> bool:  # the partner's returns
+        return math.hypot(x - 2.0, y) < 0.2
+
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    stand = LegDetection(2.0, 0.0, 0.9, 2, 3)
+    for k in range(4):
+        tr.step(0.1 * k, [LegDetection(1.85, 0.05, 0.9, 0, 1), stand], seen_free=lambda x, y: False,
+                stood_before=near_partner)
+    (person,) = tr.tracks
+    before = person.p_dynamic
+    tr.step(0.4, [LegDetection(2.12, 0.05, 0.9, 0, 1), stand], seen_free=lambda x, y: x < 1.9,
+            stood_before=near_partner)
+    assert tr.tracks == [person] and len(person.leg_ids) == 2
+    assert person.p_dynamic > before + 0.1
+
+
 def _walk_stand_walk(stand_s: float, seed: int = RNG_SEED) -> tuple[PeopleTracker, list[bool], float]:
     """A person walks 2 s at 1 m/s (motion evidence on every other detection), stands ``stand_s`` (no
     evidence: a standing body shows none) and walks on at 1 m/s with no evidence at all (not even its
