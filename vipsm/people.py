@@ -250,9 +250,9 @@ class PeopleTracker:
         behind something nearer, is no evidence). ``seen_free(x, y) -> bool`` (optional): the scan saw
         through that point: a leg that travelled counts as motion evidence only when the place it left
         is seen empty (a leg track that hopped to a neighbouring table leg left one standing there).
-        ``stood_before(x, y) -> bool`` (optional): the laser returned from that leg position in recent
-        scans (before this one): a leg track that arrived where something already stood re-locked onto
-        it and did not travel."""
+        ``stood_before(x, y) -> bool`` (optional): something stood at that leg position when the laser
+        last saw it before this scan: a leg track that arrived where something else already stood
+        re-locked onto it and did not travel (:meth:`_judge_arrival`)."""
         c = self.config
         self._seen_free = seen_free
         self._stood_before = stood_before
