@@ -281,7 +281,8 @@ class Estimator:
             legs = _with_evidence(detect_legs(np.where(ramps, np.nan, scan.ranges_m), scan.bearings_rad, laser,
                                               self._people.model, self.config.people, self.config.bodies,
                                               dropped | ramps), bodies)
-            self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser))
+            self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser),
+                              _returned_before(self._static, laser, self.config.people.leg_radius_m))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -623,6 +624,19 @@ def _seen_through(scan: Scan, laser: Pose2D, margin_m: float = 0.15):
         return beam is not None and math.isfinite(beam[0]) and beam[0] >= beam[1] + margin_m
 
     return seen_free
+
+
+def _returned_before(grid: FreeSpaceGrid, laser: Pose2D, leg_radius_m: float):
+    """``stood_before(x, y)``: something stood at the front of a leg centred at that world point (the point
+    ``leg_radius_m`` nearer the laser, where a leg's returns lie) when the laser last saw that place before
+    this scan (:meth:`FreeSpaceGrid.held`, asked before this scan is integrated)."""
+
+    def stood_before(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        k = leg_radius_m / max(math.hypot(dx, dy), 1e-6)
+        return bool(grid.held(np.array([[x - k * dx, y - k * dy]]))[0])
+
+    return stood_before
 
 
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:

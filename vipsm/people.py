@@ -9,7 +9,9 @@ is a pair of leg tracks):
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
    ``leg_max_speed_mps`` per second); a leg track unseen for ``leg_memory_s`` ends. A static leg's
-   detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint;
+   detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint. A
+   track that took a detection where something else already stood (the laser returned there when it last
+   saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
 3. **people from leg tracks**: a person keeps its leg tracks (at most two) for as long as they live.
    Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg was
    last seen while the person stands, the visible leg alone with a hip's half-width of noise while it
@@ -152,6 +154,9 @@ class LegTrack:
     #: how far its newest detection lies from the furthest of ``path``, and that point
     travel_m: float = 0.0
     left_xy: tuple[float, float] = (0.0, 0.0)
+    #: it arrived where it stands now at a place where something else already stood (the laser returned
+    #: there when it last saw the place, before this track came): it re-locked onto that thing
+    arrived_held: bool = False
 
     def seen(self, stamp_s: float, det: LegDetection, window_s: float) -> None:
         self.x_m, self.y_m, self.seen_s, self.det = det.x_m, det.y_m, stamp_s, det
@@ -234,18 +239,23 @@ class PeopleTracker:
         self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
         self._seen_free: PointTest | None = None
+        self._stood_before: PointTest | None = None
 
     # ------------------------------------------------------------------ one cycle
     def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
-             seen_free: PointTest | None = None) -> None:
+             seen_free: PointTest | None = None, stood_before: PointTest | None = None) -> None:
         """Predict every person to ``stamp_s``, track the legs ``detections``, measure each person from
         its legs, start people from free legs, update existence and motion state. ``visible(x, y) ->
         bool`` (optional): whether the scan could have seen a person there (a miss elsewhere, e.g.
         behind something nearer, is no evidence). ``seen_free(x, y) -> bool`` (optional): the scan saw
         through that point: a leg that travelled counts as motion evidence only when the place it left
-        is seen empty (a leg track that hopped to a neighbouring table leg left one standing there)."""
+        is seen empty (a leg track that hopped to a neighbouring table leg left one standing there).
+        ``stood_before(x, y) -> bool`` (optional): something stood at that leg position when the laser
+        last saw it before this scan: a leg track that arrived where something else already stood
+        re-locked onto it and did not travel (:meth:`_judge_arrival`)."""
         c = self.config
         self._seen_free = seen_free
+        self._stood_before = stood_before
         for t in self.tracks:
             dt = stamp_s - t.stamp_s
             t.filt.predict(dt)
@@ -294,8 +304,10 @@ class PeopleTracker:
                     if dist <= reach:
                         cost[i, j] = dist
             got = assign_gated(cost)
+        partner = {a: b for t in self.tracks if len(t.leg_ids) == 2 for a, b in (t.leg_ids, t.leg_ids[::-1])}
         for i, j in got.items():
             lt, d = tracks[i], detections[j]
+            self._judge_arrival(stamp_s, lt, d, self.legs.get(partner.get(lt.leg_id, -1)))
             dt = stamp_s - lt.seen_s
             if dt > 0:  # velocity: half the last one, half this step's (a leg's speed changes every stride)
                 vmax = c.leg_max_speed_mps
@@ -456,11 +468,33 @@ class PeopleTracker:
         return t.filt.p_moving * min(float(math.hypot(v[0], v[1])) / WALK_DIR_MPS, 1.0)
 
     def _travelled(self, lt: LegTrack) -> bool:
-        """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, and that
-        place is seen empty now."""
+        """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, that place
+        is seen empty now, and it arrived where nothing stood before (:meth:`_arrived`)."""
         if lt.travel_m < self.config.leg_travel_m or lt.det is None or lt.det.occluded:
             return False
-        return self._seen_free is None or bool(self._seen_free(*lt.left_xy))
+        return (self._seen_free is None or bool(self._seen_free(*lt.left_xy))) and self._arrived(lt)
+
+    def _arrived(self, lt: LegTrack) -> bool:
+        """A leg that travelled arrived at a place that was free or unseen before it came; a leg track that
+        took a detection where something else already stood (:meth:`_judge_arrival`) re-locked onto that
+        thing (a neighbouring table leg, a wall's piece) and did not travel: the mirror of "the place it left
+        is seen empty now"."""
+        return not lt.arrived_held
+
+    def _judge_arrival(self, stamp_s: float, lt: LegTrack, d: LegDetection, partner: LegTrack | None) -> None:
+        """Before ``lt`` takes ``d`` at ``stamp_s``: whether ``d`` lies where something else stood when the
+        laser last saw that place (``stood_before``). Only a detection at least ``leg_travel_m`` from each
+        earlier detection of the last ``leg_memory_s`` of the track and of its person's other leg
+        (``partner``) is judged: nearer, the laser's returns there may be the person's own (a leg's
+        footprint and a grid cell; a slow walker's swing leg lands a short stride beside where the other
+        stood); a nearer one keeps the verdict of the arrival it follows. A new leg track has arrived nowhere
+        (its own body may have stood there unseen as a leg)."""
+        if self._stood_before is None:
+            return
+        travel = self.config.leg_travel_m
+        own = lt.path + (partner.path if partner is not None else [])
+        if all(math.hypot(d.x_m - x, d.y_m - y) >= travel for st, x, y in own if st < stamp_s):
+            lt.arrived_held = bool(self._stood_before(d.x_m, d.y_m))
 
     def _release(self, t: PersonTrack) -> None:
         t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]

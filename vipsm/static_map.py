@@ -53,6 +53,9 @@ class FreeSpaceGrid:
         self.free = np.zeros((self.n, self.n), np.float32)
         self.occ = np.zeros((self.n, self.n), np.float32)
         self.last_free = np.zeros((self.n, self.n), bool)  # cells a beam crossed in the last scan
+        # when a scan last ended a beam in each cell / last crossed it without ending one there (-inf: never)
+        self.occ_s = np.full((self.n, self.n), -np.inf)
+        self.free_s = np.full((self.n, self.n), -np.inf)
         self.origin = np.zeros(2)  # world position of cell (0, 0)'s corner
         self.stamp_s: float | None = None
 
@@ -73,6 +76,8 @@ class FreeSpaceGrid:
         self.origin = new_origin
         for name in ("free", "occ", "last_free"):
             self.__dict__[name] = _shifted(self.__dict__[name], int(shift[0]), int(shift[1]))
+        for name in ("occ_s", "free_s"):
+            self.__dict__[name] = _shifted(self.__dict__[name], int(shift[0]), int(shift[1]), -np.inf)
 
     # ---------------------------------------------------------------- queries
     def violates(self, points_xy: np.ndarray) -> np.ndarray:
@@ -103,6 +108,17 @@ class FreeSpaceGrid:
         i, j, inside = self._cells(np.asarray(points_xy, float).reshape(-1, 2))
         out = np.zeros(inside.size, np.float32)
         out[inside] = self.occ[i[inside], j[inside]]
+        return out
+
+    def held(self, points_xy: np.ndarray) -> np.ndarray:
+        """Per point: something stood in its cell when the laser last saw the cell (before the current scan
+        is integrated): the last scan that saw it ended a beam there rather than passing through, and the
+        (decayed) occupied count is above what the grid calls clear (``max_occupied``: seen more than once
+        or lately). A body that has moved away since leaves its cell seen free; outside the grid: False."""
+        i, j, inside = self._cells(np.asarray(points_xy, float).reshape(-1, 2))
+        out = np.zeros(inside.size, bool)
+        ii, jj = i[inside], j[inside]
+        out[inside] = (self.occ_s[ii, jj] > self.free_s[ii, jj]) & (self.occ[ii, jj] > self.config.max_occupied)
         return out
 
     def occupied_cells_around(self, x_m: float, y_m: float, inner_m: float, outer_m: float,
@@ -149,6 +165,8 @@ class FreeSpaceGrid:
         self.occ += occ_now
         self.free += crossed
         self.last_free = crossed
+        self.occ_s[occ_now] = stamp_s  # a return in a cell outweighs the beams that passed beside it
+        self.free_s[crossed & ~occ_now] = stamp_s
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -179,9 +197,9 @@ def _set_cell(x, y, x0, y0, cell_m, n0, n1, grid):  # pragma: no cover - compile
         grid[i, j] = True
 
 
-def _shifted(a: np.ndarray, di: int, dj: int) -> np.ndarray:
-    """``a`` re-indexed so that new[i, j] = old[i + di, j + dj]; cells from outside are empty."""
-    out = np.zeros_like(a)
+def _shifted(a: np.ndarray, di: int, dj: int, fill: float = 0.0) -> np.ndarray:
+    """``a`` re-indexed so that new[i, j] = old[i + di, j + dj]; cells from outside hold ``fill``."""
+    out = np.full_like(a, fill)
     n0, n1 = a.shape
     src_i = slice(max(di, 0), min(n0, n0 + di))
     dst_i = slice(max(-di, 0), min(n0, n0 - di))

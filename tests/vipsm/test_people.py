@@ -289,6 +289,70 @@ def test_a_track_that_walks_without_any_motion_evidence_is_a_static_thing() -> N
             assert person.p_moving < PeopleConfig().moving_off
 
 
+def _hop(stood_before) -> tuple[float, float]:
+    """Two leg-sized static things 0.2 m apart make a standing person; one is unseen for two scans (its
+    leg track's reach grows) and a detection 0.3 m beyond it is then taken by that leg track, with the
+    place it left seen empty. Returns the person's P(a body that moves) before and after that scan."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(4):
+        tr.step(0.1 * k, _pair(2.0, 0.0), seen_free=lambda x, y: False, stood_before=stood_before)
+    for k in range(4, 6):  # the leg at (2.0, 0.1) unseen
+        tr.step(0.1 * k, _pair(2.0, 0.0)[:1], seen_free=lambda x, y: False, stood_before=stood_before)
+    (person,) = tr.tracks
+    before = person.p_dynamic
+    tr.step(0.6, [_pair(2.0, 0.0)[0], LegDetection(2.0, 0.4, 0.9, 2, 3)], seen_free=lambda x, y: y > 0.0,
+            stood_before=stood_before)
+    assert tr.tracks == [person] and len(person.leg_ids) == 2  # the hop was taken, the person kept
+    return before, person.p_dynamic
+
+
+def test_a_leg_track_that_hops_onto_a_thing_already_standing_there_earns_no_travel() -> None:
+    """The drive's right laser (docs/estimator.md 6b): a leg track unseen for two scans took a static
+    piece 0.3-0.7 m away while the robot turned, and the place it left was seen empty: that read as a
+    leg travelling. A leg that travelled arrives where nothing stood; this one arrived where the laser
+    had already returned from (``stood_before``) before the track came: it re-locked onto that thing and
+    earns no motion evidence. The same hop into space that was free before is a leg's travel."""
+    other_thing = (2.0, 0.4)
+    held_before, held_after = _hop(lambda x, y: math.hypot(x - other_thing[0], y - other_thing[1]) < 0.1)
+    free_before, free_after = _hop(lambda x, y: False)
+    assert held_after <= held_before
+    assert free_after > free_before + 0.1
+
+
+def test_a_leg_stepping_over_its_own_returns_still_travels() -> None:
+    """The laser's returns from where a leg stood a scan ago are its own, not another thing's: a leg that
+    moves less than ``leg_travel_m`` a scan (a slow swing, a walk's first steps from standing) is judged
+    by no arrival, and its travel over 0.3 m counts even where every place was returned from before."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(4):
+        tr.step(0.1 * k, _pair(2.0, 0.0), seen_free=lambda x, y: True, stood_before=lambda x, y: True)
+    before = tr.tracks[0].p_dynamic
+    for k in range(4, 7):  # one leg steps 0.1 m a scan, its partner stands
+        swing = LegDetection(2.0 + 0.1 * (k - 3), -0.1, 0.9, 0, 1)
+        tr.step(0.1 * k, [swing, _pair(2.0, 0.0)[1]], seen_free=lambda x, y: True, stood_before=lambda x, y: True)
+    assert tr.tracks[0].p_dynamic > before + 0.2
+
+
+def test_a_swing_leg_landing_a_short_stride_beside_its_partner_still_travels() -> None:
+    """The laser's returns beside the person's other leg are the person's own: a slow walker's swing leg
+    that lands 0.13 m past where its partner stands (both legs in line along the walk) arrived at a place
+    the partner's returns held, not another thing's, and its travel of 0.27 m counts."""
+    def near_partner(x: float, y: float) -> bool:  # the partner's returns
+        return math.hypot(x - 2.0, y) < 0.2
+
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    stand = LegDetection(2.0, 0.0, 0.9, 2, 3)
+    for k in range(4):
+        tr.step(0.1 * k, [LegDetection(1.85, 0.05, 0.9, 0, 1), stand], seen_free=lambda x, y: False,
+                stood_before=near_partner)
+    (person,) = tr.tracks
+    before = person.p_dynamic
+    tr.step(0.4, [LegDetection(2.12, 0.05, 0.9, 0, 1), stand], seen_free=lambda x, y: x < 1.9,
+            stood_before=near_partner)
+    assert tr.tracks == [person] and len(person.leg_ids) == 2
+    assert person.p_dynamic > before + 0.1
+
+
 def _walk_stand_walk(stand_s: float, seed: int = RNG_SEED) -> tuple[PeopleTracker, list[bool], float]:
     """A person walks 2 s at 1 m/s (motion evidence on every other detection), stands ``stand_s`` (no
     evidence: a standing body shows none) and walks on at 1 m/s with no evidence at all (not even its

@@ -90,3 +90,23 @@ def test_occupied_cells_around_lists_long_occupied_cells_in_the_ring_only() -> N
     assert cells.shape[0] >= 1 and np.all(np.hypot(cells[:, 0] - 2.45, cells[:, 1] - 1.4) < 0.15)  # the other post
     assert grid.occupied_cells_around(2.45, 1.0, 0.2, 0.65, 30.0).shape == (0, 2)  # not that long
     assert grid.occupied_cells_around(2.45, 1.0, 0.2, 0.3, 15.0).shape == (0, 2)  # out of reach
+
+
+def test_held_is_what_the_laser_saw_in_a_cell_when_it_last_saw_it() -> None:
+    """``held``: the last scan that saw a cell ended a beam there (a post stands there now), not a scan
+    that passed through it after the thing in it left; open floor and cells outside the grid are not held."""
+    world = box_room(8.0, 6.0)
+    world.circles = [Circle(2.5, 1.0, 0.05)]
+    grid = FreeSpaceGrid()
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 5)
+    post, floor, outside = [2.45, 1.0], [1.5, 0.0], [50.0, 0.0]
+    assert grid.held(np.array([post, floor, outside])).tolist() == [True, False, False]
+    world.circles = []  # the post is carried away: the next scan passes through its cell
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 1, t0=0.5)
+    assert grid.occupied(np.array([post]))[0] > grid.config.max_occupied  # its decayed count lingers
+    assert not grid.held(np.array([post]))[0]
+    world.circles = [Circle(2.5, 1.0, 0.05)]
+    _fill(grid, world, Pose2D(0.0, 0.0, 0.0), 1, t0=0.6)
+    assert grid.held(np.array([post]))[0]
+    _fill(grid, world, Pose2D(12.0, 0.0, 0.0), 1, t0=0.7)  # re-centred: the stamps move with their cells
+    assert grid.held(np.array([post]))[0] and not grid.held(np.array([floor]))[0]
