@@ -425,6 +425,7 @@ class PeopleTracker:
     def _update(self, t: PersonTrack, z: tuple[float, float, float, list[LegTrack]]) -> None:
         c = self.config
         x, y, sigma, seen = z
+        walks = self._walking_share(t)  # predicted: before this detection
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
@@ -433,12 +434,31 @@ class PeopleTracker:
         e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
         dt = min(t.stamp_s - t.updated_s, c.leg_memory_s) if t.updated_s is not None else 0.0
         stayed = math.exp(-(1.0 - share) * max(dt, 0.0) / c.stand_dwell_s)
-        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed,
-                             c.evidence_standing if ev else 1.0 - c.evidence_standing)
-        t.updated_s = t.stamp_s
         p_leg = max(lt.det.p_leg for lt in seen)
+        kin_dyn, kin_static = (1.0, 1.0) if ev else self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
+        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
+                             (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
+        t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
+        """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's
+        own models (its last update): a static thing's detection is where the standing model predicts it;
+        a person's, where the walking models predict it with ``walks`` (P(walking at a walking speed)
+        before the detection, :meth:`_walking_share`) and where the standing model does otherwise. Either
+        may be another thing's detection in the gate (``p_clutter``, spread over the gate's largest
+        disc): a leg track that hops to a neighbouring table leg once says little, a walk's detections
+        that keep landing where a walk predicts them say "a body that moves". A standing person and a
+        static thing explain a still detection alike (no cost for standing: that is ``stand_dwell_s``)."""
+        c = self.config
+        like = t.filt.likelihoods
+        if like is None:
+            return 1.0, 1.0
+        floor = other / (math.pi * (2.0 * c.person_radius_m) ** 2)
+        still = float(like[0])
+        moves = (1.0 - walks) * still + walks * t.filt.walking_likelihood()
+        return floor + (1.0 - other) * moves, floor + (1.0 - other) * still
 
     def _walking_share(self, t: PersonTrack) -> float:
         """P(the track walks at a walking speed): the IMM's P(walking), times how much of the slowest walk
