@@ -41,11 +41,15 @@ class ImmConfig:
     switch_per_s: float = 0.5
     #: speed uncertainty of a new track (a walker: up to ~1.5 m/s)
     init_speed_sigma_mps: float = 0.8
+    #: P(moving) of a new track
+    init_p_moving: float = 0.2
 
     def __post_init__(self) -> None:
         if not self.walk_accel_mps2 or min(self.stand_sigma_mps, *self.walk_accel_mps2, self.switch_per_s,
                                            self.init_speed_sigma_mps) <= 0.0:
             raise ValueError("the IMM's noise, switch rate and initial speed sigma must be positive")
+        if not 0.0 < self.init_p_moving < 1.0:
+            raise ValueError(f"init_p_moving must be in (0, 1), got {self.init_p_moving}")
 
 
 def _transitions(n: int, leave: float) -> np.ndarray:
@@ -82,8 +86,7 @@ class Imm:
         p_stand = p.copy()
         p_stand[2:, 2:] = np.eye(2) * 1e-6
         self.covs = np.stack([p_stand] + [p] * (n - 1))
-        # a new track: nothing known of it yet but the switching's long-run shares (standing and walking alike)
-        self.probs = np.array([0.5] + [0.5 / (n - 1)] * (n - 1))
+        self.probs = np.array([1.0 - cfg.init_p_moving] + [cfg.init_p_moving / (n - 1)] * (n - 1))
         self._mean: np.ndarray | None = None
         self._cov: np.ndarray | None = None
         #: the last update's measurement likelihood under each model (its predictive density at the

@@ -157,7 +157,7 @@ def test_imm_config_rejects_nonsense() -> None:
     with pytest.raises(ValueError):
         ImmConfig(switch_per_s=0.0)
     with pytest.raises(ValueError):
-        ImmConfig(walk_accel_mps2=())
+        ImmConfig(init_p_moving=1.0)
 
 
 # ------------------------------------------------------------------------------------------ tracker

@@ -47,18 +47,6 @@ def test_imm_keeps_each_models_likelihood_of_the_last_measurement() -> None:
     assert walker.walking_likelihood() == pytest.approx(float(w @ walker.likelihoods[1:]))
 
 
-def test_a_new_track_starts_at_the_switchings_long_run_shares() -> None:
-    """Nothing is known of a new track's motion but how the models switch: standing and walking alike in the
-    long run (a fixed point of the prediction), whatever the number of walking models. (A prior of 0.2
-    walking held new tracks of walkers who enter the view walking, seen by one leg, at P(walking) 0.2 for
-    their first half second on the real recordings.)"""
-    for walks in ((0.3,), (0.3, 2.0), (0.3, 1.0, 2.0)):
-        f = Imm(1.0, 2.0, 0.06, ImmConfig(walk_accel_mps2=walks))
-        assert f.p_moving == pytest.approx(0.5)
-        f.predict(0.1)
-        assert f.p_moving == pytest.approx(0.5)
-
-
 def test_a_walker_without_motion_evidence_is_a_body_that_moves_by_its_kinematics() -> None:
     """A pair of legs seen in full walking at 0.5 m/s for 2 s, no return where the laser saw free space and
     no place it left seen empty: its detections keep landing where the walking models predict them, which
