@@ -89,6 +89,10 @@ class Imm:
         self.probs = np.array([1.0 - cfg.init_p_moving] + [cfg.init_p_moving / (n - 1)] * (n - 1))
         self._mean: np.ndarray | None = None
         self._cov: np.ndarray | None = None
+        #: the last update's measurement likelihood under each model (its predictive density at the
+        #: measurement) and the model probabilities it started from (the prediction's); None before one
+        self.likelihoods: np.ndarray | None = None
+        self.prior_probs: np.ndarray | None = None
 
     # ---------------------------------------------------------------- combined estimate
     @property
@@ -109,6 +113,14 @@ class Imm:
             d = self.means - self.mean
             self._cov = np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
         return self._cov
+
+    def walking_likelihood(self) -> float:
+        """The last update's measurement likelihood given that the person walks: the walking models'
+        likelihoods weighted by their predicted probabilities (0.0 before any update)."""
+        if self.likelihoods is None or self.prior_probs is None:
+            return 0.0
+        w = self.prior_probs[STANDING + 1 :]
+        return float(w @ self.likelihoods[STANDING + 1 :] / max(float(w.sum()), 1e-300))
 
     def walking(self) -> tuple[np.ndarray, np.ndarray]:
         """The state and covariance given that the person walks (the walking models' mixture): a moving
@@ -168,6 +180,7 @@ class Imm:
             self.covs[j] = 0.5 * (self.covs[j] + self.covs[j].T)
             like[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / (2 * math.pi * math.sqrt(np.linalg.det(s)))
         self._mean = self._cov = None
+        self.likelihoods, self.prior_probs = like, self.probs.copy()
         post = self.probs * like
         total = float(post.sum())
         if total > 0.0 and math.isfinite(total):

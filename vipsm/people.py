@@ -24,9 +24,10 @@ is a pair of leg tracks):
    against a static thing taken for legs, from the motion evidence of its legs (a return where the
    laser had seen free space, :mod:`vipsm.bodies`, or a leg that left a place now seen empty), expected
    on ``evidence_moving`` of a walker's detections and ``evidence_standing`` of a still body's, person or
-   furniture, and from time standing still (a person walks on after ``stand_dwell_s`` on average,
-   furniture never). A person is *moving* once P(moving) reaches ``moving_on`` and until it falls below
-   ``moving_off`` (hysteresis);
+   furniture, from how well the IMM's walking models rather than its standing model predicted a detection
+   without such evidence (the kinematics), and from time standing still (a person walks on after
+   ``stand_dwell_s`` on average, furniture never). A person is *moving* once P(moving) reaches
+   ``moving_on`` and until it falls below ``moving_off`` (hysteresis);
 5. **existence**: Bayes' rule with the detection probability ``p_detect`` of a person in view and the
    chance ``p_clutter`` that a gate holds a non-person leg (weighted by the leg probability); confirmed
    (in ``Estimate.people``) from ``exist_confirm``, dropped below ``exist_drop``. A miss counts only
@@ -437,6 +438,7 @@ class PeopleTracker:
     def _update(self, t: PersonTrack, z: tuple[float, float, float, list[LegTrack]]) -> None:
         c = self.config
         x, y, sigma, seen = z
+        walks = self._walking_share(t)  # predicted: before this detection
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
@@ -445,12 +447,34 @@ class PeopleTracker:
         e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
         dt = min(t.stamp_s - t.updated_s, c.leg_memory_s) if t.updated_s is not None else 0.0
         stayed = math.exp(-(1.0 - share) * max(dt, 0.0) / c.stand_dwell_s)
-        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed,
-                             c.evidence_standing if ev else 1.0 - c.evidence_standing)
-        t.updated_s = t.stamp_s
         p_leg = max(lt.det.p_leg for lt in seen)
+        # the kinematics as evidence too; motion evidence measures the same displacement: counted once
+        kin_dyn, kin_static = (1.0, 1.0) if ev else self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
+        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
+                             (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
+        t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
+        """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's
+        own models (their predictive densities at the measurement, :attr:`Imm.likelihoods`): a static thing's
+        detection lies where the standing model predicts it; a person's where the walking models predict it
+        with probability ``walks`` (P(walking at a walking speed) before this detection,
+        :meth:`_walking_share`) and where the standing model does otherwise. Under either it may be another
+        thing's detection (probability ``other``: one less the detector's leg probability), anywhere in the
+        gate's largest disc (twice ``person_radius_m``): a leg track that hops to a neighbouring thing once
+        says little, a walk whose detections keep landing where the walking models predict them says "a
+        body that moves". A standing person and a static thing explain a still detection alike: standing
+        costs nothing here (that is ``stand_dwell_s``'s)."""
+        c = self.config
+        like = t.filt.likelihoods
+        if like is None:
+            return 1.0, 1.0
+        floor = other / (math.pi * (2.0 * c.person_radius_m) ** 2)
+        still = float(like[0])
+        moves = (1.0 - walks) * still + walks * t.filt.walking_likelihood()
+        return floor + (1.0 - other) * moves, floor + (1.0 - other) * still
 
     def _walking_share(self, t: PersonTrack) -> float:
         """P(the track walks at a walking speed): the IMM's P(walking), times how much of the slowest walk
