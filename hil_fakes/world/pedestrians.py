@@ -113,8 +113,6 @@ def smoothed(xy_m: np.ndarray, stride: int, spacing_m: float = 0.05) -> np.ndarr
     spline of the distance along them, sampled every ``spacing_m`` and at each annotation. Linear
     interpolation between annotations turns the walker's heading by 10-15 deg at every annotation, a
     velocity no walking body has (a pelvis turns smoothly); the spline keeps the annotated positions."""
-    from scipy.interpolate import CubicSpline
-
     xy = np.asarray(xy_m, float)
     knots = xy[::max(stride, 1)]
     if not np.allclose(knots[-1], xy[-1]):
@@ -125,4 +123,24 @@ def smoothed(xy_m: np.ndarray, stride: int, spacing_m: float = 0.05) -> np.ndarr
         return knots
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(knots, axis=0).T))])
     at = np.union1d(s, np.arange(0.0, s[-1], spacing_m))
-    return CubicSpline(s, knots, bc_type="natural")(at)
+    return _natural_spline(s, knots, at)
+
+
+def _natural_spline(s: np.ndarray, y: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The natural cubic spline through (``s``, ``y``) (``y``: (n, d), ``s`` increasing) at ``at``: the
+    second derivatives M from the tridiagonal system h[i-1] M[i-1] + 2 (h[i-1] + h[i]) M[i] + h[i] M[i+1] =
+    6 (slope[i] - slope[i-1]), M zero at both ends."""
+    h = np.diff(s)
+    slope = np.diff(y, axis=0) / h[:, None]
+    n = len(s)
+    a = np.zeros((n - 2, n - 2))
+    i = np.arange(n - 2)
+    a[i, i] = 2.0 * (h[:-1] + h[1:])
+    a[i[1:], i[1:] - 1] = h[1:-1]
+    a[i[:-1], i[:-1] + 1] = h[1:-1]
+    m = np.zeros_like(y)
+    m[1:-1] = np.linalg.solve(a, 6.0 * np.diff(slope, axis=0))
+    k = np.clip(np.searchsorted(s, at, side="right") - 1, 0, n - 2)
+    hk, left, right = h[k][:, None], (at - s[k])[:, None], (s[k + 1] - at)[:, None]
+    return (m[k] * right**3 + m[k + 1] * left**3) / (6.0 * hk) + (y[k] / hk - m[k] * hk / 6.0) * right \
+        + (y[k + 1] / hk - m[k + 1] * hk / 6.0) * left

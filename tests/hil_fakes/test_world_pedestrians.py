@@ -104,3 +104,16 @@ def test_annotation_stride_and_a_smoothed_path_without_corners():
     assert float(np.max(np.abs(np.diff(heading)))) < 0.25  # no corner: <= 14 deg between 5 cm steps
     lin = np.diff(np.arctan2(*np.diff(xy, axis=0).T[::-1]))
     assert float(np.max(np.abs(lin))) > 1.5  # the interpolated file turns 90 deg at once
+
+
+def test_the_natural_spline_is_scipys():
+    """hil_fakes may import numpy only (ARCHITECTURE.md): its own spline, checked against scipy's here."""
+    from scipy.interpolate import CubicSpline
+
+    from hil_fakes.world.pedestrians import _natural_spline
+
+    rng = np.random.default_rng(1)
+    s = np.concatenate([[0.0], np.cumsum(rng.uniform(0.2, 1.0, 11))])
+    y = rng.normal(size=(12, 2))
+    at = np.linspace(0.0, s[-1], 500)
+    np.testing.assert_allclose(_natural_spline(s, y, at), CubicSpline(s, y, bc_type="natural")(at), atol=1e-12)
