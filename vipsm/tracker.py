@@ -32,12 +32,15 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 from numba import njit
 
 from .types import Pose2D
+
+if TYPE_CHECKING:
+    from .bodies import PersonKeys
 
 
 class PoseUncertainty(Protocol):
@@ -90,7 +93,7 @@ REPORT_STRAIGHTNESS = 0.35
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    """The tracker's keys (issue 29: 38 before, 22 now), each a speed, distance, duration or count of a body,
+    """The tracker's keys (issue 29: 38 before, 20 now), each a speed, distance, duration or count of a body,
     the sensor or the computer; the fit's and the path tests' constants above are the model's, not a world's."""
 
     #: process noise of each constant-velocity model of the IMM: steady walking, manoeuvring (m/s^2)
@@ -114,8 +117,6 @@ class TrackerConfig:
     #: grab a neighbour's detection one day and "move"
     tentative_max_age_s: float = 1.0
     report_missed_s: float = 0.2  # tracks unseen for at most this long are still reported
-    #: a younger track this close to an older one is dropped (one body: a person's radius)
-    merge_m: float = 0.25
     #: over the last ``confirm_window`` detections (a path needs so many points, however often they come)
     #: the body moved at least this far (a lone leg: ``step_noise_m``, what a static leg's placed centre
     #: drifts by) ...
@@ -139,9 +140,6 @@ class TrackerConfig:
     #: drives past (a table leg); also the displacement lone legs must show to confirm (a walker covers
     #: 10 cm in 0.1-0.3 s)
     step_noise_m: float = 0.1
-    #: ... plus this when the detection's kind changes between them: a lone leg's centre lies up to half
-    #: the widest leg pair (``PeopleConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
-    kind_change_m: float = 0.33
     #: confirmed tracks slower than this (a body that stopped) are not reported: both the filter's
     #: speed and the net displacement of the detections over the last ``report_window`` of them
     report_min_speed_mps: float = 0.08
@@ -164,6 +162,10 @@ class TrackerConfig:
     #: is refused naming the key and this reason (``app.config``), never silently misread
     REMOVED_KEYS: ClassVar[dict[str, str]] = {
         "confirm_displacement_leg_m": "the same drift of a placed centre as step_noise_m, which now sets it",
+        "kind_change_m": "derived: people.leg_pair_max_m / 2 (a lone leg's centre lies up to half the widest leg "
+                         "pair from the pair's midpoint)",
+        "merge_m": "derived: people.person_radius_m (a younger track within a person's radius of an older one is "
+                   "the same body)",
         "confirm_displacement_sustained_m": "merged into confirm_onset_step_m: the same least advance that is "
                                             "motion (3 cm, above a circle fit's noise)",
         "report_recent": "derived: report_window // 2 (the window's newer half)",
@@ -473,10 +475,20 @@ class Track:
 class Tracker:
     """Constant-velocity Kalman filters, greedy nearest-neighbour association with a gate."""
 
-    def __init__(self, config: TrackerConfig | None = None, poses: PoseUncertainty | None = None) -> None:
+    def __init__(self, config: TrackerConfig | None = None, poses: PoseUncertainty | None = None,
+                 person: PersonKeys | None = None) -> None:
         """``poses``: the relative error of two matched laser poses (:class:`vipsm.seen_through.ScanMemory`);
-        None: detections are taken as placed without pose error."""
+        None: detections are taken as placed without pose error. ``person``: a person's size, the people
+        stage's keys (``PeopleConfig``; None: their defaults, :class:`vipsm.bodies.PersonSize`)."""
+        from .bodies import PersonSize  # (the body stage imports this module)
+
         self.config = config or TrackerConfig()
+        person = person or PersonSize()
+        #: how far a detection of another kind may lie from the body's centre: a lone leg's centre lies up to
+        #: half the widest leg pair from the pair's midpoint (``kind_change_m`` was a key of its own, 0.33 m)
+        self.kind_change_m = 0.5 * person.leg_pair_max_m
+        #: a younger track within a person's radius of an older one is the same body (``merge_m``, 0.25 m)
+        self.merge_m = person.person_radius_m
         self._poses = poses
         self.tracks: list[Track] = []
         self._next_id = 1
@@ -573,9 +585,9 @@ class Tracker:
         extra = 0.0
         if det.kind == "leg" and track.seen_as_person:
             # a person's lone leg: the centre lies anywhere within kind_change_m of it
-            extra = c.kind_change_m
+            extra = self.kind_change_m
         elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
-            extra = 0.5 * c.kind_change_m
+            extra = 0.5 * self.kind_change_m
         if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
             extra = math.hypot(extra, 0.5 * track.radius_m)
         along = math.hypot(sigma, extra) ** 2
@@ -597,10 +609,10 @@ class Tracker:
         step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
         allowed = c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m
         if kinds is not None:
-            allowed = allowed + c.kind_change_m * (np.diff(kinds) != 0.0)
+            allowed = allowed + self.kind_change_m * (np.diff(kinds) != 0.0)
             if person:
                 legs = (kinds[1:] == _KIND_CODE["leg"]) & (kinds[:-1] == _KIND_CODE["leg"])
-                allowed = allowed + 2.0 * c.kind_change_m * legs
+                allowed = allowed + 2.0 * self.kind_change_m * legs
         return bool(np.all(step <= allowed))
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
@@ -810,7 +822,7 @@ class Tracker:
             if not (t.confirmed and t.seen_as_person):
                 return True  # (kept near returns, a chair's legs taken for a person would live on)
             # a person's legs stand up to half the widest pair from the centre
-            reach = max(t.radius_m, self.config.kind_change_m)
+            reach = max(t.radius_m, self.kind_change_m)
             return not bool(np.any(np.hypot(pts[:, 0] - x, pts[:, 1] - y) <= reach))
 
         self.tracks = [t for t in self.tracks if t.missed == 0 or not gone(t)]
@@ -836,7 +848,7 @@ class Tracker:
             for i, (d, holder) in enumerate(dets):
                 if holder in live:
                     continue
-                slack = _kind_slack_m(d, head, c.kind_change_m)
+                slack = _kind_slack_m(d, head, self.kind_change_m)
                 dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m) - slack
                 if dist > reach:
                     continue
@@ -969,7 +981,7 @@ class Tracker:
             mid = np.array([0.5 * (o.x_m + leg.x_m), 0.5 * (o.y_m + leg.y_m)])
             stood = bool(np.any(np.hypot(*(lone - (o.x_m, o.y_m)).T) <= c.step_noise_m)
                          or np.any(np.hypot(*(pairs - mid).T) <= 0.5 * c.step_noise_m))
-            if (stood and c.step_noise_m < sep <= 2.0 * c.kind_change_m
+            if (stood and c.step_noise_m < sep <= 2.0 * self.kind_change_m
                     and math.hypot(mid[0] - t.state[0], mid[1] - t.state[1]) < c.gate_m
                     and (best is None or sep < best[0])):
                 best = (sep, di)
@@ -986,7 +998,7 @@ class Tracker:
             max_missed_s = c.max_missed_s if t.confirmed else c.tentative_max_missed_s
             if self.unseen_s(t) > max_missed_s + _STAMP_TOL_S or too_old or self._stale(t):
                 continue
-            if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < c.merge_m for k in keep):
+            if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < self.merge_m for k in keep):
                 continue  # a duplicate of an older track (tracks are kept oldest first)
             keep.append(t)
             out.append((t, got.get(ti)))

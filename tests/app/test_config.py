@@ -76,7 +76,8 @@ def test_bad_values_name_their_key(override: str, key: str, words: str) -> None:
                                  "estimator.tracker.confirm_occluded_radius_tol", "estimator.tracker.confirm_hits",
                                  "estimator.tracker.confirm_evidence", "estimator.tracker.confirm_onset_rows",
                                  "estimator.tracker.confirm_straightness", "estimator.tracker.confirm_advancing",
-                                 "estimator.tracker.report_straightness"])
+                                 "estimator.tracker.report_straightness", "estimator.tracker.kind_change_m",
+                                 "estimator.tracker.merge_m"])
 def test_a_removed_key_is_refused_as_removed_never_ignored(key: str) -> None:
     """A key an older version had (issue 29 removed or derived it): an old config file that sets it is refused
     with the key named and what replaced it, not read as if the value still applied."""
