@@ -1137,11 +1137,10 @@ def test_the_estimators_detections_carry_the_laser_pose_and_its_heading_error() 
 @pytest.mark.parametrize(("person_radius_m", "tracks"), [(0.25, 2), (0.35, 1)])
 def test_a_person_s_size_comes_from_the_people_stage_s_keys(person_radius_m: float, tracks: int) -> None:
     """Two bodies 0.3 m apart are one person when a person's radius (``PeopleConfig.person_radius_m``) is wider:
-    the younger track is dropped as a duplicate; a lone leg's reach from the centre is half the widest pair."""
+    the younger track is dropped as a duplicate."""
     from vipsm.people import PeopleConfig
 
-    person = PeopleConfig(person_radius_m=person_radius_m, leg_pair_max_m=0.5)
-    tr = Tracker(TrackerConfig(), person=person)
-    assert tr.merge_m == person_radius_m and tr.kind_change_m == pytest.approx(0.25)
+    tr = Tracker(TrackerConfig(), person=PeopleConfig(person_radius_m=person_radius_m))
+    assert tr.merge_m == person_radius_m
     assert len(tr.step(0.0, [_det(1.0, 2.0), _det(1.3, 2.0)])) == tracks
-    assert Tracker().kind_change_m == pytest.approx(0.325) and Tracker().merge_m == pytest.approx(0.25)
+    assert Tracker().merge_m == PeopleConfig().person_radius_m
