@@ -457,10 +457,10 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:
-            lx, ly, _, _ = locate_body(sg.points, sensor, der.leg_radius_m, tracker_cfg)
+            lx, ly, _, _ = locate_body(sg.points, sensor, der.leg_radius_m)
             legs.append((sg, lx, ly))
         else:
-            cx, cy, rad, fitted = locate_body(sg.points, sensor, None, tracker_cfg)
+            cx, cy, rad, fitted = locate_body(sg.points, sensor, None)
             if fitted:  # a round body; a wall piece or a room corner fits no circle behind its points
                 bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
     legs = _fixtures(legs, der)

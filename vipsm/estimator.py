@@ -208,7 +208,7 @@ class Estimator:
         cfg = self.config
         self._flow = FlowDetector(cfg.flow, cfg.camera_mount)
         self._memory = ScanMemory(cfg.seen_through)
-        self._tracker = Tracker(cfg.tracker, self._memory)
+        self._tracker = Tracker(cfg.tracker, self._memory, cfg.people)
         self._people = PeopleTracker(cfg.people, leg_model) if leg_model is not None else None
         # one obstacle id per person across the two trackers and across a body track lost and found again
         self._identity = ObstacleIdentity(cfg.people.person_radius_m, cfg.tracker.max_missed_s,

@@ -1,8 +1,8 @@
 """Obstacle position from its scan points, and a constant-velocity tracker for several obstacles.
 
 Tracks are born from moving-body candidates (:mod:`vipsm.bodies`) and reported only once
-**confirmed**: seen in ``confirm_hits`` cycles, with motion evidence (free-space violation or camera)
-in ``confirm_evidence`` of them, and displaced at least ``confirm_displacement_m`` from where it was
+**confirmed**: seen in ``CONFIRM_HITS`` cycles, with motion evidence (free-space violation or camera)
+in ``CONFIRM_EVIDENCE`` of them, and displaced at least ``confirm_displacement_m`` from where it was
 born. Furniture never moves, so a camera flow error or a stray return on it never confirms. A track
 dies after ``max_missed_s`` without a detection (``tentative_max_missed_s`` before it is confirmed, and
 unconfirmed at ``tentative_max_age_s``), or at once when a beam of the current scan passes through
@@ -32,12 +32,15 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 from numba import njit
 
 from .types import Pose2D
+
+if TYPE_CHECKING:
+    from .bodies import PersonKeys
 
 
 class PoseUncertainty(Protocol):
@@ -50,17 +53,63 @@ class PoseUncertainty(Protocol):
     def relative_position_sigma_m(self, a: Pose2D, b: Pose2D) -> float: ...
 
 
+#: a detection's position noise when it carries none of its own (``Detection.sigma_m`` None: the estimator
+#: gives every detection its kind's noise, so this only serves detections built without one): a circle fit's
+#: 2-3 cm
+DEFAULT_SIGMA_M = 0.03
+
+#: the circle fit of a body (``locate_body``). Constants of the fit, not of a world: a body's radius before any
+#: fit gave one (between a person's 0.25 m and a cart's half width) ...
+DEFAULT_RADIUS_M = 0.30
+#: ... the radii a fit may give (a thin post's 5 cm to a 3 m wide thing: wider is a wall, not a body) ...
+MIN_FIT_RADIUS_M, MAX_FIT_RADIUS_M = 0.05, 1.50
+#: ... the arc (seen from the fitted centre) the points must span to define a circle rather than a line ...
+MIN_FIT_EXTENT_RAD = math.radians(25.0)
+#: ... and the weight of a new fit in a track's smoothed radius (a rigid body's fits average over ~5)
+RADIUS_SMOOTHING = 0.2
+
+#: a circle fit whose radius differs from the track's by more than this share is no displacement evidence (a
+#: rigid round body keeps its radius; a box corner's fit changes with the visible part) ...
+RADIUS_TOL = 0.3
+#: ... and within this share for a partly occluded fit (a round body's partial fit keeps its radius)
+OCCLUDED_RADIUS_TOL = 0.1
+
+#: confirmation's shape of a path (shares, not sizes: they hold at any speed and scale). A path needs three
+#: detections (two steps define a direction and whether it holds), two of them with motion evidence (one can
+#: be a flow error or a stray return) ...
+CONFIRM_HITS, CONFIRM_EVIDENCE = 3, 2
+#: ... a nearly straight path (net / travelled: jumping between a chair's legs is not) ...
+CONFIRM_STRAIGHTNESS = 0.6
+#: ... made step by step: this share of the steps advance along the net displacement (a static thing's
+#: detection sits still and then jumps once, e.g. a box corner's circle fit) ...
+CONFIRM_ADVANCING = 0.7
+#: ... or, for a body that stood and started to move, two steps in a row from its last standing place (a fit
+#: that sits still and jumps once does not advance twice in a row)
+ONSET_STEPS = 2
+#: how far a detection of another kind may lie from the body's centre: a lone leg's centre lies up to half the
+#: widest leg pair (``PeopleConfig.leg_pair_max_m``, 0.65 m) from the pair's midpoint. Kept at its measured
+#: 0.33 m, not derived from that key: half of it, 0.325 m, raised positive_3's moving people reported on the
+#: background from 0 to 5.2 a minute (``eval --data real``; every other figure within 0.01)
+KIND_CHANGE_M = 0.33
+#: reporting: over the report window (and its newer half) the detections go somewhere, net displacement at
+#: least this share of the path (a standing person's detections jump back and forth by 0.1-0.3 m)
+REPORT_STRAIGHTNESS = 0.35
+
+
 @dataclass(frozen=True)
 class TrackerConfig:
-    #: process noise of each constant-velocity model of the IMM: steady walking, manoeuvring
+    """The tracker's keys (issue 29: 38 before, 20 now), each a speed, distance, duration or count of a body,
+    the sensor or the computer; the fit's and the path tests' constants above are the model's, not a world's."""
+
+    #: process noise of each constant-velocity model of the IMM: steady walking, manoeuvring (m/s^2)
     accel_sigmas_mps2: tuple[float, ...] = (0.2, 2.0)
     #: rate of switching from one model to another (0.05 per 0.1 s; a manoeuvre every 2 s or so)
     mode_switch_per_s: float = 0.5129
-    meas_sigma_m: float = 0.03  # position measurement noise
     #: a detection's smaller noise across the direction of motion (``Detection.sigma_across_m``)
     #: applies from this speed on (below it the direction is not known well, and a standing person's
     #: midpoint shuffles every way)
     anisotropic_min_speed_mps: float = 0.3
+    #: a new track's speed uncertainty (1 sigma): a body first seen may walk any way at a walker's speed
     init_speed_sigma_mps: float = 1.0
     #: association gate around the predicted position: a walker covers at most ~0.2 m per 0.1 s cycle
     gate_m: float = 0.35
@@ -73,42 +122,21 @@ class TrackerConfig:
     #: grab a neighbour's detection one day and "move"
     tentative_max_age_s: float = 1.0
     report_missed_s: float = 0.2  # tracks unseen for at most this long are still reported
-    default_radius_m: float = 0.30  # used before any fit gave a radius
-    min_radius_m: float = 0.05
-    max_radius_m: float = 1.50
-    min_fit_extent_rad: float = math.radians(25.0)  # arc (seen from the body) needed to trust a fit
-    radius_smoothing: float = 0.2  # exponential smoothing of a track's radius
-    merge_m: float = 0.25  # a younger track this close to an older one is dropped
-    confirm_hits: int = 3
-    confirm_evidence: int = 2
     #: over the last ``confirm_window`` detections (a path needs so many points, however often they come)
-    #: the body moved at least this far ...
+    #: the body moved at least this far (a lone leg: ``step_noise_m``, what a static leg's placed centre
+    #: drifts by) ...
     confirm_displacement_m: float = 0.06
-    #: ... or this far when every detection of the window (at least 4) showed motion evidence
-    confirm_displacement_sustained_m: float = 0.03
-    #: (between lone legs: ``step_noise_m``, what a static leg's placed centre drifts by)
     confirm_window: int = 6
     #: ... from a place the body left: no other detection came within this much of the window's first
     #: position after it (a leg's width plus its centre's jitter). A track that hopped between two
     #: table legs 0.7 m apart (one cycle paired as a person) "moved" while both stood where they were; a
     #: walker's old place is empty, a stance foot there is part of it
     confirm_vacated_m: float = 0.15
-    #: ... or, for a body that stood and started to move, from its last standing place: at least this
-    #: many newest detections with motion evidence, each step advancing at least ``confirm_onset_step_m``
-    #: (a walker at 0.5 m/s covers 5 cm a cycle; a fit that sits still and jumps once does not advance
-    #: twice in a row)
-    confirm_onset_rows: int = 2
+    #: the least advance that is motion, above a circle-fitted centre's 2-3 cm of noise and below a walker's 5 cm
+    #: a cycle (0.5 m/s): each step of a body that stood and started to move (``ONSET_STEPS`` of them in a row),
+    #: and the net displacement of a circle-fitted body with motion evidence in every detection of a window of
+    #: at least 4
     confirm_onset_step_m: float = 0.03
-    #: ... along a path at least this straight (net / travelled: jumping between a chair's legs is not)
-    confirm_straightness: float = 0.6
-    #: ... made step by step: at least this share of the steps advance along the net displacement (a
-    #: static thing's detection sits still and then jumps once, e.g. a box corner's circle fit)
-    confirm_advancing: float = 0.7
-    #: a circle fit whose radius differs from the track's by more than this share is no displacement
-    #: evidence (a rigid round body keeps its radius; a box corner's fit changes with the visible part)
-    confirm_radius_tol: float = 0.3
-    #: ... and within this share for a partly occluded fit (a round body's partial fit keeps its radius)
-    confirm_occluded_radius_tol: float = 0.1
     #: detections of one body never jump faster than this plus ``step_noise_m`` between cycles (a flip
     #: of the association between two nearby things, e.g. a chair's legs, does)
     max_speed_mps: float = 2.5
@@ -117,23 +145,16 @@ class TrackerConfig:
     #: drives past (a table leg); also the displacement lone legs must show to confirm (a walker covers
     #: 10 cm in 0.1-0.3 s)
     step_noise_m: float = 0.1
-    #: ... plus this when the detection's kind changes between them: a lone leg's centre lies up to half
-    #: the widest leg pair (``PeopleConfig.leg_pair_max_m`` 0.65 m) from the pair's midpoint
-    kind_change_m: float = 0.33
     #: confirmed tracks slower than this (a body that stopped) are not reported: both the filter's
     #: speed and the net displacement of the detections over the last ``report_window`` of them
     report_min_speed_mps: float = 0.08
+    #: (detections; its newer half, ``report_recent``, is judged too: a walker who stopped half a window ago)
     report_window: int = 10
     #: ... and the least-squares velocity of the detections over the window must reach this speed (a
     #: standing person's detections jump by ~0.1-0.2 m between one leg and two, which a line fit
     #: averages out; the slowest body of interest moves at 0.15 m/s)
     report_window_speed_mps: float = 0.12
-    #: ... and over that window the detections must go somewhere: net displacement at least this
-    #: share of the path (a standing person's detections jump back and forth by 0.1-0.3 m)
-    report_straightness: float = 0.35
-    #: ... and so must the newest this many of them (a walker who stopped 0.5 s ago: the window's older
-    #: half still shows the walk)
-    report_recent: int = 5
+    #: the most tracks alive at once (bounds the cost per cycle however cluttered the room)
     max_tracks: int = 24
     #: a track born from motion evidence starts at its body's detections of up to this long before that
     #: no confirmed track holds (chained back nearest first within a walker's step): a slow
@@ -146,6 +167,28 @@ class TrackerConfig:
     #: is refused naming the key and this reason (``app.config``), never silently misread
     REMOVED_KEYS: ClassVar[dict[str, str]] = {
         "confirm_displacement_leg_m": "the same drift of a placed centre as step_noise_m, which now sets it",
+        "kind_change_m": "now a constant, 0.33 m (vipsm.tracker.KIND_CHANGE_M): a lone leg's centre lies up to "
+                         "half the widest leg pair from the pair's midpoint",
+        "merge_m": "derived: people.person_radius_m (a younger track within a person's radius of an older one is "
+                   "the same body)",
+        "confirm_displacement_sustained_m": "merged into confirm_onset_step_m: the same least advance that is "
+                                            "motion (3 cm, above a circle fit's noise)",
+        "report_recent": "derived: report_window // 2 (the window's newer half)",
+        "meas_sigma_m": "now a constant, 0.03 m, for a detection without its own noise "
+                        "(vipsm.tracker.DEFAULT_SIGMA_M): the estimator gives every detection its kind's",
+        "default_radius_m": "now a constant of the circle fit, 0.30 m (vipsm.tracker.DEFAULT_RADIUS_M)",
+        "min_radius_m": "now a constant of the circle fit, 0.05 m (vipsm.tracker.MIN_FIT_RADIUS_M)",
+        "max_radius_m": "now a constant of the circle fit, 1.5 m (vipsm.tracker.MAX_FIT_RADIUS_M)",
+        "min_fit_extent_rad": "now a constant of the circle fit, 25 deg (vipsm.tracker.MIN_FIT_EXTENT_RAD)",
+        "radius_smoothing": "now a constant of the circle fit, 0.2 (vipsm.tracker.RADIUS_SMOOTHING)",
+        "confirm_radius_tol": "now a constant share, 0.3 (vipsm.tracker.RADIUS_TOL)",
+        "confirm_occluded_radius_tol": "now a constant share, 0.1 (vipsm.tracker.OCCLUDED_RADIUS_TOL)",
+        "confirm_hits": "now a constant, 3: two steps define a direction (vipsm.tracker.CONFIRM_HITS)",
+        "confirm_evidence": "now a constant, 2: one can be a flow error (vipsm.tracker.CONFIRM_EVIDENCE)",
+        "confirm_onset_rows": "now a constant, 2 steps in a row (vipsm.tracker.ONSET_STEPS)",
+        "confirm_straightness": "now a constant share, 0.6 (vipsm.tracker.CONFIRM_STRAIGHTNESS)",
+        "confirm_advancing": "now a constant share, 0.7 (vipsm.tracker.CONFIRM_ADVANCING)",
+        "report_straightness": "now a constant share, 0.35 (vipsm.tracker.REPORT_STRAIGHTNESS)",
     }
 
     def __post_init__(self) -> None:
@@ -153,16 +196,22 @@ class TrackerConfig:
             raise ValueError(f"accel_sigmas_mps2 needs at least one positive value, got {self.accel_sigmas_mps2}")
         if self.mode_switch_per_s < 0.0:
             raise ValueError(f"mode_switch_per_s must be >= 0, got {self.mode_switch_per_s}")
-        if min(self.report_window, self.report_recent) < 2 or self.confirm_window < 3:
-            raise ValueError("need report_window >= 2, report_recent >= 2 and confirm_window >= 3")
+        if self.report_window < 4 or self.confirm_window < 3:
+            raise ValueError("need report_window >= 4 (its newer half needs 2) and confirm_window >= 3")
         if min(self.max_missed_s, self.tentative_max_missed_s, self.tentative_max_age_s, self.report_missed_s) < 0.0:
             raise ValueError("the tracker's durations must be >= 0")
         if self.max_tracks < 1 or self.retro_s < 0.0 or self.confirm_vacated_m < 0.0:
             raise ValueError("need max_tracks >= 1, retro_s >= 0 and confirm_vacated_m >= 0")
-        if self.confirm_onset_rows < 2 or not self.confirm_onset_step_m > 0.0:
-            raise ValueError("need confirm_onset_rows >= 2 and confirm_onset_step_m > 0")
+        if not self.confirm_onset_step_m > 0.0:
+            raise ValueError(f"need confirm_onset_step_m > 0, got {self.confirm_onset_step_m}")
         if not self.anisotropic_min_speed_mps > 0.0:  # a standing track has no direction of motion
             raise ValueError(f"need anisotropic_min_speed_mps > 0, got {self.anisotropic_min_speed_mps}")
+
+    @property
+    def report_recent(self) -> int:
+        """The report window's newer half (detections): a walker who stopped half a window ago still shows
+        the walk in the window's older half."""
+        return self.report_window // 2
 
 
 @dataclass(frozen=True)
@@ -177,7 +226,7 @@ class Detection:
     bearing_max_rad: float
     #: whether this detection shows motion (free-space violation or camera)
     evidence: bool = True
-    #: position noise of this detection (None: the tracker's meas_sigma_m)
+    #: position noise of this detection (None: ``DEFAULT_SIGMA_M``)
     sigma_m: float | None = None
     #: ... across the track's direction of motion, when smaller than along it (None: the same): a
     #: walker's leg-pair midpoint moves stop-and-go along the path with the alternating steps, but
@@ -188,7 +237,7 @@ class Detection:
     #: follows the occluder's edge and does not count as displacement for confirmation; a circle fitted
     #: to a round body's visible part keeps the body's radius, one fitted to a box's does not (a box
     #: uncovered by a passing body: its fit moved 11 cm as the radius went 0.33 -> 0.24 m), so it counts
-    #: only with its radius within confirm_occluded_radius_tol
+    #: only with its radius within ``OCCLUDED_RADIUS_TOL``
     occluded: bool = False
     #: world-frame direction from the laser to the centre (NaN: unknown). A fitted circle's centre lies
     #: its radius behind the visible surface along this line, so a change of the fitted radius moves the
@@ -258,7 +307,7 @@ def _gauss_newton_fixed_radius(px, py, cx, cy, radius, iterations):  # pragma: n
 
 
 def locate_body(
-    points: np.ndarray, sensor_xy: tuple[float, float], radius_hint_m: float | None, cfg: TrackerConfig
+    points: np.ndarray, sensor_xy: tuple[float, float], radius_hint_m: float | None
 ) -> tuple[float, float, float, bool]:
     """Centre (x, y), radius and whether the radius came from a fit, for a round body whose front
     surface produced ``points`` (k x 2, world frame), seen from ``sensor_xy``."""
@@ -268,14 +317,14 @@ def locate_body(
     ray_n = ray / max(float(np.hypot(ray[0], ray[1])), 1e-9)
     fit = fit_circle(points) if points.shape[0] >= 5 else None
     fitted = False
-    radius = radius_hint_m if radius_hint_m is not None else cfg.default_radius_m
+    radius = radius_hint_m if radius_hint_m is not None else DEFAULT_RADIUS_M
     if fit is not None:
         fx, fy, fr = fit
         # the centre must lie behind the points as seen from the sensor
         behind = (fx - centroid[0]) * ray_n[0] + (fy - centroid[1]) * ray_n[1] > 0.0
         ang = np.arctan2(points[:, 1] - fy, points[:, 0] - fx)
         extent = float(np.ptp(np.unwrap(ang))) if ang.size > 1 else 0.0
-        if behind and cfg.min_radius_m <= fr <= cfg.max_radius_m and extent >= cfg.min_fit_extent_rad:
+        if behind and MIN_FIT_RADIUS_M <= fr <= MAX_FIT_RADIUS_M and extent >= MIN_FIT_EXTENT_RAD:
             fitted = True
             if radius_hint_m is None:
                 radius = fr
@@ -431,10 +480,17 @@ class Track:
 class Tracker:
     """Constant-velocity Kalman filters, greedy nearest-neighbour association with a gate."""
 
-    def __init__(self, config: TrackerConfig | None = None, poses: PoseUncertainty | None = None) -> None:
+    def __init__(self, config: TrackerConfig | None = None, poses: PoseUncertainty | None = None,
+                 person: PersonKeys | None = None) -> None:
         """``poses``: the relative error of two matched laser poses (:class:`vipsm.seen_through.ScanMemory`);
-        None: detections are taken as placed without pose error."""
+        None: detections are taken as placed without pose error. ``person``: a person's size, the people
+        stage's keys (``PeopleConfig``; None: their defaults, :class:`vipsm.bodies.PersonSize`)."""
+        from .bodies import PersonSize  # (the body stage imports this module)
+
         self.config = config or TrackerConfig()
+        person = person or PersonSize()
+        #: a younger track within a person's radius of an older one is the same body (``merge_m``, 0.25 m)
+        self.merge_m = person.person_radius_m
         self._poses = poses
         self.tracks: list[Track] = []
         self._next_id = 1
@@ -485,12 +541,11 @@ class Tracker:
         track.stamp_s = stamp_s
 
     def _radius_agrees(self, track: Track, det: Detection) -> bool:
-        """A fitted radius (if any) within ``confirm_radius_tol`` of the track's (before it is folded in)."""
-        c = self.config
+        """A fitted radius (if any) within ``RADIUS_TOL`` of the track's (before it is folded in)."""
         if det.occluded and det.radius_fitted:  # a round body's partial fit keeps its radius; a box's does not
-            tol = c.confirm_occluded_radius_tol * track.radius_m
+            tol = OCCLUDED_RADIUS_TOL * track.radius_m
             return track.radius_known and abs(det.radius_m - track.radius_m) <= tol
-        tol = c.confirm_radius_tol * track.radius_m
+        tol = RADIUS_TOL * track.radius_m
         return not (det.radius_fitted and track.radius_known and abs(det.radius_m - track.radius_m) > tol)
 
     def _update(self, track: Track, det: Detection) -> None:
@@ -516,7 +571,7 @@ class Tracker:
         _combine(track)
         if det.radius_fitted:
             if track.radius_known:
-                a = self.config.radius_smoothing
+                a = RADIUS_SMOOTHING
                 track.radius_m = (1.0 - a) * track.radius_m + a * det.radius_m
             else:
                 track.radius_m = det.radius_m
@@ -528,13 +583,13 @@ class Tracker:
         in every direction, the offset of another point of the body (a lone leg, the pair's midpoint)
         or of a partly hidden one."""
         c = self.config
-        sigma = c.meas_sigma_m if det.sigma_m is None else det.sigma_m
+        sigma = DEFAULT_SIGMA_M if det.sigma_m is None else det.sigma_m
         extra = 0.0
         if det.kind == "leg" and track.seen_as_person:
-            # a person's lone leg: the centre lies anywhere within kind_change_m of it
-            extra = c.kind_change_m
+            # a person's lone leg: the centre lies anywhere within KIND_CHANGE_M of it
+            extra = KIND_CHANGE_M
         elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
-            extra = 0.5 * c.kind_change_m
+            extra = 0.5 * KIND_CHANGE_M
         if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
             extra = math.hypot(extra, 0.5 * track.radius_m)
         along = math.hypot(sigma, extra) ** 2
@@ -549,17 +604,17 @@ class Tracker:
         """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker (``kinds``: per row, the
         detection's kind code; a step between kinds may also move between a leg and a pair's midpoint;
         for a ``person``, a step between two lone legs may move from one leg to the other, each up to
-        ``kind_change_m`` from the pelvis)."""
+        ``KIND_CHANGE_M`` from the pelvis)."""
         if pts.shape[0] < 2:
             return True
         c = self.config
         step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
         allowed = c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m
         if kinds is not None:
-            allowed = allowed + c.kind_change_m * (np.diff(kinds) != 0.0)
+            allowed = allowed + KIND_CHANGE_M * (np.diff(kinds) != 0.0)
             if person:
                 legs = (kinds[1:] == _KIND_CODE["leg"]) & (kinds[:-1] == _KIND_CODE["leg"])
-                allowed = allowed + 2.0 * c.kind_change_m * legs
+                allowed = allowed + 2.0 * KIND_CHANGE_M * legs
         return bool(np.all(step <= allowed))
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
@@ -598,13 +653,13 @@ class Tracker:
         ``detections``: this cycle's, ``own`` the one the track took)."""
         c = self.config
         recent = sum(h[3] for h in t.history)
-        if t.confirmed or t.hits < c.confirm_hits or recent < c.confirm_evidence:
+        if t.confirmed or t.hits < CONFIRM_HITS or recent < CONFIRM_EVIDENCE:
             return
         hist = np.array(t.history)
         # a round body's partial views keep their radius: a fit that shrinks or grows over the window
         # follows the occluder's edge over something else (a box face beside a passing body)
         partial = hist[np.isfinite(hist[:, 6]), 6]
-        if partial.size > 1 and np.ptp(partial) > c.confirm_occluded_radius_tol * t.radius_m:
+        if partial.size > 1 and np.ptp(partial) > OCCLUDED_RADIUS_TOL * t.radius_m:
             return
         # an unreliable position (placed a radius behind a partly hidden segment, or a fit unlike the
         # track's) is no point of the path: judge the path since the last one (a walker stepping out
@@ -629,7 +684,7 @@ class Tracker:
         if kind == _KIND_CODE["leg"]:
             needed = c.step_noise_m  # the drift of a static leg's placed centre
         elif kind == _KIND_CODE["body"] and recent == len(t.history) and hist.shape[0] >= 4:
-            needed = c.confirm_displacement_sustained_m
+            needed = c.confirm_onset_step_m
         else:
             needed = c.confirm_displacement_m
         allowance = self._pose_allowance_m(hist)
@@ -638,7 +693,7 @@ class Tracker:
         needed = max(needed, allowance) if np.isfinite(hist[-1, 7]) else math.hypot(needed, allowance)
         steps = np.diff(xy, axis=0)
         advancing = float(np.mean(steps @ (xy[-1] - xy[0]) > 0.0))
-        if (net >= needed and net >= c.confirm_straightness * path and advancing >= c.confirm_advancing
+        if (net >= needed and net >= CONFIRM_STRAIGHTNESS * path and advancing >= CONFIRM_ADVANCING
                 and self._steady(hist) and self._left(t, hist[0, :3], detections, own)):
             t.confirmed = True
             return
@@ -669,7 +724,7 @@ class Tracker:
 
     def _started(self, hist: np.ndarray, xy: np.ndarray, needed: float) -> int | None:
         """A body that stood and started to move: the window's newest detections (at least
-        ``confirm_onset_rows``) all show motion evidence, the one before them none, and from that last
+        ``ONSET_STEPS``) all show motion evidence, the one before them none, and from that last
         standing place every step advances at least ``confirm_onset_step_m`` along the net
         displacement, which reaches ``needed``. The detections it stood at would otherwise count as
         steps that do not advance until they leave the window (a walker coming head-on from standing
@@ -677,7 +732,7 @@ class Tracker:
         not advance twice in a row). Returns the row of the last standing place, or None."""
         c = self.config
         e = _onset(hist)
-        if e < 1 or hist.shape[0] - e < c.confirm_onset_rows:
+        if e < 1 or hist.shape[0] - e < ONSET_STEPS:
             return None
         path = xy[e - 1 :]
         net = path[-1] - path[0]
@@ -725,7 +780,7 @@ class Tracker:
         # between legs and wall, or a walker who stopped half a window ago
         for part in parts:
             step = np.hypot(*np.diff(part, axis=0).T)
-            if float(np.hypot(*(part[-1] - part[0]))) < c.report_straightness * float(step.sum()):
+            if float(np.hypot(*(part[-1] - part[0]))) < REPORT_STRAIGHTNESS * float(step.sum()):
                 return False
         return math.hypot(*v) >= c.report_window_speed_mps
 
@@ -769,7 +824,7 @@ class Tracker:
             if not (t.confirmed and t.seen_as_person):
                 return True  # (kept near returns, a chair's legs taken for a person would live on)
             # a person's legs stand up to half the widest pair from the centre
-            reach = max(t.radius_m, self.config.kind_change_m)
+            reach = max(t.radius_m, KIND_CHANGE_M)
             return not bool(np.any(np.hypot(pts[:, 0] - x, pts[:, 1] - y) <= reach))
 
         self.tracks = [t for t in self.tracks if t.missed == 0 or not gone(t)]
@@ -795,7 +850,7 @@ class Tracker:
             for i, (d, holder) in enumerate(dets):
                 if holder in live:
                     continue
-                slack = _kind_slack_m(d, head, c.kind_change_m)
+                slack = _kind_slack_m(d, head, KIND_CHANGE_M)
                 dist = math.hypot(d.x_m - head.x_m, d.y_m - head.y_m) - slack
                 if dist > reach:
                     continue
@@ -818,7 +873,7 @@ class Tracker:
         (remembered, not judged: confirmation comes at the earliest with the next cycle's detection)."""
         chain = self._chain_back(stamp_s, det) + [(stamp_s, det)]
         t0_s, d0 = chain[0]
-        sigma = self.config.meas_sigma_m if d0.sigma_m is None else d0.sigma_m
+        sigma = DEFAULT_SIGMA_M if d0.sigma_m is None else d0.sigma_m
         p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
         track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
                       evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s)
@@ -901,13 +956,13 @@ class Tracker:
             if other is not None:
                 used_d.add(other)
                 taken[id(detections[other])] = ti
-                got[ti] = _pair_of(d, detections[other], self.config.meas_sigma_m)
+                got[ti] = _pair_of(d, detections[other], DEFAULT_SIGMA_M)
         return got, taken
 
     def _other_leg(self, t: Track, leg: Detection, detections: list[Detection], used: set[int]) -> int | None:
         """The index of the track's other leg, seen as a lone leg of its own beside ``leg`` (the body stage
         pairs legs only up to its widest pair, and a pair at that limit splits in some scans): a free lone
-        leg within a pair's reach (``2 kind_change_m``) of ``leg`` that stands where one of the track's legs
+        leg within a pair's reach (``2 KIND_CHANGE_M``) of ``leg`` that stands where one of the track's legs
         stood in its last ``confirm_window`` detections, to within ``step_noise_m``: where the track took a
         lone leg, or the partner of ``leg`` in a leg pair the track took (the pair's midpoint is then the two
         legs' midpoint); and their midpoint lies within ``gate_m`` of the prediction. A person seen by both
@@ -928,7 +983,7 @@ class Tracker:
             mid = np.array([0.5 * (o.x_m + leg.x_m), 0.5 * (o.y_m + leg.y_m)])
             stood = bool(np.any(np.hypot(*(lone - (o.x_m, o.y_m)).T) <= c.step_noise_m)
                          or np.any(np.hypot(*(pairs - mid).T) <= 0.5 * c.step_noise_m))
-            if (stood and c.step_noise_m < sep <= 2.0 * c.kind_change_m
+            if (stood and c.step_noise_m < sep <= 2.0 * KIND_CHANGE_M
                     and math.hypot(mid[0] - t.state[0], mid[1] - t.state[1]) < c.gate_m
                     and (best is None or sep < best[0])):
                 best = (sep, di)
@@ -945,7 +1000,7 @@ class Tracker:
             max_missed_s = c.max_missed_s if t.confirmed else c.tentative_max_missed_s
             if self.unseen_s(t) > max_missed_s + _STAMP_TOL_S or too_old or self._stale(t):
                 continue
-            if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < c.merge_m for k in keep):
+            if any(math.hypot(k.state[0] - t.state[0], k.state[1] - t.state[1]) < self.merge_m for k in keep):
                 continue  # a duplicate of an older track (tracks are kept oldest first)
             keep.append(t)
             out.append((t, got.get(ti)))

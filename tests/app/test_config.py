@@ -51,7 +51,8 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.people.leg_pair_max_m=0.15", "estimator", "< people.leg_pair_max_m"),
         ("estimator.tracker.confirm_vacated_m=-1", "estimator.tracker", "confirm_vacated_m >= 0"),
         ("estimator.tracker.anisotropic_min_speed_mps=0", "estimator.tracker", "anisotropic_min_speed_mps > 0"),
-        ("estimator.tracker.confirm_onset_rows=1", "estimator.tracker", "confirm_onset_rows >= 2"),
+        ("estimator.tracker.confirm_onset_step_m=0", "estimator.tracker", "confirm_onset_step_m > 0"),
+        ("estimator.tracker.report_window=3", "estimator.tracker", "report_window >= 4"),
         ("estimator.people.stand_dwell_s=0", "estimator.people", "stand_dwell_s must be > 0"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
@@ -66,7 +67,17 @@ def test_bad_values_name_their_key(override: str, key: str, words: str) -> None:
 @pytest.mark.parametrize("key", ["estimator.bodies.leg_radius_m", "estimator.bodies.camera_interval_max_m",
                                  "estimator.bodies.min_beams", "estimator.flow.fb_check",
                                  "estimator.flow.grid_step_px", "estimator.flow.fit_global",
-                                 "estimator.flow.max_depth_m", "estimator.tracker.confirm_displacement_leg_m"])
+                                 "estimator.flow.max_depth_m", "estimator.tracker.confirm_displacement_leg_m",
+                                 "estimator.tracker.confirm_displacement_sustained_m",
+                                 "estimator.tracker.report_recent", "estimator.tracker.meas_sigma_m",
+                                 "estimator.tracker.default_radius_m", "estimator.tracker.min_radius_m",
+                                 "estimator.tracker.max_radius_m", "estimator.tracker.min_fit_extent_rad",
+                                 "estimator.tracker.radius_smoothing", "estimator.tracker.confirm_radius_tol",
+                                 "estimator.tracker.confirm_occluded_radius_tol", "estimator.tracker.confirm_hits",
+                                 "estimator.tracker.confirm_evidence", "estimator.tracker.confirm_onset_rows",
+                                 "estimator.tracker.confirm_straightness", "estimator.tracker.confirm_advancing",
+                                 "estimator.tracker.report_straightness", "estimator.tracker.kind_change_m",
+                                 "estimator.tracker.merge_m"])
 def test_a_removed_key_is_refused_as_removed_never_ignored(key: str) -> None:
     """A key an older version had (issue 29 removed or derived it): an old config file that sets it is refused
     with the key named and what replaced it, not read as if the value still applied."""

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from vipsm.seen_through import ScanMemory, SeenThroughConfig
-from vipsm.tracker import Detection, Tracker, TrackerConfig, fit_circle, kind_aligned, locate_body
+from vipsm.tracker import CONFIRM_HITS, Detection, Tracker, TrackerConfig, fit_circle, kind_aligned, locate_body
 
 
 def _front_points(cx: float, cy: float, r: float, sensor=(0.0, 0.0), n: int = 60, noise: float = 0.0, seed: int = 0):
@@ -30,7 +30,7 @@ def test_circle_fit_exact() -> None:
 @pytest.mark.parametrize("dist", [1.0, 2.5, 5.0])
 def test_centre_from_front_surface_is_not_biased_toward_the_sensor(dist: float) -> None:
     pts = _front_points(dist, 0.3, 0.4, noise=0.01, seed=int(dist * 10))
-    cx, cy, r, fitted = locate_body(pts, (0.0, 0.0), None, TrackerConfig())
+    cx, cy, r, fitted = locate_body(pts, (0.0, 0.0), None)
     assert math.hypot(cx - dist, cy - 0.3) < 0.03
     centroid = pts.mean(axis=0)
     assert math.hypot(centroid[0] - dist, centroid[1] - 0.3) > 0.1  # the naive centroid is biased
@@ -40,7 +40,7 @@ def test_centre_from_front_surface_is_not_biased_toward_the_sensor(dist: float) 
 
 def test_short_arc_uses_the_radius_hint_along_the_viewing_ray() -> None:
     pts = _front_points(3.0, 0.0, 0.4, n=8)[3:6]  # three points: no fit
-    cx, cy, r, fitted = locate_body(pts, (0.0, 0.0), 0.4, TrackerConfig())
+    cx, cy, r, fitted = locate_body(pts, (0.0, 0.0), 0.4)
     assert not fitted and r == 0.4
     assert math.hypot(cx - 3.0, cy) < 0.02
 
@@ -233,7 +233,7 @@ def test_a_coasting_track_dies_when_its_space_is_seen_free() -> None:
 def test_a_person_who_stops_is_no_longer_reported_though_the_detection_keeps_jumping() -> None:
     """Walk 2 s, then stand at a wall: the detection jumps at random between the leg pair and one leg
     merged with the wall (0.25 m), which a line fit over 1 s can read as 0.2 m/s. Reported only if the
-    detections go somewhere (net displacement >= report_straightness x path): over 20 such people,
+    detections go somewhere (net displacement >= REPORT_STRAIGHTNESS x path): over 20 such people,
     at most 2 % of their standing cycles (a long run on one side then a single jump still looks like
     a step; without the rule it was 37 %)."""
     standing = reported = 0
@@ -262,7 +262,7 @@ def test_the_birth_detection_counts_toward_confirmation() -> None:
         out = tr.step(0.1 * k, [_det(1.0 + 0.1 * k, 0.5)])
         if first is None and any(tr.reported(t) for t, _ in out):
             first = k
-    assert first == TrackerConfig().confirm_hits - 1  # the third detection, the birth one included
+    assert first == CONFIRM_HITS - 1  # the third detection, the birth one included
 
 
 def test_an_unconfirmed_track_coasting_does_not_grab_a_detection_far_away() -> None:
@@ -1132,3 +1132,15 @@ def test_the_estimators_detections_carry_the_laser_pose_and_its_heading_error() 
     assert d.view_rad == pytest.approx(math.atan2(1.5, 1.5))
     est = Estimator()
     assert est._tracker._poses is est._memory  # noqa: SLF001 - the tracker judges with the evidence's pose model
+
+
+@pytest.mark.parametrize(("person_radius_m", "tracks"), [(0.25, 2), (0.35, 1)])
+def test_a_person_s_size_comes_from_the_people_stage_s_keys(person_radius_m: float, tracks: int) -> None:
+    """Two bodies 0.3 m apart are one person when a person's radius (``PeopleConfig.person_radius_m``) is wider:
+    the younger track is dropped as a duplicate."""
+    from vipsm.people import PeopleConfig
+
+    tr = Tracker(TrackerConfig(), person=PeopleConfig(person_radius_m=person_radius_m))
+    assert tr.merge_m == person_radius_m
+    assert len(tr.step(0.0, [_det(1.0, 2.0), _det(1.3, 2.0)])) == tracks
+    assert Tracker().merge_m == PeopleConfig().person_radius_m
