@@ -4,7 +4,8 @@ leg-candidate segments of a scan outside the estimator (training and checks; the
 recording: :func:`app.evaluation.real_data.labelled_leg_rows`), and a recorded segment re-seen from
 farther (:func:`reseen_farther`: the training's model of how a leg, or anything else, looks from a
 longer range) or before a wall with the UTM-30LX's depth edges (:func:`before_wall`: its model of the
-other edges a scanner shows beside a segment)."""
+other edges a scanner shows beside a segment), or as a URG-04LX-class scanner reports it (:class:`Reporting`:
+held ranges, lost edge beams)."""
 
 from __future__ import annotations
 
@@ -121,14 +122,17 @@ def cast(surfaces: list[np.ndarray], bearings: np.ndarray) -> tuple[np.ndarray, 
 
 
 def reseen_farther(r: np.ndarray, b: np.ndarray, span: tuple[int, int], range_m: float, step_rad: float,
-                   rng: np.random.Generator, wall: Wall | None = None) -> np.ndarray | None:
+                   rng: np.random.Generator, wall: Wall | None = None, reporting: Reporting | None = None
+                   ) -> np.ndarray | None:
     """The leg-candidate features of the segment ``span`` of the pre-filtered scan (r, b) seen from
     ``range_m`` (at least its own range) by a laser with beams every ``step_rad``: the segment and the
     scene beside it moved together away from the laser along the segment's bearing (so what lies behind or
     beside it stays where it was relative to it), the moved surfaces cast with beams at that step (a
     random phase: where the first beam falls on the segment is chance), and the range noise of a return
     from the new range added on top of the recorded one (the difference of variances); with ``wall``, the
-    cast scene then stands before a wall (:func:`before_wall`). None when the re-seen returns are no leg
+    cast scene then stands before a wall (:func:`before_wall`); with ``reporting``, the returns are then
+    reported as that scanner class reports them (:meth:`Reporting.apply`: its noise, held ranges, lost
+    edge beams, range resolution). None when the re-seen returns are no leg
     candidate there (fewer than ``LegConfig.min_points``, or merged with what lies beside it)."""
     a, z = span
     k = a + np.flatnonzero(np.isfinite(r[a:z]))
@@ -155,10 +159,84 @@ def reseen_farther(r: np.ndarray, b: np.ndarray, span: tuple[int, int], range_m:
     kept_var = range_sigma_m(ranges - (range_m - r0)) ** 2 * ((1.0 - at) ** 2 + at**2)
     extra = np.sqrt(np.maximum(range_sigma_m(ranges) ** 2 - kept_var, 0.0))
     ranges = ranges + rng.standard_normal(ranges.size) * np.nan_to_num(extra)
+    if reporting is not None:
+        ranges = reporting.apply(ranges, rng)
     if wall is None:
         hit = matched_candidate(ranges, bearings, c + shift)
         return None if hit is None else hit[2]
     return walled_features(ranges, bearings, c + shift, wall, rng)
+
+
+# ---------------------------------------------------------------------------------------------
+# how a URG-04LX-class scanner reports what its beams hit (the training script's augmentation)
+#
+# The URG-04LX (Hokuyo's data sheet: 0.02-5.6 m, 1024 steps a turn = 0.3516 deg, 1 mm resolution, accuracy
+# +-10 mm to 1 m and +-1 % of the range beyond) is an amplitude-modulated phase-shift scanner with a wide
+# spot. Two things make its leg at 3-5 m look unlike the recordings' laser's leg there re-cast by
+# :func:`reseen_farther` (a smooth arc of 4-6 returns, each with its own few mm of noise): (1) where its
+# footprint lies on one surface, neighbouring steps report one and the same range (its phase measurement is
+# smoothed over neighbouring steps: a leg's front at 3 m, whose true ranges differ by 1-12 mm, comes out as
+# one range over 3-5 steps, with no curvature left); its error is therefore common to neighbouring steps (an
+# offset of the surface, which changes a segment's range, not its shape), not a per-beam noise; (2) where
+# its footprint straddles a depth edge it reports no echo (an error code) rather than a range, so a leg's
+# outermost beams are lost (a 0.1 m leg at 4 m is 3 returns 0.045 m across, not 4-5 over 0.09 m). The
+# draws below span the class, from none of it to all of it, not one recording's rates.
+
+#: the URG-04LX's step (1024 a turn) and its longest range
+URG04LX_STEP_RAD = 2.0 * math.pi / 1024.0
+URG04LX_MAX_RANGE_M = 5.6
+#: the data sheet's accuracy beyond 1 m, +-1 % of the range, taken as 2 sigma
+URG04LX_SIGMA_PER_RANGE = 0.005
+#: two neighbouring returns closer than this in range are one surface to the sensor's smoothing (about 3 sigma
+#: of its error at 1.5 m; more than a leg's depth over its front at 3-5 m)
+HOLD_TOL_M = 0.02
+#: a return beside a jump bigger than this (or no return) is an edge beam (``vipsm.bodies``' jump is 0.15 m)
+EDGE_JUMP_M = 0.10
+#: the drawn share of same-surface steps that repeat their neighbour's range, and of edge beams lost: the
+#: class from none (the recordings' laser) to every one
+HOLD_SHARE = (0.0, 1.0)
+EDGE_LOSS_SHARE = (0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class Reporting:
+    """How a URG-04LX-class scanner reports the ranges its beams hit: one range error common to the
+    neighbouring steps (``sigma_per_range`` x range, 1 sigma, drawn once per call), each return on the same
+    surface as the one before (within ``HOLD_TOL_M``) repeating that one's reported range with probability
+    ``hold_share``, each edge beam (beside a jump over ``EDGE_JUMP_M`` or no return) lost with probability
+    ``edge_loss_share``, and ranges rounded to ``resolution_m``."""
+
+    sigma_per_range: float = URG04LX_SIGMA_PER_RANGE
+    hold_share: float = 0.5
+    edge_loss_share: float = 0.5
+    resolution_m: float = 0.001
+
+    def __post_init__(self) -> None:
+        if not (self.sigma_per_range >= 0.0 and 0.0 <= self.hold_share <= 1.0 and 0.0 <= self.edge_loss_share <= 1.0
+                and self.resolution_m > 0.0):
+            raise ValueError(f"need sigma_per_range >= 0, shares in [0, 1] and resolution_m > 0, got {self}")
+
+    @staticmethod
+    def drawn(rng: np.random.Generator) -> Reporting:
+        """One scanner of the class: its error up to the data sheet's, its holds and edge losses drawn
+        uniformly over ``HOLD_SHARE`` / ``EDGE_LOSS_SHARE``."""
+        return Reporting(float(rng.uniform(0.0, URG04LX_SIGMA_PER_RANGE)), float(rng.uniform(*HOLD_SHARE)),
+                         float(rng.uniform(*EDGE_LOSS_SHARE)))
+
+    def apply(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The cast ``ranges`` (NaN: no return) as this scanner reports them (a new array)."""
+        r = np.asarray(ranges, dtype=float)
+        fin = np.isfinite(r)
+        offset = rng.standard_normal() * self.sigma_per_range * (float(np.median(r[fin])) if fin.any() else 0.0)
+        out = r + offset
+        for i in range(1, out.size):
+            if abs(r[i] - r[i - 1]) < HOLD_TOL_M and rng.uniform() < self.hold_share:  # NaN compares False
+                out[i] = out[i - 1]
+        prev, nxt = np.concatenate([[np.nan], r[:-1]]), np.concatenate([r[1:], [np.nan]])
+        with np.errstate(invalid="ignore"):
+            edge = fin & ~((np.abs(r - prev) <= EDGE_JUMP_M) & (np.abs(r - nxt) <= EDGE_JUMP_M))
+        out[edge & (rng.uniform(size=r.size) < self.edge_loss_share)] = np.nan
+        return np.round(out / self.resolution_m) * self.resolution_m
 
 
 def matched_candidate(r: np.ndarray, b: np.ndarray, target: np.ndarray) -> tuple[int, int, np.ndarray] | None:

@@ -345,3 +345,120 @@ def test_the_shipped_detector_takes_a_leg_before_a_wall_as_before_open_space(leg
         wall_hits.append(bool(near) and model.predict(near[0][None])[0] >= model.threshold_p)
     assert np.mean(open_hits) >= 0.8
     assert np.mean(wall_hits) >= np.mean(open_hits) - 0.2
+
+
+# ---------------------------------------------------------------------------------------------
+# a URG-04LX-class scanner's reporting (app.legmodel.Reporting)
+
+
+def test_urg_class_holds_a_range_on_one_surface_and_never_across_an_edge() -> None:
+    from app.legmodel import HOLD_TOL_M, Reporting
+
+    rng = np.random.default_rng(SEED)
+    front = 3.2 + np.array([0.008, 0.003, 0.0, 0.003, 0.008])  # a leg's front at 3.2 m: 8 mm deep
+    r = np.concatenate([[4.3, 4.3], front, [4.3, 4.3]])
+    out = Reporting(sigma_per_range=0.0, hold_share=1.0, edge_loss_share=0.0).apply(r, rng)
+    np.testing.assert_allclose(out[2:7], np.full(5, 3.208), atol=1e-9)  # one range over the leg's 5 steps
+    np.testing.assert_allclose(out[[0, 1, 7, 8]], np.full(4, 4.3), atol=1e-9)  # the background is not the leg's
+    assert np.all(np.abs(np.diff(front)) < HOLD_TOL_M)
+    none = Reporting(sigma_per_range=0.0, hold_share=0.0, edge_loss_share=0.0).apply(r, rng)
+    np.testing.assert_allclose(none, np.round(r, 3))
+
+
+def test_urg_class_loses_edge_beams_only_and_rounds_to_its_resolution() -> None:
+    from app.legmodel import Reporting
+
+    rng = np.random.default_rng(SEED)
+    r = np.array([np.nan, 3.2004, 3.1957, 3.1912, 3.1968, 3.2031, 4.5, 4.5, 4.5, 4.5])
+    out = Reporting(sigma_per_range=0.0, hold_share=0.0, edge_loss_share=1.0).apply(r, rng)
+    # edge beams: beside no return (1, and the scan's last) or a jump (5, 6); the leg's inside and the
+    # background's stay
+    assert np.isnan(out[[0, 1, 5, 6, 9]]).all()
+    np.testing.assert_allclose(out[[2, 3, 4, 7, 8]], [3.196, 3.191, 3.197, 4.5, 4.5], atol=1e-9)
+    kept = Reporting(sigma_per_range=0.0, hold_share=0.0, edge_loss_share=0.0).apply(r, rng)
+    assert np.isfinite(kept[1:]).all()
+    mm = Reporting(sigma_per_range=0.004, hold_share=0.3, edge_loss_share=0.3).apply(r, rng)
+    fin = mm[np.isfinite(mm)]
+    np.testing.assert_allclose(fin * 1000.0, np.round(fin * 1000.0), atol=1e-6)
+
+
+def test_urg_class_range_error_is_common_to_neighbouring_steps_and_grows_with_range() -> None:
+    from app.legmodel import Reporting
+
+    rng = np.random.default_rng(SEED)
+    rep = Reporting(sigma_per_range=0.005, hold_share=0.0, edge_loss_share=0.0, resolution_m=1e-6)
+    for range_m in (1.0, 4.0):
+        r = range_m + np.linspace(0.0, 0.05, 8)  # a sloped surface, no jump
+        outs = np.array([rep.apply(r, rng) for _ in range(3000)])
+        offsets = outs - r
+        np.testing.assert_allclose(offsets.std(axis=1), 0.0, atol=1e-5)  # one offset over the steps: no shape
+        assert float(offsets[:, 0].std()) == pytest.approx(0.005 * float(np.median(r)), rel=0.08)
+
+
+@pytest.mark.parametrize("bad", [{"sigma_per_range": -0.1}, {"hold_share": 1.5}, {"edge_loss_share": -0.1},
+                                 {"resolution_m": 0.0}])
+def test_urg_class_reporting_is_checked(bad) -> None:
+    from app.legmodel import Reporting
+
+    with pytest.raises(ValueError, match="need"):
+        Reporting(**bad)
+
+
+def test_urg_class_draws_span_the_class() -> None:
+    from app.legmodel import EDGE_LOSS_SHARE, HOLD_SHARE, URG04LX_SIGMA_PER_RANGE, Reporting
+
+    rng = np.random.default_rng(SEED)
+    drawn = [Reporting.drawn(rng) for _ in range(200)]
+    holds = np.array([d.hold_share for d in drawn])
+    losses = np.array([d.edge_loss_share for d in drawn])
+    sig = np.array([d.sigma_per_range for d in drawn])
+    assert HOLD_SHARE[0] <= holds.min() < 0.1 and HOLD_SHARE[1] - 0.1 < holds.max() <= HOLD_SHARE[1]
+    assert EDGE_LOSS_SHARE[0] <= losses.min() < 0.05 and EDGE_LOSS_SHARE[1] - 0.05 < losses.max() <= EDGE_LOSS_SHARE[1]
+    assert 0.0 <= sig.min() and sig.max() <= URG04LX_SIGMA_PER_RANGE
+
+
+def test_training_reports_each_sample_as_a_urg_class_scanner_and_keeps_its_source() -> None:
+    tl = _train_legs()
+    from app.legmodel import URG04LX_MAX_RANGE_M
+
+    rng = np.random.default_rng(SEED)
+    smp = tl.Samples()
+    for leg_range_m in (1.5, 3.0, 6.0):
+        r, b = _scan(leg_range_m, 0.5, RECORDED_STEP_RAD, rng)
+        smp.add_scan(r, b, lambda pts, c=leg_range_m: abs(float(pts.mean(axis=0)[0]) - c) < 0.1)
+    assert len(smp.rows) == 3
+    x, src = tl.urg_class(smp, 4, np.random.default_rng(SEED))
+    assert x.shape[1] == len(FEATURE_NAMES) and set(src.tolist()) <= {0, 1} and len(src) == len(x) >= 4
+    rng_m = x[:, FEATURE_NAMES.index("range_m")]
+    assert np.all(rng_m >= smp.matrix()[src, FEATURE_NAMES.index("range_m")] - 0.03)
+    assert np.all(rng_m <= URG04LX_MAX_RANGE_M + 0.05)  # the leg beyond the scanner's range gets no copy
+    again, _ = tl.urg_class(smp, 4, np.random.default_rng(SEED))
+    np.testing.assert_array_equal(x, again)
+
+
+@pytest.mark.parametrize("leg_range_m, share", [(2.0, 0.9), (3.0, 0.7)])
+def test_the_shipped_detector_takes_a_leg_a_urg_class_scanner_holds_in_part(leg_range_m, share) -> None:
+    """A 0.12 m leg before open space seen by a URG-04LX-class scanner at its step, 0.6 of its same-surface
+    steps holding their neighbour's range and half its edge beams lost: still a leg to the shipped detector
+    (measured 0.97 / 0.78 at 2 / 3 m). Not met, and not claimed (docs/estimator.md stage 1): a leg whose every
+    step is held and both edge beams lost is one range over 5-8 steps, no shape left (taken 0.02 / 0.05)."""
+    from app.legmodel import URG04LX_STEP_RAD, Reporting
+
+    model = default_leg_model()
+    rep = Reporting(sigma_per_range=0.002, hold_share=0.6, edge_loss_share=0.5)
+    rng = np.random.default_rng(SEED)
+    hits = []
+    for _ in range(40):
+        r, b = _scan(leg_range_m, 40.0, URG04LX_STEP_RAD, rng)
+        r[r > leg_range_m + 2.0] = np.nan
+        kept, x = leg_candidates(rep.apply(r, rng), b)
+        near = [row for (_, _, pts), row in zip(kept, x, strict=True)
+                if abs(float(pts.mean(axis=0)[0]) - leg_range_m) < 0.1]
+        hits.append(bool(near) and model.predict(near[0][None])[0] >= model.threshold_p)
+    assert np.mean(hits) >= share
+
+
+def test_train_legs_refuses_negative_urg_copies(capsys) -> None:
+    tl = _train_legs()
+    assert tl.main(["--urg-copies", "-1"]) == 2
+    assert "--urg-copies" in capsys.readouterr().err
