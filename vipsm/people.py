@@ -186,6 +186,9 @@ class PersonTrack:
     age_cycles: int = 1
     #: when a detection last updated it (None: never)
     updated_s: float | None = None
+    #: the leg tracks whose point (one leg, or their midpoint) the last update measured, and where each
+    #: was then (empty: no update yet)
+    anchor: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def p_moving(self) -> float:
@@ -308,13 +311,15 @@ class PeopleTracker:
         partner = {a: b for t in self.tracks if len(t.leg_ids) == 2 for a, b in (t.leg_ids, t.leg_ids[::-1])}
         for i, j in got.items():
             lt, d = tracks[i], detections[j]
-            self._judge_arrival(stamp_s, lt, d, self.legs.get(partner.get(lt.leg_id, -1)))
+            relocked = self._judge_arrival(stamp_s, lt, d, self.legs.get(partner.get(lt.leg_id, -1)))
             dt = stamp_s - lt.seen_s
             if dt > 0:  # velocity: half the last one, half this step's (a leg's speed changes every stride)
                 vmax = c.leg_max_speed_mps
                 lt.vx_mps = 0.5 * lt.vx_mps + 0.5 * float(np.clip((d.x_m - lt.x_m) / dt, -vmax, vmax))
                 lt.vy_mps = 0.5 * lt.vy_mps + 0.5 * float(np.clip((d.y_m - lt.y_m) / dt, -vmax, vmax))
             lt.seen(stamp_s, d, c.leg_memory_s)
+            if relocked:  # it is that thing now, and its velocity that thing's, zero: the jump was no leg's speed
+                lt.vx_mps = lt.vy_mps = 0.0
         taken = set(got.values())
         for j, d in enumerate(detections):
             if j not in taken:
@@ -417,8 +422,10 @@ class PeopleTracker:
         a = seen[0]
         if hidden:
             h = hidden[0]
-            bx, by = h.predicted(t.stamp_s, c.leg_memory_s)
-            gone = math.hypot(h.vx_mps, h.vy_mps) * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
+            # a standing person's hidden leg stands where it was last seen; a walker's swings on
+            cap = c.leg_memory_s if t.moving else 0.0
+            bx, by = h.predicted(t.stamp_s, cap)
+            gone = math.hypot(h.vx_mps, h.vy_mps) * min(max(t.stamp_s - h.seen_s, 0.0), cap)
             sigma = min(math.hypot(c.pair_sigma_m, 0.5 * gone), c.leg_sigma_m)
         else:
             bx, by = seen[1].x_m, seen[1].y_m
@@ -439,6 +446,7 @@ class PeopleTracker:
         c = self.config
         x, y, sigma, seen = z
         walks = self._walking_share(t)  # predicted: before this detection
+        self._reanchor(t)
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
@@ -455,6 +463,22 @@ class PeopleTracker:
         t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+
+    def _reanchor(self, t: PersonTrack) -> None:
+        """A person is measured at the point of the legs it holds (one leg, or the midpoint of two); when
+        that set changes (a leg adopted, a hidden leg's track ended, another leg taken in its place) the
+        measured point moves by up to half a stride though the body does not (cart_pusher: a pusher
+        standing 4 s, seen by one leg, then by that leg and a cart's piece, was read to walk at 0.6 m/s for
+        0.7 s). The filter's position moves with the point: from the old legs' point to the new legs' point,
+        each leg where its track is now (a leg whose track ended where it was last measured), so a leg both
+        sets hold cancels and only the change of reference point is taken out."""
+        new = {k: (self.legs[k].x_m, self.legs[k].y_m) for k in t.leg_ids}
+        if t.anchor and set(new) != set(t.anchor):
+            old = [(self.legs[k].x_m, self.legs[k].y_m) if k in self.legs else xy for k, xy in t.anchor.items()]
+            ox, oy = np.mean(old, axis=0)
+            nx, ny = np.mean(list(new.values()), axis=0)
+            t.filt.shift_position(float(nx - ox), float(ny - oy))
+        t.anchor = new
 
     def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
         """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's
@@ -505,20 +529,23 @@ class PeopleTracker:
         is seen empty now"."""
         return not lt.arrived_held
 
-    def _judge_arrival(self, stamp_s: float, lt: LegTrack, d: LegDetection, partner: LegTrack | None) -> None:
+    def _judge_arrival(self, stamp_s: float, lt: LegTrack, d: LegDetection, partner: LegTrack | None) -> bool:
         """Before ``lt`` takes ``d`` at ``stamp_s``: whether ``d`` lies where something else stood when the
         laser last saw that place (``stood_before``). Only a detection at least ``leg_travel_m`` from each
         earlier detection of the last ``leg_memory_s`` of the track and of its person's other leg
         (``partner``) is judged: nearer, the laser's returns there may be the person's own (a leg's
         footprint and a grid cell; a slow walker's swing leg lands a short stride beside where the other
         stood); a nearer one keeps the verdict of the arrival it follows. A new leg track has arrived nowhere
-        (its own body may have stood there unseen as a leg)."""
+        (its own body may have stood there unseen as a leg). Returns whether ``d`` was judged and found held
+        (the track re-locked onto that thing now)."""
         if self._stood_before is None:
-            return
+            return False
         travel = self.config.leg_travel_m
         own = lt.path + (partner.path if partner is not None else [])
         if all(math.hypot(d.x_m - x, d.y_m - y) >= travel for st, x, y in own if st < stamp_s):
             lt.arrived_held = bool(self._stood_before(d.x_m, d.y_m))
+            return lt.arrived_held
+        return False
 
     def _release(self, t: PersonTrack) -> None:
         t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]
