@@ -132,14 +132,6 @@ class Imm:
         d = means - mean
         return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
 
-    def shift_position(self, dx_m: float, dy_m: float) -> None:
-        """The measured point moved by (``dx_m``, ``dy_m``) and the body did not (a person measured at another
-        point of itself: a lone leg instead of the legs' midpoint): every model's position moves with it,
-        velocities and covariances stay, so the next measurement there is no evidence of a walk."""
-        self.means[:, 0] += dx_m
-        self.means[:, 1] += dy_m
-        self._mean = self._cov = None
-
     # ---------------------------------------------------------------- filter steps
     def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
         c = self.cfg

@@ -186,9 +186,6 @@ class PersonTrack:
     age_cycles: int = 1
     #: when a detection last updated it (None: never)
     updated_s: float | None = None
-    #: the leg tracks whose point (one leg, or their midpoint) the last update measured, each as
-    #: :meth:`PeopleTracker._reanchor` keeps it then (x_m, y_m, speed, seen before; empty: no update yet)
-    anchor: dict[int, tuple[float, float, float, float]] = field(default_factory=dict)
 
     @property
     def p_moving(self) -> float:
@@ -444,7 +441,6 @@ class PeopleTracker:
         c = self.config
         x, y, sigma, seen = z
         walks = self._walking_share(t)  # predicted: before this detection
-        self._reanchor(t)
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
@@ -461,35 +457,6 @@ class PeopleTracker:
         t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
-
-    def _reanchor(self, t: PersonTrack) -> None:
-        """A person is measured at the point of the legs it holds (one leg, or the midpoint of two); when
-        that set changes (a leg adopted, a hidden leg's track ended, another leg taken in its place) the
-        measured point moves by up to half a stride. Where every leg that came or went stands (its own
-        track was seen before this cycle and moves slower than the slowest walk, ``WALK_DIR_MPS``) the body
-        did not move with it (cart_pusher: a pusher standing 4 s, seen by one leg, then by that leg and a
-        cart's piece, was read to walk at 0.6 m/s for 0.7 s): the filter's position moves with the point,
-        from the old legs' point to the new legs' point, each leg where it was last seen, so a leg both sets
-        hold cancels and only the change of reference is taken out. A leg that swings, or a leg track born
-        this cycle (a swing beyond the leg association's reach), may be the body's motion: no shift."""
-        new = {k: (self.legs[k].x_m, self.legs[k].y_m, math.hypot(self.legs[k].vx_mps, self.legs[k].vy_mps),
-                   float(len(self.legs[k].path) > 1)) for k in t.leg_ids}
-        if t.anchor and set(new) != set(t.anchor):
-            came = [new[k] for k in set(new) - set(t.anchor)]
-            went = [self._last_seen(k, t.anchor[k]) for k in set(t.anchor) - set(new)]
-            if all(old > 0.0 and speed < WALK_DIR_MPS for _, _, speed, old in came + went):
-                ox, oy = np.mean([self._last_seen(k, xy)[:2] for k, xy in t.anchor.items()], axis=0)
-                nx, ny = np.mean([xy[:2] for xy in new.values()], axis=0)
-                t.filt.shift_position(float(nx - ox), float(ny - oy))
-        t.anchor = new
-
-    def _last_seen(self, k: int, stored: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
-        """Leg ``k`` as :meth:`_reanchor` keeps it (x_m, y_m, speed, seen before): its track's now, or
-        ``stored`` if the track ended."""
-        lt = self.legs.get(k)
-        if lt is None:
-            return stored
-        return lt.x_m, lt.y_m, math.hypot(lt.vx_mps, lt.vy_mps), float(len(lt.path) > 1)
 
     def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
         """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's

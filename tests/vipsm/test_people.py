@@ -14,7 +14,7 @@ from vipsm.assignment import assign, assign_gated
 from vipsm.bodies import BodiesConfig
 from vipsm.imm import Imm, ImmConfig
 from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
-from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, detect_legs
+from vipsm.people import FIRST_ID, LegDetection, LegTrack, PeopleConfig, PeopleTracker, detect_legs
 from vipsm.types import Obstacle, Pose2D
 
 RNG_SEED = 29
@@ -616,67 +616,26 @@ def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
             assert e.people == ()
 
 
-def _pusher_beside_a_cart(stood_before) -> tuple[PeopleTracker, list[float]]:
-    """cart_pusher (docs/estimator.md 6b, "A standing person measured at another point of itself"): a person
-    stands 3 s with its legs 0.2 m apart, then one leg stays hidden (its track ends: the person is seen by
-    one leg). A cart's leg-sized piece 0.8 m off is seen once (its person, never seen again, is dropped; its
-    leg track lives on unseen), then its leg track takes another piece 0.4 m on, 0.4 m from the person's
-    leg, where ``stood_before`` says whether something stood before; that piece is hidden for the next
-    0.3 s, then seen again. Returns the tracker and the person's P(walking) (the IMM's) over the 1.5 s from
-    that scan on."""
+def _hop_onto(stood_before) -> LegTrack:
+    """A leg-sized piece seen once, unseen for two scans, then 0.4 m on, where ``stood_before`` says whether
+    something stood before (cart_pusher: a leg track hopping between a cart's pieces). Returns its leg track."""
     tr = PeopleTracker(PeopleConfig(), default_leg_model())
     never_free = lambda x, y: False  # noqa: E731
-    for k in range(30):
-        tr.step(0.1 * k, _pair(2.0, 0.0), seen_free=never_free, stood_before=stood_before)
-    for k in range(30, 37):
-        tr.step(0.1 * k, _pair(2.0, 0.0)[:1], seen_free=never_free, stood_before=stood_before)
-    tr.step(3.7, [_pair(2.0, 0.0)[0], LegDetection(2.0, -0.9, 0.6, 4, 5, occluded=True)], seen_free=never_free,
-            stood_before=stood_before)
-    for k in range(38, 40):
-        tr.step(0.1 * k, _pair(2.0, 0.0)[:1], seen_free=never_free, stood_before=stood_before)
-    p_walking = []
-    for k in range(40, 55):
-        piece = [LegDetection(2.0, -0.5, 0.6, 4, 5, occluded=True)] if k == 40 or k > 43 else []
-        tr.step(0.1 * k, [_pair(2.0, 0.0)[0], *piece], seen_free=never_free, stood_before=stood_before)
-        p_walking.append(tr.tracks[0].filt.p_moving)
-    return tr, p_walking
+    tr.step(0.0, [LegDetection(2.0, -0.9, 0.6, 4, 5, occluded=True)], seen_free=never_free, stood_before=stood_before)
+    for k in (1, 2):
+        tr.step(0.1 * k, [], seen_free=never_free, stood_before=stood_before)
+    tr.step(0.3, [LegDetection(2.0, -0.5, 0.6, 4, 5, occluded=True)], seen_free=never_free, stood_before=stood_before)
+    (leg,) = tr.legs.values()
+    return leg
 
 
-def test_a_standing_person_measured_at_another_point_of_itself_does_not_walk() -> None:
-    """A person is measured at the point of the legs it holds: one leg, or the midpoint of two. When that set
-    changes (here: the hidden leg's track ended, then the person took a leg track 0.4 m from its own leg)
-    the measured point jumps by up to half a stride while the body stands. Before, the IMM read the
-    jumps as a walk (P(walking) up to 0.81 here; cart_pusher: 0.99 for 0.7 s, 4 s after the pusher
-    stopped); the filter's position now moves with the measured point (``_reanchor``: from the old legs'
-    point to the new legs' point), so P(walking) stays a standing person's. A leg track that re-locked
-    onto a thing standing there (``_judge_arrival``) is that thing: its jump is no leg's velocity (zero);
-    a hop into a place where nothing stood is a leg's travel."""
-    held, p_walking = _pusher_beside_a_cart(lambda x, y: abs(y + 0.5) < 0.1)
-    assert len(held.tracks[0].leg_ids) == 2  # the piece was taken as the person's other leg
-    assert max(p_walking) < PeopleConfig().moving_off
-    relocked = [lt for lt in held.legs.values() if lt.arrived_held]
-    assert relocked and all(lt.vx_mps == 0.0 and lt.vy_mps == 0.0 for lt in relocked)
-    free, _ = _pusher_beside_a_cart(lambda x, y: False)
-    assert not any(lt.arrived_held for lt in free.legs.values())
-
-
-def test_imm_shifted_position_takes_a_jump_as_position_not_walking() -> None:
-    """``Imm.shift_position``: a standing filter's measured point jumps 0.2 m once and stays. Without the
-    shift the walking models explain the jump (P(walking) rises by more than 0.3); with the filter moved
-    with the measured point, P(walking) does not rise and no velocity is read."""
-    def run(shift: bool) -> tuple[float, float]:
-        f = Imm(0.0, 0.0, 0.06, ImmConfig())
-        for _ in range(30):
-            f.predict(0.1)
-            f.update(np.zeros(2), np.eye(2) * 0.06**2)
-        before, worst = f.p_moving, 0.0
-        if shift:
-            f.shift_position(0.0, 0.2)
-        for _ in range(10):
-            f.predict(0.1)
-            f.update(np.array([0.0, 0.2]), np.eye(2) * 0.06**2)
-            worst = max(worst, f.p_moving)
-        return worst - before, float(np.hypot(*f.mean[2:4]))
-    assert run(False)[0] > 0.3
-    rise, speed = run(True)
-    assert rise < 0.02 and speed < 0.01
+def test_a_leg_track_that_relocked_onto_a_static_thing_takes_its_velocity() -> None:
+    """A leg track that took a detection where something already stood re-locked onto that thing
+    (``_judge_arrival``): it is that thing now, and its velocity is that thing's, zero, not the jump's
+    (cart_pusher: 0.46 m/s from a hop between the cart's pieces; adopted by the standing pusher as its
+    hidden leg, it was predicted to go on at that speed). A hop into a place where nothing stood is a
+    leg's travel: its velocity is kept."""
+    relocked = _hop_onto(lambda x, y: abs(y + 0.5) < 0.1)
+    assert relocked.arrived_held and relocked.vx_mps == 0.0 and relocked.vy_mps == 0.0
+    travelled = _hop_onto(lambda x, y: False)
+    assert not travelled.arrived_held and travelled.vy_mps > 0.5
