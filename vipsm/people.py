@@ -308,15 +308,13 @@ class PeopleTracker:
         partner = {a: b for t in self.tracks if len(t.leg_ids) == 2 for a, b in (t.leg_ids, t.leg_ids[::-1])}
         for i, j in got.items():
             lt, d = tracks[i], detections[j]
-            relocked = self._judge_arrival(stamp_s, lt, d, self.legs.get(partner.get(lt.leg_id, -1)))
+            self._judge_arrival(stamp_s, lt, d, self.legs.get(partner.get(lt.leg_id, -1)))
             dt = stamp_s - lt.seen_s
             if dt > 0:  # velocity: half the last one, half this step's (a leg's speed changes every stride)
                 vmax = c.leg_max_speed_mps
                 lt.vx_mps = 0.5 * lt.vx_mps + 0.5 * float(np.clip((d.x_m - lt.x_m) / dt, -vmax, vmax))
                 lt.vy_mps = 0.5 * lt.vy_mps + 0.5 * float(np.clip((d.y_m - lt.y_m) / dt, -vmax, vmax))
             lt.seen(stamp_s, d, c.leg_memory_s)
-            if relocked:  # it is that thing now, and its velocity that thing's, zero: the jump was no leg's speed
-                lt.vx_mps = lt.vy_mps = 0.0
         taken = set(got.values())
         for j, d in enumerate(detections):
             if j not in taken:
@@ -507,23 +505,20 @@ class PeopleTracker:
         is seen empty now"."""
         return not lt.arrived_held
 
-    def _judge_arrival(self, stamp_s: float, lt: LegTrack, d: LegDetection, partner: LegTrack | None) -> bool:
+    def _judge_arrival(self, stamp_s: float, lt: LegTrack, d: LegDetection, partner: LegTrack | None) -> None:
         """Before ``lt`` takes ``d`` at ``stamp_s``: whether ``d`` lies where something else stood when the
         laser last saw that place (``stood_before``). Only a detection at least ``leg_travel_m`` from each
         earlier detection of the last ``leg_memory_s`` of the track and of its person's other leg
         (``partner``) is judged: nearer, the laser's returns there may be the person's own (a leg's
         footprint and a grid cell; a slow walker's swing leg lands a short stride beside where the other
         stood); a nearer one keeps the verdict of the arrival it follows. A new leg track has arrived nowhere
-        (its own body may have stood there unseen as a leg). Returns whether ``d`` was judged and found held
-        (the track re-locked onto that thing now)."""
+        (its own body may have stood there unseen as a leg)."""
         if self._stood_before is None:
-            return False
+            return
         travel = self.config.leg_travel_m
         own = lt.path + (partner.path if partner is not None else [])
         if all(math.hypot(d.x_m - x, d.y_m - y) >= travel for st, x, y in own if st < stamp_s):
             lt.arrived_held = bool(self._stood_before(d.x_m, d.y_m))
-            return lt.arrived_held
-        return False
 
     def _release(self, t: PersonTrack) -> None:
         t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]

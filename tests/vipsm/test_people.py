@@ -14,7 +14,7 @@ from vipsm.assignment import assign, assign_gated
 from vipsm.bodies import BodiesConfig
 from vipsm.imm import Imm, ImmConfig
 from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
-from vipsm.people import FIRST_ID, LegDetection, LegTrack, PeopleConfig, PeopleTracker, detect_legs
+from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, detect_legs
 from vipsm.types import Obstacle, Pose2D
 
 RNG_SEED = 29
@@ -614,28 +614,3 @@ def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
         assert (est._people is not None) == expect  # noqa: SLF001
         if not expect:
             assert e.people == ()
-
-
-def _hop_onto(stood_before) -> LegTrack:
-    """A leg-sized piece seen once, unseen for two scans, then 0.4 m on, where ``stood_before`` says whether
-    something stood before (cart_pusher: a leg track hopping between a cart's pieces). Returns its leg track."""
-    tr = PeopleTracker(PeopleConfig(), default_leg_model())
-    never_free = lambda x, y: False  # noqa: E731
-    tr.step(0.0, [LegDetection(2.0, -0.9, 0.6, 4, 5, occluded=True)], seen_free=never_free, stood_before=stood_before)
-    for k in (1, 2):
-        tr.step(0.1 * k, [], seen_free=never_free, stood_before=stood_before)
-    tr.step(0.3, [LegDetection(2.0, -0.5, 0.6, 4, 5, occluded=True)], seen_free=never_free, stood_before=stood_before)
-    (leg,) = tr.legs.values()
-    return leg
-
-
-def test_a_leg_track_that_relocked_onto_a_static_thing_takes_its_velocity() -> None:
-    """A leg track that took a detection where something already stood re-locked onto that thing
-    (``_judge_arrival``): it is that thing now, and its velocity is that thing's, zero, not the jump's
-    (cart_pusher: 0.46 m/s from a hop between the cart's pieces; adopted by the standing pusher as its
-    hidden leg, it was predicted to go on at that speed). A hop into a place where nothing stood is a
-    leg's travel: its velocity is kept."""
-    relocked = _hop_onto(lambda x, y: abs(y + 0.5) < 0.1)
-    assert relocked.arrived_held and relocked.vx_mps == 0.0 and relocked.vy_mps == 0.0
-    travelled = _hop_onto(lambda x, y: False)
-    assert not travelled.arrived_held and travelled.vy_mps > 0.5
