@@ -123,6 +123,8 @@ class Derived:
     leg_pair_max_m: float
     #: a person's radius (shoulders seen from above)
     person_radius_m: float
+    #: two legs of a walking person: centres at most this far apart across its line of walking
+    leg_across_max_m: float
     #: a camera interval is motion evidence for a segment only when, at the segment's range, it is no wider
     #: than this: the widest body plus the background it uncovers in the flow's baseline at the fastest
     #: speed a body moves. A wider one is not about this segment: the flow merged the passing body with the
@@ -141,6 +143,7 @@ class PersonKeys(Protocol):
     leg_radius_m: float
     leg_pair_max_m: float
     person_radius_m: float
+    leg_across_max_m: float
 
 
 @dataclass(frozen=True)
@@ -154,6 +157,9 @@ class PersonSize:
     leg_pair_max_m: float = 0.65
     #: a person's radius (shoulders seen from above)
     person_radius_m: float = 0.25
+    #: two legs of a walking person: centres at most this far apart across its line of walking (the feet
+    #: swing along it a hip's width apart, 0.1-0.2 m at the laser's height, plus each centre's few cm)
+    leg_across_max_m: float = 0.3
 
 
 def derive(bodies: BodiesConfig, people: PersonKeys, tracker: TrackerConfig, flow_baseline_s: float,
@@ -165,7 +171,7 @@ def derive(bodies: BodiesConfig, people: PersonKeys, tracker: TrackerConfig, flo
     if not own < people.leg_pair_max_m:
         raise ValueError(f"need max_leg_width_m / 2 + cell diagonal / 2 ({own:.3f} m) < people.leg_pair_max_m "
                          f"({people.leg_pair_max_m} m)")
-    return Derived(people.leg_radius_m, people.leg_pair_max_m, people.person_radius_m,
+    return Derived(people.leg_radius_m, people.leg_pair_max_m, people.person_radius_m, people.leg_across_max_m,
                    bodies.max_body_width_m + tracker.max_speed_mps * flow_baseline_s, own)
 
 
@@ -387,6 +393,9 @@ class KnownLeg:
     y_m: float
     reach_m: float
     person: int | None
+    #: the line of walking this leg moves along (a unit vector), None when it does not walk: a leg steps and
+    #: swings along its person's line of walking, a hip's width beside its other leg (``leg_across_max_m``)
+    line: tuple[float, float] | None = None
 
 
 def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
@@ -407,11 +416,15 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
     return out
 
 
-def _may_pair(a: KnownLeg | None, b: KnownLeg | None) -> bool:
-    """Two legs that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one person's: a
-    walking person who holds two leg tracks has both its legs, so its legs pair only with each other; the
-    other legs pair among themselves."""
-    return (None if a is None else a.person) == (None if b is None else b.person)
+def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, across_max_m: float) -> bool:
+    """Two legs ``(dx, dy)`` apart that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one
+    person's: a walking person who holds two leg tracks has both its legs, so its legs pair only with each
+    other; the other legs pair among themselves, and only within ``across_max_m`` across the line of walking
+    of either (the feet swing along it a hip's width apart; two walkers side by side have each leg 0.4 m
+    across from the other's same leg)."""
+    if (None if a is None else a.person) != (None if b is None else b.person):
+        return False
+    return all(k is None or k.line is None or abs(dx * k.line[1] - dy * k.line[0]) <= across_max_m for k in (a, b))
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
@@ -430,7 +443,8 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: l
     for d, i, j in pairs:
         if d > der.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
             continue
-        if not _may_pair(owner[i], owner[j]):
+        dx, dy = legs[j][1] - legs[i][1], legs[j][2] - legs[i][2]
+        if not _may_pair(owner[i], owner[j], dx, dy, der.leg_across_max_m):
             continue
         used |= {i, j}
         out.append((i, j))

@@ -606,8 +606,18 @@ class PeopleTracker:
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            out.append(KnownLeg(x, y, reach, walker.get(k)))
+            out.append(KnownLeg(x, y, reach, walker.get(k), self._walking_line(k, lt)))
         return out
+
+    def _walking_line(self, k: int, lt: LegTrack) -> tuple[float, float] | None:
+        """The line of walking leg track ``k`` moves along: its person's velocity while that is a walking
+        speed (``WALK_DIR_MPS``), else the leg's own (a leg steps and swings along its person's line)."""
+        for t in self.tracks:
+            if k in t.leg_ids:
+                line = _line((float(t.filt.mean[2]), float(t.filt.mean[3])))
+                if line is not None:
+                    return line
+        return _line((lt.vx_mps, lt.vy_mps))
 
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
@@ -664,6 +674,12 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _line(v: tuple[float, float]) -> tuple[float, float] | None:
+    """The unit vector along ``v`` when it is a walking speed (``WALK_DIR_MPS``), else None."""
+    speed = math.hypot(*v)
+    return (v[0] / speed, v[1] / speed) if speed >= WALK_DIR_MPS else None
 
 
 def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float, radius_m: float) -> list[int | None]:
