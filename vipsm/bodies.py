@@ -430,9 +430,11 @@ def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, acro
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
                ) -> list[tuple[int, int | None]]:
     """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture, never two legs that
-    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`). leg_tracker's model:
-    a person is two leg tracks whose association persists (two people walking side by side in step have
-    each leg 0.4 m from the other's same leg, nearer than their own other leg a stride away); the rest alone."""
+    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`): a walker's two leg
+    tracks pair only with each other (leg_tracker's model: a person is two leg tracks whose association
+    persists), and no two legs lie further apart across the line of walking of either than
+    ``leg_across_max_m`` (two people walking side by side in step have each leg 0.4 m across from the other's
+    same leg, nearer than their own other leg a stride away); the rest alone."""
     owner = _leg_people(legs, known or [])
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)

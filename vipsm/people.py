@@ -74,7 +74,7 @@ class PeopleConfig:
     #: ... and, while it walks, at most this far apart across its line of walking: the feet swing along
     #: it a hip's width apart (0.1-0.2 m at the laser's height) plus each centre's few cm of noise. Two
     #: people walking side by side, each seen by one leg, are two people, not one person's stride
-    leg_across_max_m: float = 0.3
+    leg_across_max_m: float = PersonSize.leg_across_max_m
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
     pair_sigma_m: float = 0.06
     leg_sigma_m: float = 0.15
