@@ -396,6 +396,8 @@ class KnownLeg:
     #: the line of walking this leg moves along (a unit vector), None when it does not walk: a leg steps and
     #: swings along its person's line of walking, a hip's width beside its other leg (``leg_across_max_m``)
     line: tuple[float, float] | None = None
+    #: how uncertain the line's direction is (one sigma, radians)
+    line_sigma_rad: float = 0.0
 
 
 def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
@@ -424,7 +426,16 @@ def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, acro
     across from the other's same leg)."""
     if (None if a is None else a.person) != (None if b is None else b.person):
         return False
-    return all(k is None or k.line is None or abs(dx * k.line[1] - dy * k.line[0]) <= across_max_m for k in (a, b))
+    return all(k is None or k.line is None or _across(dx, dy, k) <= across_max_m for k in (a, b))
+
+
+def _across(dx: float, dy: float, k: KnownLeg) -> float:
+    """How far ``(dx, dy)`` lies across ``k``'s line of walking beyond what the line's uncertainty allows: the
+    offset across, less two sigma of the direction times the offset along it (a walker turning or stepping
+    aside; the people stage's own bound, ``PeopleTracker._across_ok``)."""
+    assert k.line is not None
+    ux, uy = k.line
+    return abs(dx * uy - dy * ux) - 2.0 * k.line_sigma_rad * abs(dx * ux + dy * uy)
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None

@@ -606,18 +606,25 @@ class PeopleTracker:
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            out.append(KnownLeg(x, y, reach, walker.get(k), self._walking_line(k, lt)))
+            out.append(KnownLeg(x, y, reach, walker.get(k), *self._walking_line(k)))
         return out
 
-    def _walking_line(self, k: int, lt: LegTrack) -> tuple[float, float] | None:
-        """The line of walking leg track ``k`` moves along: its person's velocity while that is a walking
-        speed (``WALK_DIR_MPS``), else the leg's own (a leg steps and swings along its person's line)."""
+    def _walking_line(self, k: int) -> tuple[tuple[float, float] | None, float]:
+        """The line of walking leg track ``k`` moves along, and how uncertain its direction is (one sigma,
+        radians): its person's velocity while that is a walking speed (``WALK_DIR_MPS``), the sigma its
+        velocity's covariance gives across it over the speed (as :meth:`_across_ok` widens its bound); (None,
+        0) for a leg of no walking person (a single leg's velocity, a difference of two noisy detections,
+        gives no line)."""
         for t in self.tracks:
             if k in t.leg_ids:
-                line = _line((float(t.filt.mean[2]), float(t.filt.mean[3])))
-                if line is not None:
-                    return line
-        return _line((lt.vx_mps, lt.vy_mps))
+                v = t.filt.mean[2:4]
+                speed = float(math.hypot(*v))
+                if speed < WALK_DIR_MPS:
+                    return None, 0.0
+                side = np.array([-float(v[1]), float(v[0])]) / speed
+                sigma = math.sqrt(max(float(side @ t.filt.cov[2:4, 2:4] @ side), 0.0)) / speed
+                return (float(v[0]) / speed, float(v[1]) / speed), sigma
+        return None, 0.0
 
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
@@ -674,12 +681,6 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
-
-
-def _line(v: tuple[float, float]) -> tuple[float, float] | None:
-    """The unit vector along ``v`` when it is a walking speed (``WALK_DIR_MPS``), else None."""
-    speed = math.hypot(*v)
-    return (v[0] / speed, v[1] / speed) if speed >= WALK_DIR_MPS else None
 
 
 def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float, radius_m: float) -> list[int | None]:

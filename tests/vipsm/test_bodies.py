@@ -402,10 +402,10 @@ def test_two_legs_side_by_side_across_their_line_of_walking_are_two_walkers_not_
     world = box_room(8.0, 6.0, pillars=False)
     grid = _seen_empty(world)
 
-    def kinds(legs: list[tuple[float, float]], line: tuple[float, float] | None) -> list[str]:
+    def kinds(legs: list[tuple[float, float]], line: tuple[float, float] | None, sigma_rad: float = 0.0) -> list[str]:
         world.circles = [Circle(x, y, 0.06) for x, y in legs]
         scan = world.scan(ORIGIN)
-        known = [KnownLeg(x, y, 0.1, None, line) for x, y in legs]
+        known = [KnownLeg(x, y, 0.1, None, line, sigma_rad) for x, y in legs]
         return sorted(b.kind for b in extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG,
                                                      TrackerConfig(), known_legs=known))
 
@@ -418,6 +418,12 @@ def test_two_legs_side_by_side_across_their_line_of_walking_are_two_walkers_not_
     # a line 0.2 rad off (a young track's velocity) still keeps a walker's own legs one person
     tilted = (math.cos(0.2), math.sin(0.2))
     assert kinds(own, tilted) == ["person"]
+    # a stride along y judged against a line 0.6 rad off lies 0.34 m across it: two legs if the line were
+    # sure, one person when the line's direction is uncertain by 0.2 rad (the bound widens by two sigma
+    # times the offset along it); side by side (nothing along) the uncertainty changes nothing
+    stride, off = [(3.0, 0.4), (3.0, -0.2)], (math.sin(0.6), math.cos(0.6))
+    assert kinds(stride, off) == ["leg", "leg"] and kinds(stride, off, 0.2) == ["person"]
+    assert kinds(side_by_side, (1.0, 0.0), 0.2) == ["leg", "leg"]
 
 
 def test_the_people_stage_gives_each_walking_leg_its_line_of_walking() -> None:
