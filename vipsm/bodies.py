@@ -123,6 +123,8 @@ class Derived:
     leg_pair_max_m: float
     #: a person's radius (shoulders seen from above)
     person_radius_m: float
+    #: two legs of a walking person: centres at most this far apart across its line of walking
+    leg_across_max_m: float
     #: a camera interval is motion evidence for a segment only when, at the segment's range, it is no wider
     #: than this: the widest body plus the background it uncovers in the flow's baseline at the fastest
     #: speed a body moves. A wider one is not about this segment: the flow merged the passing body with the
@@ -141,6 +143,7 @@ class PersonKeys(Protocol):
     leg_radius_m: float
     leg_pair_max_m: float
     person_radius_m: float
+    leg_across_max_m: float
 
 
 @dataclass(frozen=True)
@@ -154,6 +157,9 @@ class PersonSize:
     leg_pair_max_m: float = 0.65
     #: a person's radius (shoulders seen from above)
     person_radius_m: float = 0.25
+    #: two legs of a walking person: centres at most this far apart across its line of walking (the feet
+    #: swing along it a hip's width apart, 0.1-0.2 m at the laser's height, plus each centre's few cm)
+    leg_across_max_m: float = 0.3
 
 
 def derive(bodies: BodiesConfig, people: PersonKeys, tracker: TrackerConfig, flow_baseline_s: float,
@@ -165,7 +171,7 @@ def derive(bodies: BodiesConfig, people: PersonKeys, tracker: TrackerConfig, flo
     if not own < people.leg_pair_max_m:
         raise ValueError(f"need max_leg_width_m / 2 + cell diagonal / 2 ({own:.3f} m) < people.leg_pair_max_m "
                          f"({people.leg_pair_max_m} m)")
-    return Derived(people.leg_radius_m, people.leg_pair_max_m, people.person_radius_m,
+    return Derived(people.leg_radius_m, people.leg_pair_max_m, people.person_radius_m, people.leg_across_max_m,
                    bodies.max_body_width_m + tracker.max_speed_mps * flow_baseline_s, own)
 
 
@@ -387,6 +393,11 @@ class KnownLeg:
     y_m: float
     reach_m: float
     person: int | None
+    #: the line of walking this leg moves along (a unit vector), None when it does not walk: a leg steps and
+    #: swings along its person's line of walking, a hip's width beside its other leg (``leg_across_max_m``)
+    line: tuple[float, float] | None = None
+    #: how uncertain the line's direction is (one sigma, radians)
+    line_sigma_rad: float = 0.0
 
 
 def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
@@ -407,19 +418,34 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
     return out
 
 
-def _may_pair(a: KnownLeg | None, b: KnownLeg | None) -> bool:
-    """Two legs that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one person's: a
-    walking person who holds two leg tracks has both its legs, so its legs pair only with each other; the
-    other legs pair among themselves."""
-    return (None if a is None else a.person) == (None if b is None else b.person)
+def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, across_max_m: float) -> bool:
+    """Two legs ``(dx, dy)`` apart that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one
+    person's: a walking person who holds two leg tracks has both its legs, so its legs pair only with each
+    other; the other legs pair among themselves, and only within ``across_max_m`` across the line of walking
+    of either, widened by the line's uncertainty (:func:`_across`; the feet swing along it a hip's width
+    apart; two walkers side by side have each leg 0.4 m across from the other's same leg)."""
+    if (None if a is None else a.person) != (None if b is None else b.person):
+        return False
+    return all(k is None or k.line is None or _across(dx, dy, k.line, k.line_sigma_rad) <= across_max_m
+               for k in (a, b))
+
+
+def _across(dx: float, dy: float, line: tuple[float, float], sigma_rad: float) -> float:
+    """How far ``(dx, dy)`` lies across the unit vector ``line`` beyond what its uncertainty (one sigma of its
+    direction, ``sigma_rad``) allows: the offset across, less two sigma times the offset along it (a walker
+    turning or stepping aside; the people stage's own bound, ``PeopleTracker._across_ok``)."""
+    ux, uy = line
+    return abs(dx * uy - dy * ux) - 2.0 * sigma_rad * abs(dx * ux + dy * uy)
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
                ) -> list[tuple[int, int | None]]:
     """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture, never two legs that
-    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`). leg_tracker's model:
-    a person is two leg tracks whose association persists (two people walking side by side in step have
-    each leg 0.4 m from the other's same leg, nearer than their own other leg a stride away); the rest alone."""
+    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`): a walker's two leg
+    tracks pair only with each other (leg_tracker's model: a person is two leg tracks whose association
+    persists), and no two legs lie further apart across the line of walking of either than
+    ``leg_across_max_m`` (two people walking side by side in step have each leg 0.4 m across from the other's
+    same leg, nearer than their own other leg a stride away); the rest alone."""
     owner = _leg_people(legs, known or [])
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
@@ -430,7 +456,8 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: l
     for d, i, j in pairs:
         if d > der.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
             continue
-        if not _may_pair(owner[i], owner[j]):
+        dx, dy = legs[j][1] - legs[i][1], legs[j][2] - legs[i][2]
+        if not _may_pair(owner[i], owner[j], dx, dy, der.leg_across_max_m):
             continue
         used |= {i, j}
         out.append((i, j))

@@ -74,7 +74,7 @@ class PeopleConfig:
     #: ... and, while it walks, at most this far apart across its line of walking: the feet swing along
     #: it a hip's width apart (0.1-0.2 m at the laser's height) plus each centre's few cm of noise. Two
     #: people walking side by side, each seen by one leg, are two people, not one person's stride
-    leg_across_max_m: float = 0.3
+    leg_across_max_m: float = PersonSize.leg_across_max_m
     #: position noise of a leg-pair midpoint (gait jitter) and of a lone leg (a hip's half-width)
     pair_sigma_m: float = 0.06
     leg_sigma_m: float = 0.15
@@ -606,8 +606,25 @@ class PeopleTracker:
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            out.append(KnownLeg(x, y, reach, walker.get(k)))
+            out.append(KnownLeg(x, y, reach, walker.get(k), *self._walking_line(k)))
         return out
+
+    def _walking_line(self, k: int) -> tuple[tuple[float, float] | None, float]:
+        """The line of walking leg track ``k`` moves along, and how uncertain its direction is (one sigma,
+        radians): its person's velocity while that is a walking speed (``WALK_DIR_MPS``), the sigma its
+        velocity's covariance gives across it over the speed (as :meth:`_across_ok` widens its bound); (None,
+        0) for a leg of no walking person (a single leg's velocity, a difference of two noisy detections,
+        gives no line)."""
+        for t in self.tracks:
+            if k in t.leg_ids:
+                v = t.filt.mean[2:4]
+                speed = float(math.hypot(*v))
+                if speed < WALK_DIR_MPS:
+                    return None, 0.0
+                side = np.array([-float(v[1]), float(v[0])]) / speed
+                sigma = math.sqrt(max(float(side @ t.filt.cov[2:4, 2:4] @ side), 0.0)) / speed
+                return (float(v[0]) / speed, float(v[1]) / speed), sigma
+        return None, 0.0
 
     # ------------------------------------------------------------------ output
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D

@@ -307,15 +307,16 @@ def test_the_derived_quantities_follow_the_keys_they_come_from() -> None:
     from vipsm.static_map import StaticMapConfig
 
     d = EstimatorConfig().bodies_derived
-    assert (d.leg_radius_m, d.leg_pair_max_m, d.person_radius_m) == (0.06, 0.65, 0.25)
+    assert (d.leg_radius_m, d.leg_pair_max_m, d.person_radius_m, d.leg_across_max_m) == (0.06, 0.65, 0.25, 0.3)
     assert d.camera_interval_max_m == pytest.approx(1.2 + 2.5 * 0.3)
     assert d.fixture_own_m == pytest.approx(0.125 + 0.05 * math.sqrt(2.0))
-    cfg = EstimatorConfig(people=PeopleConfig(leg_radius_m=0.05, leg_pair_max_m=0.5, person_radius_m=0.3),
+    cfg = EstimatorConfig(people=PeopleConfig(leg_radius_m=0.05, leg_pair_max_m=0.5, person_radius_m=0.3,
+                                              leg_across_max_m=0.25),
                           tracker=replace(TrackerConfig(), max_speed_mps=1.5), flow=FlowConfig(baseline_s=0.2),
                           bodies=BodiesConfig(max_body_width_m=1.0, max_leg_width_m=0.2),
                           static_map=StaticMapConfig(cell_m=0.2))
     d = cfg.bodies_derived
-    assert (d.leg_radius_m, d.leg_pair_max_m, d.person_radius_m) == (0.05, 0.5, 0.3)
+    assert (d.leg_radius_m, d.leg_pair_max_m, d.person_radius_m, d.leg_across_max_m) == (0.05, 0.5, 0.3, 0.25)
     assert d.camera_interval_max_m == pytest.approx(1.0 + 1.5 * 0.2)
     assert d.fixture_own_m == pytest.approx(0.1 + 0.1 * math.sqrt(2.0))
     assert BodiesConfig(max_gap_beams=0).neighbour_beams == 2 and CFG.neighbour_beams == 4
@@ -388,3 +389,56 @@ def test_two_walkers_side_by_side_in_step_each_get_a_pair_of_their_own_legs() ->
                      for b in plain)
     assert cross >= 6  # nearest-first alone: a pair between the walkers whenever the strides are long (8 of 40)
     assert own == 40 and alone_off == 0  # two pairs, each at its walker's pelvis, in each of the 20 scans
+
+
+def test_two_legs_side_by_side_across_their_line_of_walking_are_two_walkers_not_one_person() -> None:
+    """A leg steps and swings along its person's line of walking, a hip's width beside its other leg
+    (``people.leg_across_max_m``). Two legs 0.4 m apart side by side across the line both walk along (two
+    walkers in step, each seen by one leg, the other hidden) are two lone legs once the people stage's leg
+    tracks say they walk; with no line known (standing, or new legs) they are one person by distance. A
+    walker's own two legs, a stride apart along the line, stay one person."""
+    from vipsm.bodies import KnownLeg
+
+    world = box_room(8.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+
+    def kinds(legs: list[tuple[float, float]], line: tuple[float, float] | None, sigma_rad: float = 0.0) -> list[str]:
+        world.circles = [Circle(x, y, 0.06) for x, y in legs]
+        scan = world.scan(ORIGIN)
+        known = [KnownLeg(x, y, 0.1, None, line, sigma_rad) for x, y in legs]
+        return sorted(b.kind for b in extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG,
+                                                     TrackerConfig(), known_legs=known))
+
+    side_by_side = [(3.0, 0.3), (3.0, -0.1)]  # 0.4 m across a walk along x
+    assert kinds(side_by_side, None) == ["person"]  # nothing known: one standing person's stance
+    assert kinds(side_by_side, (1.0, 0.0)) == ["leg", "leg"]  # both walk along x: two walkers
+    assert kinds(side_by_side, (0.0, 1.0)) == ["person"]  # walking along y: a stride along the line
+    own = [(3.3, 0.18), (2.8, 0.02)]  # a stride along x, a hip's 0.16 m across
+    assert kinds(own, (1.0, 0.0)) == ["person"]
+    # a line 0.2 rad off (a young track's velocity) still keeps a walker's own legs one person
+    tilted = (math.cos(0.2), math.sin(0.2))
+    assert kinds(own, tilted) == ["person"]
+    # a stride along y judged against a line 0.6 rad off lies 0.34 m across it: two legs if the line were
+    # sure, one person when the line's direction is uncertain by 0.2 rad (the bound widens by two sigma
+    # times the offset along it); side by side (nothing along) the uncertainty changes nothing
+    stride, off = [(3.0, 0.4), (3.0, -0.2)], (math.sin(0.6), math.cos(0.6))
+    assert kinds(stride, off) == ["leg", "leg"] and kinds(stride, off, 0.2) == ["person"]
+    assert kinds(side_by_side, (1.0, 0.0), 0.2) == ["leg", "leg"]
+
+
+def test_the_people_stage_gives_each_walking_leg_its_line_of_walking() -> None:
+    """``PeopleTracker.known_legs``: a leg track of a walking person carries the person's line of walking,
+    a leg seen once carries none (no velocity yet)."""
+    from app.legmodel import default_leg_model
+    from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
+
+    people = PeopleTracker(PeopleConfig(), default_leg_model())
+    assert all(k.line is None for k in people.known_legs(0.0))
+    for k in range(12):
+        t = 0.1 * k
+        _, legs = _in_step(t)
+        people.step(t, [LegDetection(x, y, 0.9, 2 * i, 2 * i + 1) for i, (x, y) in enumerate(legs[:2])])
+        if k == 0:
+            assert [k.line for k in people.known_legs(0.1)] == [None, None]
+    lines = [k.line for k in people.known_legs(1.2)]
+    assert len(lines) == 2 and all(line is not None and line[0] > 0.95 for line in lines)  # along +x
