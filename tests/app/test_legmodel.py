@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -152,13 +153,19 @@ def _train_legs():
     return mod
 
 
-def test_training_copies_each_sample_farther_alike_and_keeps_its_source() -> None:
-    tl = _train_legs()
+def _leg_samples(tl: Any, ranges_m: tuple[float, ...], gap_m: float) -> Any:
+    """Training samples of one leg per scan at each of ``ranges_m`` (``_scan``'s layout, ``gap_m``)."""
     rng = np.random.default_rng(SEED)
     smp = tl.Samples()
-    for leg_range_m in (1.5, 3.0):
-        r, b = _scan(leg_range_m, 0.4, RECORDED_STEP_RAD, rng)
+    for leg_range_m in ranges_m:
+        r, b = _scan(leg_range_m, gap_m, RECORDED_STEP_RAD, rng)
         smp.add_scan(r, b, lambda pts, c=leg_range_m: abs(float(pts.mean(axis=0)[0]) - c) < 0.1)
+    return smp
+
+
+def test_training_copies_each_sample_farther_alike_and_keeps_its_source() -> None:
+    tl = _train_legs()
+    smp = _leg_samples(tl, (1.5, 3.0), 0.4)
     assert len(smp.rows) == 2
     x, src = tl.farther(smp, 4, np.random.default_rng(SEED))
     assert x.shape[1] == len(FEATURE_NAMES) and set(src.tolist()) <= {0, 1} and len(src) == len(x) >= 4
@@ -421,11 +428,7 @@ def test_training_reports_each_sample_as_a_urg_class_scanner_and_keeps_its_sourc
     tl = _train_legs()
     from app.legmodel import URG04LX_MAX_RANGE_M
 
-    rng = np.random.default_rng(SEED)
-    smp = tl.Samples()
-    for leg_range_m in (1.5, 3.0, 6.0):
-        r, b = _scan(leg_range_m, 0.5, RECORDED_STEP_RAD, rng)
-        smp.add_scan(r, b, lambda pts, c=leg_range_m: abs(float(pts.mean(axis=0)[0]) - c) < 0.1)
+    smp = _leg_samples(tl, (1.5, 3.0, 6.0), 0.5)
     assert len(smp.rows) == 3
     x, src = tl.urg_class(smp, 4, np.random.default_rng(SEED))
     assert x.shape[1] == len(FEATURE_NAMES) and set(src.tolist()) <= {0, 1} and len(src) == len(x) >= 4
