@@ -30,13 +30,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import ClassVar, Protocol
+from typing import ClassVar
 
 import numpy as np
 
 from .assignment import assign_gated
 from .flow import FlowConfig
 from .geometry import scan_points
+from .person import PersonKeys, PersonSize
 from .restore import BearingInterval, _beams_in
 from .seen_through import ScanMemory
 from .static_map import FreeSpaceGrid, StaticMapConfig
@@ -134,32 +135,6 @@ class Derived:
     #: leg of their mean, and a return's cell centre within half a cell's diagonal of it); a long-occupied
     #: cell further away, within ``leg_pair_max_m``, where this scan's beam no longer ends was another leg
     fixture_own_m: float
-
-
-class PersonKeys(Protocol):
-    """A person at the laser's height, as the people stage's keys give it (``vipsm.people.PeopleConfig``,
-    whose defaults are :class:`PersonSize`'s: one key for one physical quantity)."""
-
-    leg_radius_m: float
-    leg_pair_max_m: float
-    person_radius_m: float
-    leg_across_max_m: float
-
-
-@dataclass(frozen=True)
-class PersonSize:
-    """The defaults of :class:`PersonKeys` (``PeopleConfig`` takes its defaults from here, so that this
-    module need not import the people stage, which imports it)."""
-
-    #: a leg's radius at the laser's height
-    leg_radius_m: float = 0.06
-    #: two legs of one person: centres at most this far apart (stride at the laser's height)
-    leg_pair_max_m: float = 0.65
-    #: a person's radius (shoulders seen from above)
-    person_radius_m: float = 0.25
-    #: two legs of a walking person: centres at most this far apart across its line of walking (the feet
-    #: swing along it a hip's width apart, 0.1-0.2 m at the laser's height, plus each centre's few cm)
-    leg_across_max_m: float = 0.3
 
 
 def derive(bodies: BodiesConfig, people: PersonKeys, tracker: TrackerConfig, flow_baseline_s: float,

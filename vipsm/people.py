@@ -45,10 +45,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .assignment import assign_gated
-from .bodies import BodiesConfig, KnownLeg, PersonSize, segments
+from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
+from .person import PersonSize
 from .types import Obstacle, Person, Pose2D
 
 

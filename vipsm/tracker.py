@@ -37,10 +37,11 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 from numba import njit
 
+from .person import PersonSize
 from .types import Pose2D
 
 if TYPE_CHECKING:
-    from .bodies import PersonKeys
+    from .person import PersonKeys
 
 
 class PoseUncertainty(Protocol):
@@ -484,9 +485,7 @@ class Tracker:
                  person: PersonKeys | None = None) -> None:
         """``poses``: the relative error of two matched laser poses (:class:`vipsm.seen_through.ScanMemory`);
         None: detections are taken as placed without pose error. ``person``: a person's size, the people
-        stage's keys (``PeopleConfig``; None: their defaults, :class:`vipsm.bodies.PersonSize`)."""
-        from .bodies import PersonSize  # (the body stage imports this module)
-
+        stage's keys (``PeopleConfig``; None: their defaults, :class:`vipsm.person.PersonSize`)."""
         self.config = config or TrackerConfig()
         person = person or PersonSize()
         #: a younger track within a person's radius of an older one is the same body (``merge_m``, 0.25 m)

@@ -1,0 +1,37 @@
+"""A person at the laser's height: the sizes the body stage, the tracker and the people stage share.
+
+One key for one physical quantity: the people stage's config (``vipsm.people.PeopleConfig``) holds them
+and takes its defaults from :class:`PersonSize`; the body stage and the tracker read them through
+:class:`PersonKeys`. This module imports none of those stages, so each can import it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+
+class PersonKeys(Protocol):
+    """A person at the laser's height, as the people stage's keys give it (``vipsm.people.PeopleConfig``,
+    whose defaults are :class:`PersonSize`'s: one key for one physical quantity)."""
+
+    leg_radius_m: float
+    leg_pair_max_m: float
+    person_radius_m: float
+    leg_across_max_m: float
+
+
+@dataclass(frozen=True)
+class PersonSize:
+    """The defaults of :class:`PersonKeys` (``PeopleConfig`` takes its defaults from here, so that this
+    module need not import the people stage, which imports it)."""
+
+    #: a leg's radius at the laser's height
+    leg_radius_m: float = 0.06
+    #: two legs of one person: centres at most this far apart (stride at the laser's height)
+    leg_pair_max_m: float = 0.65
+    #: a person's radius (shoulders seen from above)
+    person_radius_m: float = 0.25
+    #: two legs of a walking person: centres at most this far apart across its line of walking (the feet
+    #: swing along it a hip's width apart, 0.1-0.2 m at the laser's height, plus each centre's few cm)
+    leg_across_max_m: float = 0.3
