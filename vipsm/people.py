@@ -367,14 +367,11 @@ class PeopleTracker:
         ``WALK_DIR_MPS``), or within ``leg_across_max_m`` across its line of walking, widened by how
         uncertain that line is (the velocity's sigma across it over the speed, times the legs' separation
         along it, two sigma: a walker turning or stepping aside)."""
-        v = t.filt.mean[2:4]
-        speed = float(math.hypot(*v))
-        if speed < WALK_DIR_MPS:
+        line = _line_of_walking(t)
+        if line is None:
             return True
-        ux, uy = float(v[0]) / speed, float(v[1]) / speed
+        (ux, uy), sigma_dir = line
         across, along = abs(dx * uy - dy * ux), abs(dx * ux + dy * uy)
-        side = np.array([-uy, ux])
-        sigma_dir = math.sqrt(max(float(side @ t.filt.cov[2:4, 2:4] @ side), 0.0)) / speed
         return across <= self.config.leg_across_max_m + 2.0 * along * sigma_dir
 
     def _free(self) -> list[LegTrack]:
@@ -618,13 +615,7 @@ class PeopleTracker:
         gives no line)."""
         for t in self.tracks:
             if k in t.leg_ids:
-                v = t.filt.mean[2:4]
-                speed = float(math.hypot(*v))
-                if speed < WALK_DIR_MPS:
-                    return None, 0.0
-                side = np.array([-float(v[1]), float(v[0])]) / speed
-                sigma = math.sqrt(max(float(side @ t.filt.cov[2:4, 2:4] @ side), 0.0)) / speed
-                return (float(v[0]) / speed, float(v[1]) / speed), sigma
+                return _line_of_walking(t) or (None, 0.0)
         return None, 0.0
 
     # ------------------------------------------------------------------ output
@@ -682,6 +673,18 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _line_of_walking(t: PersonTrack) -> tuple[tuple[float, float], float] | None:
+    """The walking person ``t``'s line of walking (a unit vector) and its direction's sigma (radians: the
+    velocity's sigma across the line over the speed); None below a walking speed (``WALK_DIR_MPS``)."""
+    v = t.filt.mean[2:4]
+    speed = float(math.hypot(*v))
+    if speed < WALK_DIR_MPS:
+        return None
+    ux, uy = float(v[0]) / speed, float(v[1]) / speed
+    side = np.array([-uy, ux])
+    return (ux, uy), math.sqrt(max(float(side @ t.filt.cov[2:4, 2:4] @ side), 0.0)) / speed
 
 
 def _explained(people: list[Person], bodies: tuple[Obstacle, ...], pair_m: float, radius_m: float) -> list[int | None]:
