@@ -635,9 +635,9 @@ class PeopleTracker:
             return ()
         out = []
         tracks = {t.track_id: t for t in self.tracks}
-        moving = [p for p in people if p.moving and p.legs]
-        for p, k in zip(moving, _explained(moving, others, c.leg_pair_max_m, c.person_radius_m), strict=True):
-            if k is not None:
+        explained = {pid for pid, _ in self.bodies_standing_for(people, others).values()}
+        for p in people:
+            if not (p.moving and p.legs) or p.track_id in explained:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
