@@ -37,7 +37,7 @@ import numpy as np
 from .assignment import assign_gated
 from .flow import FlowConfig
 from .geometry import scan_points
-from .person import PersonKeys, PersonSize
+from .person import PersonKeys, PersonSize, across_beyond_m
 from .restore import BearingInterval, _beams_in
 from .seen_through import ScanMemory
 from .static_map import FreeSpaceGrid, StaticMapConfig
@@ -397,20 +397,12 @@ def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, acro
     """Two legs ``(dx, dy)`` apart that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one
     person's: a walking person who holds two leg tracks has both its legs, so its legs pair only with each
     other; the other legs pair among themselves, and only within ``across_max_m`` across the line of walking
-    of either, widened by the line's uncertainty (:func:`_across`; the feet swing along it a hip's width
-    apart; two walkers side by side have each leg 0.4 m across from the other's same leg)."""
+    of either, widened by the line's uncertainty (:func:`vipsm.person.across_beyond_m`; the feet swing along
+    it a hip's width apart; two walkers side by side have each leg 0.4 m across from the other's same leg)."""
     if (None if a is None else a.person) != (None if b is None else b.person):
         return False
-    return all(k is None or k.line is None or _across(dx, dy, k.line, k.line_sigma_rad) <= across_max_m
+    return all(k is None or k.line is None or across_beyond_m(dx, dy, k.line, k.line_sigma_rad) <= across_max_m
                for k in (a, b))
-
-
-def _across(dx: float, dy: float, line: tuple[float, float], sigma_rad: float) -> float:
-    """How far ``(dx, dy)`` lies across the unit vector ``line`` beyond what its uncertainty (one sigma of its
-    direction, ``sigma_rad``) allows: the offset across, less two sigma times the offset along it (a walker
-    turning or stepping aside; the people stage's own bound, ``PeopleTracker._across_ok``)."""
-    ux, uy = line
-    return abs(dx * uy - dy * ux) - 2.0 * sigma_rad * abs(dx * ux + dy * uy)
 
 
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None

@@ -49,7 +49,7 @@ from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
-from .person import PersonSize
+from .person import PersonSize, across_beyond_m
 from .types import Obstacle, Person, Pose2D
 
 
@@ -370,9 +370,7 @@ class PeopleTracker:
         line = _line_of_walking(t)
         if line is None:
             return True
-        (ux, uy), sigma_dir = line
-        across, along = abs(dx * uy - dy * ux), abs(dx * ux + dy * uy)
-        return across <= self.config.leg_across_max_m + 2.0 * along * sigma_dir
+        return across_beyond_m(dx, dy, *line) <= self.config.leg_across_max_m
 
     def _free(self) -> list[LegTrack]:
         """Leg tracks seen this cycle that belong to nobody."""

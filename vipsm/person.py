@@ -35,3 +35,13 @@ class PersonSize:
     #: two legs of a walking person: centres at most this far apart across its line of walking (the feet
     #: swing along it a hip's width apart, 0.1-0.2 m at the laser's height, plus each centre's few cm)
     leg_across_max_m: float = 0.3
+
+
+def across_beyond_m(dx: float, dy: float, line: tuple[float, float], sigma_rad: float) -> float:
+    """How far ``(dx, dy)`` lies across the unit vector ``line`` (a walker's line of walking) beyond what its
+    uncertainty (one sigma of its direction, ``sigma_rad``) allows: the offset across, less two sigma times
+    the offset along it (a walker turning or stepping aside). Two legs of one walker lie within
+    ``PersonKeys.leg_across_max_m`` of its line by this measure (the body stage's pairing and the people
+    stage's split judge alike)."""
+    ux, uy = line
+    return abs(dx * uy - dy * ux) - 2.0 * sigma_rad * abs(dx * ux + dy * uy)
