@@ -20,8 +20,12 @@ leg_tracker scans in ``../shared/data/real_people_laser`` (PROVENANCE.md there),
   infinitely far) less ``BACKGROUND_MARGIN_M`` (a report at or behind the farthest surface that beam
   usually sees: a wall, not a person in front of it; a report outside the field of view or on beams the
   robot itself blocks, nearer than ``SELF_M``, is out of view, counted apart); tracks that never move:
-  reported tracks whose reports all lie within ``STILL_TRACK_M`` of their mean. In a labelled scan a
-  report within 0.5 m of a labelled leg is the person, counted in neither.
+  reported tracks whose reports all lie within ``STILL_TRACK_M`` of their mean *and* whose place the laser
+  saw unchanged (:func:`place_change_m`: nothing arrived there or left from ``PLACE_WINDOW_S`` before the
+  first report to as long after the last). A walker reported only for a few cycles has reports close
+  together too, but the laser saw it come or go; judged by its reports alone it would count as still
+  (``still_tracks_by_reports_per_min``, also given). In a labelled scan a report within 0.5 m of a
+  labelled leg is the person, counted in neither.
 * **The drive** (``negative_2.bag``, nobody present, no odometry): every report is false (per minute);
   the matcher's path is compared with an independent scan-to-map registration of the same scans by
   ``kiss-icp`` (run here only, never in the product's loop).
@@ -59,6 +63,14 @@ FAR_M = 1.0
 BACKGROUND_PERCENTILE = 95.0
 BACKGROUND_MARGIN_M = 0.3
 STILL_TRACK_M = 0.3
+#: the place of a track whose reports lie close together, as the laser saw it: the nearest return on the
+#: beams within a person's radius (``PLACE_RADIUS_M``) of the reports' mean, from ``PLACE_WINDOW_S`` before
+#: the first report to as long after the last. A change of more than ``PLACE_CHANGE_M`` (a leg's width: the
+#: people stage's ``leg_travel_m``) means something came or left there: the track was on a moving thing.
+#: A chair stays put to the range noise, a standing person's sway moves its nearest return a few cm
+PLACE_RADIUS_M = 0.25
+PLACE_WINDOW_S = 1.0
+PLACE_CHANGE_M = 0.2
 #: a beam that returns nearer than this in ``BACKGROUND_PERCENTILE`` percent of the scans sees the robot that
 #: carries the laser (its frame, a mount): what lies behind is never seen there
 SELF_M = 0.5
@@ -314,14 +326,16 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
     a report within ``max(RECALL_RADII_M)`` of a labelled leg is the labelled person, neither a background
     report nor part of a still track. A report at a bearing the laser never sees past (outside its field of
     view, or on beams its own robot blocks: background nearer than ``SELF_M``) is out of view: a track
-    coasting where the laser cannot look is judged neither on nor off the background, and counted apart."""
+    coasting where the laser cannot look is judged neither on nor off the background, and counted apart.
+    A still track: its reports lie within ``STILL_TRACK_M`` of their mean and the laser saw its place
+    unchanged (:func:`place_change_m` at most ``PLACE_CHANGE_M``)."""
     assert run.bearings is not None
     stack = np.array(run.ranges)
     bg = np.percentile(np.where(np.isfinite(stack), stack, OPEN_SPACE_M), BACKGROUND_PERCENTILE, axis=0)
     b = run.bearings
     half_beam = 0.5 * float(np.median(np.diff(b))) if b.size > 1 else 0.0
     on_bg = unseen = 0
-    tracks: dict[int, list[tuple[float, float]]] = {}
+    tracks: dict[int, list[tuple[float, float, float]]] = {}
     on_person: set[int] = set()
     for c in run.cycles:
         legs = _labelled_legs(labels, c.stamp_s)
@@ -329,22 +343,41 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
             if legs is not None and float(np.hypot(*(legs - (x, y)).T).min()) <= max(RECALL_RADII_M):
                 on_person.add(tid)
                 continue
-            tracks.setdefault(tid, []).append((x, y))
+            tracks.setdefault(tid, []).append((c.stamp_s, x, y))
             bearing = math.atan2(y, x)
             i = int(np.clip(np.searchsorted(b, bearing), 0, b.size - 1))
             if not b[0] - half_beam <= bearing <= b[-1] + half_beam or bg[i] < SELF_M:
                 unseen += 1
             elif math.hypot(x, y) >= bg[i] - BACKGROUND_MARGIN_M:
                 on_bg += 1
-    still = sum(1 for tid, p in tracks.items() if tid not in on_person
-                and np.hypot(*(np.array(p) - np.mean(p, axis=0)).T).max() <= STILL_TRACK_M)
+    close = [np.array(p) for tid, p in tracks.items() if tid not in on_person
+             and np.hypot(*(np.array(p)[:, 1:] - np.mean(np.array(p)[:, 1:], axis=0)).T).max() <= STILL_TRACK_M]
+    still = sum(1 for p in close if place_change_m(run, p[:, 0].min(), p[:, 0].max(), p[:, 1:].mean(axis=0))
+                <= PLACE_CHANGE_M)
     m = run.minutes
     return {
         "background_reports_per_min": round(on_bg / m, 1) if m > 0 else None,
         "out_of_view_reports_per_min": round(unseen / m, 1) if m > 0 else None,
         "still_tracks_per_min": round(still / m, 2) if m > 0 else None,
+        "still_tracks_by_reports_per_min": round(len(close) / m, 2) if m > 0 else None,
         "tracks": len(tracks.keys() | on_person),
     }
+
+
+def place_change_m(run: Run, first_s: float, last_s: float, xy: np.ndarray) -> float:
+    """How much the laser's view of a place changed while a track was reported there: over the scans from
+    ``PLACE_WINDOW_S`` before ``first_s`` to as long after ``last_s``, the spread (largest less smallest) of
+    the nearest return on the beams within ``PLACE_RADIUS_M`` of ``xy`` (laser frame). A scan with no
+    return there sees open space (``OPEN_SPACE_M``): a thing that came into open space changed it fully."""
+    assert run.bearings is not None
+    r = float(np.hypot(*xy))
+    half = math.pi if r <= PLACE_RADIUS_M else math.asin(PLACE_RADIUS_M / r)
+    off = np.angle(np.exp(1j * (run.bearings - math.atan2(xy[1], xy[0]))))
+    beams = np.abs(off) <= half
+    nearest = [float(np.min(np.where(np.isfinite(rr[beams]), rr[beams], OPEN_SPACE_M), initial=OPEN_SPACE_M))
+               for c, rr in zip(run.cycles, run.ranges, strict=True)
+               if first_s - PLACE_WINDOW_S <= c.stamp_s <= last_s + PLACE_WINDOW_S]
+    return max(nearest) - min(nearest) if nearest else 0.0
 
 
 def _labelled_legs(labels: list[tuple[float, np.ndarray]] | None, stamp_s: float) -> np.ndarray | None:

@@ -21,6 +21,7 @@ from app.evaluation.real_data import (
     path_comparison,
     person_centre,
     person_speeds,
+    place_change_m,
     refusal_metrics,
     speed_class,
 )
@@ -85,6 +86,33 @@ def test_background_reports_and_still_tracks() -> None:
     assert m["still_tracks_per_min"] == pytest.approx(10.0) and m["tracks"] == 2
 
 
+def test_a_walker_reported_briefly_is_no_still_track_a_chair_is() -> None:
+    """Reports close together are a still track only where the laser saw the place unchanged: a walker
+    reported for three cycles while it crossed (its reports within 0.3 m) arrived in front of the wall,
+    so the place changed; a chair reported as long stood there all the time."""
+    b = np.linspace(-1.0, 1.0, 201)
+    ranges, cycles = [], []
+    for i in range(60):
+        r = np.full(201, 4.0)  # a wall at 4 m
+        r[40:46] = 2.0  # a chair at 2 m, bearing about -0.57 rad, always there
+        walker_beam = 100 + (i - 30) * 3  # a walker crossing at 2 m, in view from cycle 10 to 50
+        if 10 <= i <= 50:
+            r[max(walker_beam - 3, 0):walker_beam + 3] = 2.0
+        ranges.append(r)
+        reports = []
+        if 29 <= i <= 31:  # reported only as it passes bearing 0, 0.12 m a cycle
+            reports.append((1, 2.0, 0.06 * (i - 30)))
+        if 29 <= i <= 31:
+            reports.append((2, 2.0 * math.cos(b[43]), 2.0 * math.sin(b[43])))
+        cycles.append(Cycle(i * 0.1, (0.0, 0.0, 0.0), reports, False, None))
+    run = Run("/scan", cycles, ranges, b)
+    assert place_change_m(run, 2.9, 3.1, np.array([2.0, 0.0])) == pytest.approx(2.0)
+    assert place_change_m(run, 2.9, 3.1, np.array([2.0 * math.cos(b[43]), 2.0 * math.sin(b[43])])) == 0.0
+    m = background_metrics(run)
+    assert m["still_tracks_by_reports_per_min"] == pytest.approx(2 / run.minutes, rel=1e-3)  # by the reports
+    assert m["still_tracks_per_min"] == pytest.approx(1 / run.minutes, rel=1e-3)  # the chair only
+
+
 def test_a_report_where_the_laser_cannot_look_is_out_of_view_not_background() -> None:
     """Beams the robot's own frame blocks (0.3 m, every scan) and bearings outside the field of view see
     nothing behind: a track coasting there is counted apart, not as on the background."""
@@ -122,7 +150,9 @@ def test_a_walker_in_open_space_and_a_labelled_person_are_not_background() -> No
     assert m["still_tracks_per_min"] == pytest.approx(60 / 5.9, rel=1e-3) and m["tracks"] == 2  # only track 2
     unlabelled = background_metrics(Run("/scan", cycles, ranges, b))
     assert unlabelled["background_reports_per_min"] == 0.0
-    assert unlabelled["still_tracks_per_min"] == pytest.approx(120 / 5.9, rel=1e-3)
+    # unlabelled, the walker's reports stand still too, but the laser saw it come and go on beam 50
+    assert unlabelled["still_tracks_by_reports_per_min"] == pytest.approx(120 / 5.9, rel=1e-3)
+    assert unlabelled["still_tracks_per_min"] == pytest.approx(60 / 5.9, rel=1e-3)
 
 
 def test_refusals_and_path_comparison() -> None:
