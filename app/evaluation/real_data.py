@@ -28,7 +28,11 @@ leg_tracker scans in ``../shared/data/real_people_laser`` (PROVENANCE.md there),
   labelled leg is the person, counted in neither.
 * **The drive** (``negative_2.bag``, nobody present, no odometry): every report is false (per minute);
   the matcher's path is compared with an independent scan-to-map registration of the same scans by
-  ``kiss-icp`` (run here only, never in the product's loop).
+  ``kiss-icp`` (run here only, never in the product's loop), as recorded (``kiss_icp``) and configured for
+  these scans (``kiss_icp_configured``: the robot's reach left out, each sweep de-skewed); each path
+  source's three lasers against each other after their fitted mounts (one rigid robot:
+  ``laser_agreement``); every path's end against the loop closure (the last scans matched directly to the
+  first: the drive ends where it began, ``loop_closure``).
 * Every recording: the share of cycles the matcher refused (odometry fallback) and why.
 
 "Report": an entry of ``Estimate.obstacles`` (the estimate has no other list of bodies).
@@ -86,6 +90,18 @@ PAIR_M = 0.6
 ONSET_BUDGET_S = 0.3
 #: kiss-icp against the matcher: the matcher "lost" once their positions differ by this much
 LOST_M = 0.5
+#: the configured reference (``kiss_icp_configured``) registers only returns beyond this: the robot's own parts
+#: (frame, mounts) lie within it, as the estimator's ``self_returns_max_range_m`` says of any robot; seen
+#: through the whole drive they move with the robot and pull a registration without a model of them
+#: towards standing still (the drive's lasers see them at 0.12-0.73 m)
+ROBOT_REACH_M = EstimatorConfig().self_returns_max_range_m
+#: the lasers' agreement (rigid mounts): poses interpolated to this common time step, the mount fitted from
+#: the relative motions over ``MOUNT_LAG_S`` (short enough that a drift builds little within one)
+AGREE_STEP_S = 0.05
+MOUNT_LAG_S = 2.0
+#: the drive ends where it began: each of its last ``LOOP_SCANS`` scans matched directly to each of its first
+#: ones (``loop_closure``) measures where the laser truly ended, with no drift in it
+LOOP_SCANS = 3
 
 
 @dataclass(frozen=True)
@@ -127,6 +143,8 @@ class Run:
     ms_per_cycle: float = 0.0
     #: the bag ended in damage part-way: why ("" = read whole)
     truncation: str = ""
+    #: the first scan's ``Scan.beam_dt_s`` (the sweep's time per beam; 0 if the data does not say)
+    beam_dt_s: float = 0.0
 
     @property
     def minutes(self) -> float:
@@ -172,6 +190,7 @@ def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
         run.ranges.append(bc.scan.ranges_m)
         if run.bearings is None:
             run.bearings = bc.scan.bearings_rad
+            run.beam_dt_s = float(bc.scan.beam_dt_s)
     run.ms_per_cycle = 1e3 * (time.perf_counter() - t0) / max(len(run.cycles), 1)
     run.sensor = read.sensor.as_dict() if read.sensor is not None else None
     run.truncation = read.reason if read.truncated else ""
@@ -406,8 +425,13 @@ def refusal_metrics(run: Run) -> dict[str, Any]:
             "refusal_reasons": {str(k): v for k, v in sorted(reasons.items(), key=lambda kv: -kv[1])}}
 
 
-def kiss_icp_path(run: Run) -> np.ndarray:
-    """(n, 3) laser poses (x, y, yaw) of kiss-icp's scan-to-map registration of the same scans."""
+def kiss_icp_path(run: Run, min_range_m: float = 0.1, deskew: bool = False) -> np.ndarray:
+    """(n, 3) laser poses (x, y, yaw) of kiss-icp's scan-to-map registration of the same scans.
+
+    ``min_range_m``: nearer returns are not registered (``ROBOT_REACH_M`` leaves the robot's own parts out);
+    ``deskew``: each return is moved to the laser's pose at the stamp by kiss-icp's own last motion over
+    the beam's time in the sweep (``Scan.beam_dt_s``; kiss-icp's built-in de-skew assumes a sweep that
+    spans the whole interval between scans, these take 50 of 133 ms)."""
     from kiss_icp.config import KISSConfig
     from kiss_icp.kiss_icp import KissICP
 
@@ -415,20 +439,42 @@ def kiss_icp_path(run: Run) -> np.ndarray:
     cfg = KISSConfig()
     cfg.data.deskew = False
     cfg.data.max_range = 30.0
-    cfg.data.min_range = 0.1
+    cfg.data.min_range = min_range_m
     cfg.mapping.voxel_size = 0.05  # indoor rooms, 2-D: a 5 cm map
     cfg.adaptive_threshold.initial_threshold = 0.5
     cfg.registration.max_num_threads = 1
     icp = KissICP(cfg)
     c, s = np.cos(run.bearings), np.sin(run.bearings)
-    poses = []
-    for r in run.ranges:
+    tau_s = np.arange(run.bearings.size) * run.beam_dt_s
+    poses: list[tuple[float, float, float]] = []
+    for k, r in enumerate(run.ranges):
         ok = np.isfinite(r)
-        pts = np.stack([r[ok] * c[ok], r[ok] * s[ok], np.zeros(int(ok.sum()))], axis=1).astype(np.float64)
+        x, y = r * c, r * s
+        if deskew and k >= 2:
+            x, y = _moved_by_twist(x, y, tau_s, _twist(poses[-2], poses[-1],
+                                                       run.cycles[k - 1].stamp_s - run.cycles[k - 2].stamp_s))
+        pts = np.stack([x[ok], y[ok], np.zeros(int(ok.sum()))], axis=1).astype(np.float64)
         icp.register_frame(pts, np.zeros(pts.shape[0]))
         T = icp.last_pose
-        poses.append((T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])))
+        poses.append((float(T[0, 3]), float(T[1, 3]), math.atan2(T[1, 0], T[0, 0])))
     return np.array(poses).reshape(-1, 3)
+
+
+def _twist(a: tuple[float, float, float], b: tuple[float, float, float], dt_s: float) -> np.ndarray:
+    """Body-frame velocity (vx, vy, w) that moved pose ``a`` to ``b`` in ``dt_s`` (0 for no time)."""
+    if not dt_s > 0:
+        return np.zeros(3)
+    ca, sa = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    dth = (b[2] - a[2] + math.pi) % (2 * math.pi) - math.pi
+    return np.array([ca * dx + sa * dy, -sa * dx + ca * dy, dth]) / dt_s
+
+
+def _moved_by_twist(x: np.ndarray, y: np.ndarray, tau_s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Returns seen at ``tau_s`` after the stamp, in the laser's frame at the stamp (first order in the sweep)."""
+    th = v[2] * tau_s
+    ct, st = np.cos(th), np.sin(th)
+    return ct * x - st * y + v[0] * tau_s, st * x + ct * y + v[1] * tau_s
 
 
 def path_comparison(run: Run, ref: np.ndarray) -> dict[str, Any]:
@@ -465,6 +511,132 @@ def end_to_start_m(path: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------------------------------------
+# the drive's lasers against each other: one robot, rigid mounts
+
+#: per laser (topic): the stamps and the (n, 3) poses of one path source
+LaserPaths = dict[str, tuple[np.ndarray, np.ndarray]]
+
+
+def _relative(p: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Poses ``p[j]`` in the frames of poses ``p[i]`` ((k, 3) each)."""
+    c, s = np.cos(p[i, 2]), np.sin(p[i, 2])
+    dx, dy = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, p[j, 2] - p[i, 2]], axis=1)
+
+
+def fit_mount(pa: np.ndarray, pb: np.ndarray, lag: int) -> tuple[float, float, float]:
+    """Laser b's mount in laser a's frame (phi, x, y) from two paths of one rigid robot at common times
+    ((n, 3), headings unwrapped): each relative motion over ``lag`` samples satisfies A X = X B, whose
+    translation part t_A = R_X t_B + (I - R_B) p is linear in (cos phi, sin phi, p) (2-D hand-eye
+    calibration, least squares); the rotation is then normalised and p solved again with it."""
+    i = np.arange(max(pa.shape[0] - lag, 0))
+    a, b = _relative(pa, i, i + lag), _relative(pb, i, i + lag)
+    if a.shape[0] < 2:
+        raise ValueError(f"too few poses ({pa.shape[0]}) to fit a mount over {lag} samples")
+    cb, sb = np.cos(b[:, 2]), np.sin(b[:, 2])
+    one = np.ones_like(cb)
+    m = np.concatenate([np.stack([b[:, 0], -b[:, 1], one - cb, sb], axis=1),
+                        np.stack([b[:, 1], b[:, 0], -sb, one - cb], axis=1)])
+    rhs = np.concatenate([a[:, 0], a[:, 1]])
+    c, s = np.linalg.lstsq(m, rhs, rcond=None)[0][:2]
+    phi = math.atan2(s, c)
+    rot = np.concatenate([math.cos(phi) * b[:, 0] - math.sin(phi) * b[:, 1],
+                          math.sin(phi) * b[:, 0] + math.cos(phi) * b[:, 1]])
+    px, py = np.linalg.lstsq(m[:, 2:], rhs - rot, rcond=None)[0]
+    return phi, float(px), float(py)
+
+
+def as_mounted(pb: np.ndarray, mount: tuple[float, float, float]) -> np.ndarray:
+    """Laser b's path (from its first pose) as the path of the laser at a, b being at ``mount`` in a's frame:
+    X Q_b X^-1 (both start at the identity)."""
+    phi, px, py = mount
+    q = _relative(pb, np.zeros(pb.shape[0], dtype=int), np.arange(pb.shape[0]))
+    c, s, cb, sb = math.cos(phi), math.sin(phi), np.cos(q[:, 2]), np.sin(q[:, 2])
+    return np.stack([c * q[:, 0] - s * q[:, 1] + (1 - cb) * px + sb * py,
+                     s * q[:, 0] + c * q[:, 1] - sb * px + (1 - cb) * py, q[:, 2]], axis=1)
+
+
+def laser_agreement(paths: LaserPaths) -> dict[str, dict[str, float]]:
+    """How far each laser's path leaves the other lasers' on one rigid robot: the paths (stamps, (n, 3)
+    poses) interpolated to common times, each other laser's mapped onto this one's mount (fitted from
+    the two paths, ``fit_mount``) and averaged; the largest distance from that mean and the final heading
+    difference. Every registration of the three lasers' scans should agree with itself this way, whatever
+    the mounts; a laser that leaves the other two is the one that errs."""
+    if len(paths) < 2:
+        return {}
+    t0 = max(t[0] for t, _ in paths.values())
+    t1 = min(t[-1] for t, _ in paths.values())
+    times = np.arange(t0, t1, AGREE_STEP_S)
+    lag = round(MOUNT_LAG_S / AGREE_STEP_S)
+    if times.size < lag + 2:
+        return {}
+    common = {k: np.stack([np.interp(times, t, p[:, 0]), np.interp(times, t, p[:, 1]),
+                           np.interp(times, t, np.unwrap(p[:, 2]))], axis=1) for k, (t, p) in paths.items()}
+    out = {}
+    for a, pa in common.items():
+        others = np.mean([as_mounted(pb, fit_mount(pa, pb, lag)) for b, pb in common.items() if b != a], axis=0)
+        own = as_mounted(pa, (0.0, 0.0, 0.0))
+        off = np.hypot(own[:, 0] - others[:, 0], own[:, 1] - others[:, 1])
+        out[a] = {"max_offset_m": round(float(off.max()), 3),
+                  "final_heading_deg": round(math.degrees(float(own[-1, 2] - others[-1, 2])), 2)}
+    return out
+
+
+def icp_pose(ref_xy: np.ndarray, cur_xy: np.ndarray, iterations: int = 100, trim: float = 0.8,
+             gate_m: float = 0.5) -> np.ndarray:
+    """Pose (x, y, yaw) of the points ``cur_xy`` ((m, 2)) in the frame of ``ref_xy`` ((k, 2)), from none:
+    point-to-point ICP, each step's pairs the nearest within ``gate_m`` and within the ``trim`` quantile of
+    the distances, solved in closed form (a check of the loop, written for the suite: no product code)."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(ref_xy)
+    x = y = th = 0.0
+    for _ in range(iterations):
+        c, s = math.cos(th), math.sin(th)
+        q = cur_xy @ np.array([[c, s], [-s, c]]) + (x, y)
+        d, j = tree.query(q)
+        keep = (d <= np.quantile(d, trim)) & (d < gate_m)
+        if keep.sum() < 3:
+            break
+        a, b = q[keep], ref_xy[j[keep]]
+        ma, mb = a.mean(axis=0), b.mean(axis=0)
+        h = (a - ma).T @ (b - mb)
+        turn = math.atan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+        rot = np.array([[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]])
+        t = mb - rot @ ma
+        x, y = rot @ (x, y) + t
+        th += turn
+        if abs(turn) < 1e-9 and math.hypot(*t) < 1e-9:
+            break
+    return np.array([x, y, th])
+
+
+def loop_closure(run: Run, min_range_m: float = ROBOT_REACH_M) -> np.ndarray | None:
+    """Where the laser truly ended, in its first scan's frame: each of the last ``LOOP_SCANS`` scans matched
+    by ``icp_pose`` to each of the first (returns beyond ``min_range_m``: not the robot's own parts), the
+    median pose. For a drive that ends where it began (None for fewer than 2 ``LOOP_SCANS`` scans)."""
+    n = len(run.ranges)
+    if n < 2 * LOOP_SCANS or run.bearings is None:
+        return None
+    c, s = np.cos(run.bearings), np.sin(run.bearings)
+
+    def xy(k: int) -> np.ndarray:
+        r = run.ranges[k]
+        ok = np.isfinite(r) & (r > min_range_m)
+        return np.stack([r[ok] * c[ok], r[ok] * s[ok]], axis=1)
+
+    poses = [icp_pose(xy(a), xy(b)) for a in range(LOOP_SCANS) for b in range(n - LOOP_SCANS, n)]
+    return np.median(np.array(poses), axis=0)
+
+
+def end_vs_loop(path: np.ndarray, loop: np.ndarray) -> dict[str, float]:
+    """A path's last pose against the loop closure's (both in the first scan's frame)."""
+    dth = (path[-1, 2] - loop[2] + math.pi) % (2 * math.pi) - math.pi
+    return {"end_vs_loop_closure_m": round(float(math.hypot(*(path[-1, :2] - loop[:2]))), 3),
+            "end_heading_vs_loop_closure_deg": round(math.degrees(dth), 2)}
+
+
+# ---------------------------------------------------------------------------------------------
 # the suite
 
 
@@ -474,6 +646,8 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
     topics = scan_topics(bag)
     out = []
     headings: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # kiss-icp's heading per laser (the drive)
+    headings_conf: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # the same of the configured reference
+    paths: dict[str, LaserPaths] = {}  # per path source, per laser: stamps, poses
     for topic in topics if rec.kind == "drive" else topics[:1]:
         run = run_estimator(bag, topic, max_scans)
         res: dict[str, Any] = {"recording": rec.name, "topic": topic, "kind": rec.kind, "scans": len(run.cycles),
@@ -490,10 +664,45 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
             pr = _people_run(run, moving)
             res[key] = {**report_counts(pr), **_report_metrics(pr, rec, labels)}
         if rec.kind == "drive":
-            res["kiss_icp"] = _kiss(run, headings)
+            res["kiss_icp"] = _kiss(run, headings, paths.setdefault("kiss_icp", {}))
+            res["kiss_icp_configured"] = _kiss(run, headings_conf, paths.setdefault("kiss_icp_configured", {}),
+                                               min_range_m=ROBOT_REACH_M, deskew=True)
+            paths.setdefault("matcher", {})[topic] = (np.array([c.stamp_s for c in run.cycles]),
+                                                      np.array([c.pose for c in run.cycles]).reshape(-1, 3))
+            if max_scans is None or len(run.cycles) < max_scans:  # the whole drive: it ends where it began
+                _loop_figures(res, run, paths)
         out.append(res)
     _heading_agreement(out, headings)
+    _heading_agreement(out, headings_conf, "kiss_icp_configured")
+    _lasers_agreement(out, paths)
     return out
+
+
+def _loop_figures(res: dict[str, Any], run: Run, paths: dict[str, LaserPaths]) -> None:
+    """The loop closure (``loop_closure``) and each path's end against it: the matcher's under
+    ``loop_closure``, each reference's in its own block."""
+    loop = loop_closure(run)
+    if loop is None:
+        return
+    est = np.array([c.pose for c in run.cycles]).reshape(-1, 3)
+    res["loop_closure"] = {"x_m": round(float(loop[0]), 3), "y_m": round(float(loop[1]), 3),
+                           "heading_deg": round(math.degrees(float(loop[2])), 2), **end_vs_loop(est, loop)}
+    for src in ("kiss_icp", "kiss_icp_configured"):
+        if res.get(src, {}).get("done") and run.topic in paths.get(src, {}):
+            res[src].update(end_vs_loop(paths[src][run.topic][1], loop))
+
+
+def _lasers_agreement(results: list[dict[str, Any]], paths: dict[str, LaserPaths]) -> None:
+    """Each path source's lasers against each other (``laser_agreement``): the matcher's under
+    ``matcher_vs_other_lasers``, each reference's in its own block as ``vs_other_lasers``."""
+    agree = {src: laser_agreement(p) for src, p in paths.items()}
+    for r in results:
+        topic = r["topic"]
+        if topic in agree.get("matcher", {}):
+            r["matcher_vs_other_lasers"] = agree["matcher"][topic]
+        for src in ("kiss_icp", "kiss_icp_configured"):
+            if topic in agree.get(src, {}) and r.get(src, {}).get("done"):
+                r[src]["vs_other_lasers"] = agree[src][topic]
 
 
 def _people_run(run: Run, moving_only: bool) -> Run:
@@ -514,16 +723,20 @@ def _report_metrics(run: Run, rec: Recording, labels: list[tuple[float, np.ndarr
     return res
 
 
-def _kiss(run: Run, headings: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:
+def _kiss(run: Run, headings: dict[str, tuple[np.ndarray, np.ndarray]],
+          paths: LaserPaths, min_range_m: float = 0.1, deskew: bool = False) -> dict[str, Any]:
     try:
-        ref = kiss_icp_path(run)
+        ref = kiss_icp_path(run, min_range_m=min_range_m, deskew=deskew)
     except ImportError as exc:
         return {"done": False, "reason": f"kiss-icp is not installed: {exc}"}
-    headings[run.topic] = (np.array([c.stamp_s for c in run.cycles]), np.unwrap(ref[:, 2]))
-    return {"done": True, **path_comparison(run, ref)}
+    stamps = np.array([c.stamp_s for c in run.cycles])
+    headings[run.topic] = (stamps, np.unwrap(ref[:, 2]))
+    paths[run.topic] = (stamps, ref)
+    return {"done": True, "min_range_m": min_range_m, "deskew": deskew, **path_comparison(run, ref)}
 
 
-def _heading_agreement(results: list[dict[str, Any]], headings: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+def _heading_agreement(results: list[dict[str, Any]], headings: dict[str, tuple[np.ndarray, np.ndarray]],
+                       key: str = "kiss_icp") -> None:
     """The reference checked against itself: lasers on one robot turn alike whatever their mounts, so
     kiss-icp's headings from each laser's scans alone must agree (the largest difference to any other)."""
     for r in results:
@@ -531,7 +744,7 @@ def _heading_agreement(results: list[dict[str, Any]], headings: dict[str, tuple[
         if mine is None or len(headings) < 2:
             continue
         diffs = [np.abs(np.interp(mine[0], t, y) - mine[1]).max() for k, (t, y) in headings.items() if k != r["topic"]]
-        r["kiss_icp"]["heading_vs_other_lasers_max_deg"] = round(math.degrees(float(max(diffs))), 2)
+        r[key]["heading_vs_other_lasers_max_deg"] = round(math.degrees(float(max(diffs))), 2)
 
 
 def run_suite(data_dir: Path, only: list[str] | None = None, max_scans: int | None = None) -> dict[str, Any]:
@@ -552,18 +765,19 @@ def print_real_table(suite: dict[str, Any]) -> None:
         return "-" if v is None else f"{v:.{digits}f}" if isinstance(v, float) else str(v)
 
     head = (f"{'recording':<46} {'scans':>5} {'refused':>7} {'rep/min':>7} {'bg/min':>6} {'still/min':>9} "
-            f"{'walk@.5':>7} {'all@.5':>6} {'all@.3':>6} {'pos m':>5} {'leg m':>5} {'far/min':>7} {'kiss max m':>10}")
+            f"{'walk@.5':>7} {'all@.5':>6} {'all@.3':>6} {'pos m':>5} {'leg m':>5} {'far/min':>7} {'kiss max m':>10} "
+            f"{'conf max m':>10}")
     print(head)
     print("-" * len(head))
     for r in suite["recordings"]:
         r5, r3 = r.get("recall_0.5m", {}), r.get("recall_0.3m", {})
-        k = r.get("kiss_icp", {})
+        k, kc = r.get("kiss_icp", {}), r.get("kiss_icp_configured", {})
         print(f"{r['recording'] + ' ' + r['topic']:<46} {r['scans']:>5} {f(r['refused_share']):>7} "
               f"{f(r['reports_per_min'], 1):>7} {f(r.get('background_reports_per_min'), 1):>6} "
               f"{f(r.get('still_tracks_per_min')):>9} {f(r5.get('walking')):>7} {f(r5.get('all')):>6} "
               f"{f(r3.get('all')):>6} {f(r.get('person_position_error_median_m')):>5} "
               f"{f(r.get('position_error_median_m')):>5} {f(r.get('far_reports_per_min'), 1):>7} "
-              f"{f(k.get('max_offset_m')):>10}")
+              f"{f(k.get('max_offset_m')):>10} {f(kc.get('max_offset_m')):>10}")
     for name in suite["skipped"]:
         print(f"{name}: skipped (not in {suite['data_dir']})")
 
