@@ -451,20 +451,16 @@ class Estimator:
         self._last_odo = odometry.pose if odometry is not None else None
         self._motion.update(self._last_pose, scan.stamp_s)
         self._last_cov = match.cov
-        alive = {id(t) for t in self._tracker.tracks}
         at = self._tracker.predict_position
         tr = self._tracker
-        # the body tracker's confirmed bodies seen lately, moving or not: a person near one is that body,
-        # and whether it moves is judged once (a walker the body tracker saw stop is not reported by the
-        # people model's slower stop)
-        held = [(t, d) for t, d in tracked if id(t) in alive and t.confirmed and tr.recently_seen(t)]
-        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held if tr.reported(t))
+        # the body tracker's moving bodies: a moving person near one is that body, reported once (a confirmed
+        # body it does not report does not hide a person the people stage sees walk: ``Tracker.moving``)
+        obstacles = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in tr.moving(tracked))
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
         persons, links, live = (), {}, set()
         if self._people is not None:
-            bodies = tuple(_obstacle(t, d, laser, at(t, scan.stamp_s)) for t, d in held)
-            persons = self._people.obstacles(people, bodies, laser)
-            links = self._people.bodies_standing_for(people, bodies)
+            persons = self._people.obstacles(people, obstacles, laser)
+            links = self._people.bodies_standing_for(people, obstacles)
             live = {t.track_id for t in self._people.tracks}
         obstacles = self._identity.relabel(obstacles, persons, links, {t.track_id for t in tr.tracks}, live,
                                            scan.stamp_s)

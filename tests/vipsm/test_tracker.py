@@ -1144,3 +1144,25 @@ def test_a_person_s_size_comes_from_the_people_stage_s_keys(person_radius_m: flo
     assert tr.merge_m == person_radius_m
     assert len(tr.step(0.0, [_det(1.0, 2.0), _det(1.3, 2.0)])) == tracks
     assert Tracker().merge_m == PeopleConfig().person_radius_m
+
+
+def test_only_reported_tracks_are_moving_a_confirmed_one_that_stopped_is_not() -> None:
+    """``Tracker.moving`` (the bodies that stand for a person the people stage sees walk): a walker's track while
+    it is reported; once it has stopped (confirmed, seen, its pairs jittering in place) it is no longer in it, and
+    neither is a track not seen this cycle beyond ``report_missed_s``."""
+    rng = np.random.default_rng(5)
+    tr = Tracker(TrackerConfig())
+    kept = []
+    for k in range(50):  # walks 2 s along +x at 0.8 m/s, then stands
+        x = 0.08 * min(k, 20) + rng.normal(0, 0.02)
+        out = tr.step(0.1 * k, [_det(x, 2.0 + rng.normal(0, 0.02), evidence=k <= 20)])
+        kept.append(len(tr.moving(out)))
+        assert all(t.confirmed and tr.reported(t) for t, _ in tr.moving(out))
+    assert all(n == 1 for n in kept[8:20]) and all(n == 0 for n in kept[35:])
+    assert all(t.confirmed for t in tr.tracks)
+    tr = Tracker(TrackerConfig())  # a walker no longer seen: reported while it coasts, then no longer moving
+    for k in range(20):
+        out = tr.step(0.1 * k, [_det(0.08 * k, 2.0)])
+    assert len(tr.moving(out)) == 1
+    unseen = [len(tr.moving(tr.step(2.0 + 0.1 * k, []))) for k in range(5)]
+    assert unseen[:2] == [1, 1] and unseen[-1] == 0 and len(tr.tracks) == 1
