@@ -1,5 +1,7 @@
-"""Fit the people filter's leg model (:class:`vipsm.imm.ImmConfig`: ``leg_offset_sigma_m``,
-``leg_offset_tau_s``, ``leg_noise_m``) by maximum likelihood on the labelled walkers of the recordings.
+"""Fit the people filter's leg swing (:class:`vipsm.imm.ImmConfig.leg_swing_s`: how much more a leg's offset
+from the body's centre spreads along the line of walking per unit of speed) by maximum likelihood on the
+labelled walkers of the recordings; the hip's half-width (the spread across) is the body's, the offset's
+correlation time and a detected leg's noise are those of the isotropic fit (docs/estimator.md 6b).
 
     PYTHONPATH=. python tools/fit_person_motion.py [--data-dir DIR] [--json]
 
@@ -12,7 +14,7 @@ two last places), a person's track starts anew after ``GAP_S`` without a labelle
 by :class:`vipsm.imm.Imm` itself (:meth:`~vipsm.imm.Imm.update_legs`). The objective is the sum over the
 scans of the predictive log density of the detected legs, each scan's floored at ``FLOOR_NATS`` (a leg
 mislabelled or taken from a neighbouring thing counts as one outlier, not as the fit). Nelder-Mead on the
-logarithms of the three parameters, from the shipped values.
+swing's scale, bounded to 0.01-0.4 s (a step of at most 1.2 s swinging the whole leg).
 
 Printed: the fitted values, the log density per scan before and after, and (for information, not fitted
 on) the share of each recording's labelled walking scans (> 0.3 m/s) at which the filter's P(walking) is at
@@ -28,7 +30,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize_scalar
 
 from app.evaluation import real_data as rd
 from vipsm.imm import Imm, ImmConfig
@@ -42,7 +44,7 @@ MATCH_M = 0.15
 #: a person's track starts anew after this long without a labelled scan
 GAP_S = 0.5
 FLOOR_NATS = -10.0
-KEYS = ("leg_offset_sigma_m", "leg_offset_tau_s", "leg_noise_m")
+KEY = "leg_swing_s"
 
 
 def detected_people(data: Path, name: str) -> list[tuple[float, list[np.ndarray | None], float | None]]:
@@ -141,22 +143,23 @@ def main() -> None:
     data = {name: detected_people(args.data_dir, name) for name in FIT + HELD_OUT}
     base = ImmConfig()
 
-    def cfg_of(x: np.ndarray) -> ImmConfig:
-        return replace(base, **dict(zip(KEYS, (float(v) for v in np.exp(x)), strict=True)))
+    def cfg_of(x: float) -> ImmConfig:
+        return replace(base, **{KEY: float(x)})
 
-    def cost(x: np.ndarray) -> float:
+    def cost(x: float) -> float:
         cfg = cfg_of(x)
-        return -sum(replay(data[name], cfg)[0] for name in FIT) / sum(replay(data[name], cfg)[1] for name in FIT)
+        runs = [replay(data[name], cfg) for name in FIT]
+        return -sum(r[0] for r in runs) / sum(r[1] for r in runs)
 
-    x0 = np.log([getattr(base, k) for k in KEYS])
-    res = minimize(cost, x0, method="Nelder-Mead", options={"xatol": 0.01, "fatol": 1e-4, "maxfev": 300})
+    res = minimize_scalar(cost, bounds=(0.01, 0.4), method="bounded", options={"xatol": 0.005})
     fitted = cfg_of(res.x)
 
     def shares(cfg: ImmConfig) -> dict[str, float]:
         return {name: round(r[3] / max(r[2], 1), 3) for name in data for r in [replay(data[name], cfg)]}
 
-    out = {"fitted": {k: round(getattr(fitted, k), 4) for k in KEYS},
-           "log_density_per_scan": {"shipped": round(-cost(x0), 4), "fitted": round(-float(res.fun), 4)},
+    out = {"fitted": {KEY: round(getattr(fitted, KEY), 4)},
+           "log_density_per_scan": {"shipped": round(-cost(getattr(base, KEY)), 4), "fitted": round(-float(res.fun), 4),
+                                    "no_swing": round(-cost(0.01), 4)},
            "p_walking_0.8_share": {"shipped": shares(base), "fitted": shares(fitted)},
            "fit": list(FIT), "held_out": list(HELD_OUT)}
     print(json.dumps(out, indent=2) if args.json else out)

@@ -14,13 +14,17 @@ Two motion models on the state (x, y, vx, vy), world frame, SI units:
 from the body's centre (the second leg's is ``-b``: the legs lie either side of the centre), so that a
 person is measured at its legs themselves (:meth:`Imm.update_legs`), each to a detected leg centre's noise
 ``leg_noise_m``: the pair's midpoint says where the centre is, a lone leg says where the centre is *given
-the offset that leg has held*. The offset is a Gauss-Markov (Ornstein-Uhlenbeck) process of
-``leg_offset_sigma_m`` per axis about zero with correlation time ``leg_offset_tau_s`` (about a gait
-cycle: a leg stands while the body passes it, then swings ahead), alike under every model: a leg's spread
-changes alike whether the leg steps or its detection jumps to another part of it, so the offset carries
-no evidence of standing or walking; what it changes is that a lone leg is no longer the body's position
-with white noise (its offset is one value for as long as the leg stands, and the filter took its stance
-for the body standing). Fitted by maximum likelihood to the detected legs of the labelled walkers of the
+the offset that leg has held*. The offset is a Gauss-Markov (Ornstein-Uhlenbeck) process about zero with
+correlation time ``leg_offset_tau_s`` (about a gait cycle: a leg stands while the body passes it, then
+swings ahead) whose long-run spread is the gait's (issue 29): across the line of walking a leg stays within
+a hip's half-width (``hip_half_width_m``), and so does it every way while the person stands (the stance's
+half-width); along the line it swings with the stride, ``leg_swing_s`` times the speed more (a step's
+length is about the speed times half a second, 0.3 m at 0.5 m/s to 0.7 m at 1.4 m/s, and the shin at the
+laser's height swings about two thirds of the foot's half-step either side of the pelvis). So the spread
+is, per model, ``hip_half_width_m**2 I + leg_swing_s**2 v v^T`` at that model's velocity ``v`` (standing:
+zero). A lone leg is no longer the body's position with white noise (its offset is one value for as long
+as the leg stands, and the filter took its stance for the body standing). The swing's scale is fitted by
+maximum likelihood to the detected legs of the labelled walkers of the
 recordings positive_1-3 (``tools/fit_person_motion.py``; positive_6 held out).
 
 The models switch with rate ``switch_per_s`` (a Markov chain: with ``leave = 1 - exp(-rate dt)`` in a
@@ -56,18 +60,23 @@ class ImmConfig:
     init_speed_sigma_mps: float = 0.8
     #: P(moving) of a new track
     init_p_moving: float = 0.2
-    #: a leg's centre from the body's centre, per axis (standard deviation, long run) and how long it keeps
-    #: its offset (correlation time: about a gait cycle): the maximum-likelihood fit on positive_1-3's
-    #: detected walkers' legs (tools/fit_person_motion.py: 0.108 m, 1.0 s); a detected leg centre's noise:
-    #: the fit says 0.030 m on walkers at 1-5 m, which made a moving person of the drive's far furniture
-    #: legs (negative_2, left laser: 2 reports); 0.04 m is the least tried that kept the drive at 0
-    leg_offset_sigma_m: float = 0.1075
+    #: the first leg's offset from the body's centre: its spread across the line of walking, and every way
+    #: standing (a hip's half-width, the stance's: 0.10 m); how much more it spreads along the line per unit
+    #: of walking speed (the stride: a step of ~0.5 s, the shin at the laser's height two thirds of the
+    #: foot's half-step, a sinusoid's standard deviation 1/sqrt(2) of its amplitude: 0.5 * 2/3 / 2 / sqrt(2)
+    #: = 0.12 s; the maximum-likelihood fit on positive_1-3's detected walkers, tools/fit_person_motion.py:
+    #: 0.155 s, 2.06 nats per scan against 1.98 without the swing); how long it keeps its offset
+    #: (correlation time: about a gait cycle; the isotropic fit's 1.0 s); a detected leg centre's noise: the
+    #: fit says 0.030 m on walkers at 1-5 m, which made a moving person of the drive's far furniture legs
+    #: (negative_2, left laser: 2 reports); 0.04 m kept it 0
+    hip_half_width_m: float = 0.10
+    leg_swing_s: float = 0.155
     leg_offset_tau_s: float = 1.0
     leg_noise_m: float = 0.04
 
     def __post_init__(self) -> None:
         if not self.walk_accel_mps2 or min(self.stand_sigma_mps, *self.walk_accel_mps2, self.switch_per_s,
-                                           self.init_speed_sigma_mps, self.leg_offset_sigma_m,
+                                           self.init_speed_sigma_mps, self.hip_half_width_m, self.leg_swing_s,
                                            self.leg_offset_tau_s, self.leg_noise_m) <= 0.0:
             raise ValueError("the IMM's noises, switch rate, initial speed sigma and leg offset must be positive")
         if not 0.0 < self.init_p_moving < 1.0:
@@ -109,7 +118,7 @@ class Imm:
     def __init__(self, x_m: float, y_m: float, pos_sigma_m: float, cfg: ImmConfig,
                  offset: tuple[float, float] | None = None) -> None:
         self.cfg = cfg
-        b_var = cfg.leg_noise_m**2 / 2 if offset is not None else cfg.leg_offset_sigma_m**2
+        b_var = cfg.leg_noise_m**2 / 2 if offset is not None else cfg.hip_half_width_m**2
         p = np.diag([pos_sigma_m**2, pos_sigma_m**2, cfg.init_speed_sigma_mps**2, cfg.init_speed_sigma_mps**2,
                      b_var, b_var])
         n = 1 + len(cfg.walk_accel_mps2)
@@ -166,7 +175,9 @@ class Imm:
         return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
 
     # ---------------------------------------------------------------- filter steps
-    def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    def _models(self, dt: float, means: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Each model's transition and process noise over ``dt`` from its (mixed) ``means``: the offset's
+        noise keeps its spread at the gait's at that model's velocity (:meth:`offset_spread`)."""
         c = self.cfg
         f_walk = np.eye(_DIM)
         f_walk[0, 2] = f_walk[1, 3] = dt
@@ -177,11 +188,18 @@ class Imm:
         g[:4, :4] = [[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
                      [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]]
         wander = c.stand_sigma_mps**2 * dt
-        steps = c.leg_offset_sigma_m**2 * (1.0 - keep * keep)
-        q_offset = np.diag([0.0, 0.0, 0.0, 0.0, steps, steps])
-        q_stand = np.diag([wander, wander, 1e-6, 1e-6, steps, steps])
-        walks = c.walk_accel_mps2
-        return [f_stand] + [f_walk] * len(walks), [q_stand] + [a**2 * g + q_offset for a in walks]
+        qs = [np.diag([wander, wander, 1e-6, 1e-6, 0.0, 0.0])] + [a**2 * g for a in c.walk_accel_mps2]
+        for j, q in enumerate(qs):
+            q[4:, 4:] += self.offset_spread(means[j][2:4] if j != STANDING else None) * (1.0 - keep * keep)
+        return [f_stand] + [f_walk] * len(c.walk_accel_mps2), qs
+
+    def offset_spread(self, velocity_mps: np.ndarray | None) -> np.ndarray:
+        """The first leg's offset's long-run covariance (2 x 2) at a walking velocity (None: standing): a
+        hip's half-width every way, and along the line of walking the stride's swing."""
+        spread = np.eye(2) * self.cfg.hip_half_width_m**2
+        if velocity_mps is not None:
+            spread += self.cfg.leg_swing_s**2 * np.outer(velocity_mps, velocity_mps)
+        return spread
 
     def predict(self, dt: float) -> None:
         """Mix the models and predict each ``dt`` seconds ahead."""
@@ -196,7 +214,7 @@ class Imm:
         for j in range(n):
             d = self.means - means[j]
             covs[j] = np.einsum("i,ijk->jk", mix[:, j], self.covs + np.einsum("ij,ik->ijk", d, d))
-        fs, qs = self._models(dt)
+        fs, qs = self._models(dt, means)
         for j in range(n):
             means[j] = fs[j] @ means[j]
             covs[j] = fs[j] @ covs[j] @ fs[j].T + qs[j]
@@ -236,11 +254,12 @@ class Imm:
         self._mean = self._cov = None
 
     def reset_offset(self) -> None:
-        """New legs: the first leg's offset unknown again (zero, a walking leg's spread), uncorrelated."""
+        """New legs: the first leg's offset unknown again (zero, each model's gait spread), uncorrelated."""
         self.means[:, 4:] = 0.0
         self.covs[:, 4:, :] = 0.0
         self.covs[:, :, 4:] = 0.0
-        self.covs[:, 4, 4] = self.covs[:, 5, 5] = self.cfg.leg_offset_sigma_m**2
+        for j in range(self.probs.size):
+            self.covs[j, 4:, 4:] = self.offset_spread(self.means[j, 2:4] if j != STANDING else None)
         self._mean = self._cov = None
 
     def _update(self, z: np.ndarray, r: np.ndarray, h: np.ndarray, mid_z: np.ndarray, mid_r: np.ndarray,

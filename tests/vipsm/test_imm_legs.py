@@ -37,7 +37,7 @@ def test_flipping_the_offset_makes_the_second_leg_the_first() -> None:
     assert np.allclose(f.covs[:, :4, 4:], -before_cov[:, :4, 4:])
     f.reset_offset()
     assert np.allclose(f.means[:, 4:], 0.0) and np.allclose(f.covs[:, :4, 4:], 0.0)
-    assert np.allclose(f.covs[:, 4, 4], cfg.leg_offset_sigma_m**2)
+    assert np.allclose(f.covs[:, 4, 4], cfg.hip_half_width_m**2)
 
 
 def test_a_standing_person_seen_by_one_leg_stays_at_its_centre() -> None:
@@ -58,7 +58,26 @@ def test_a_standing_person_seen_by_one_leg_stays_at_its_centre() -> None:
     assert abs(float(p.filt.mean[1])) < 0.04 and not p.moving
 
 
-@pytest.mark.parametrize("key", ["leg_offset_sigma_m", "leg_offset_tau_s", "leg_noise_m"])
+@pytest.mark.parametrize("key", ["hip_half_width_m", "leg_swing_s", "leg_offset_tau_s", "leg_noise_m"])
 def test_the_leg_model_rejects_nonsense(key: str) -> None:
     with pytest.raises(ValueError):
         ImmConfig(**{key: 0.0})
+
+
+def test_the_offset_spreads_along_the_walk_with_the_stride_and_across_a_hips_half_width() -> None:
+    cfg = ImmConfig()
+    f = Imm(0.0, 0.0, 0.1, cfg)
+    assert np.allclose(f.offset_spread(None), np.eye(2) * cfg.hip_half_width_m**2)  # standing: the stance's
+    walk = f.offset_spread(np.array([0.0, 1.4]))
+    assert walk[0, 0] == pytest.approx(cfg.hip_half_width_m**2) and walk[0, 1] == pytest.approx(0.0)
+    assert walk[1, 1] == pytest.approx(cfg.hip_half_width_m**2 + (1.4 * cfg.leg_swing_s) ** 2)
+    # a walker along y, its legs seen 3 s: the walking models' offset spreads along y, the standing one's not
+    for k in range(30):
+        f.predict(0.1)
+        y = 0.14 * (k + 1)
+        f.update_legs((0.1, y), (-0.1, y), cfg.leg_noise_m, cfg.leg_noise_m, 0.06)
+    f.predict(0.1)
+    assert f.p_moving > 0.9
+    for j in (1, 2):
+        assert f.covs[j][5, 5] > 1.3 * f.covs[j][4, 4]
+    assert f.covs[0][5, 5] == pytest.approx(f.covs[0][4, 4], rel=0.1)
