@@ -10,23 +10,6 @@ Two motion models on the state (x, y, vx, vy), world frame, SI units:
   the gait's wobble out) and manoeuvring (2 m/s^2: starting, stopping, turning, stepping aside take
   about half a second).
 
-**The legs** (issue 29): the state also holds the offset ``(bx, by)`` of the person's first leg's centre
-from the body's centre (the second leg's is ``-b``: the legs lie either side of the centre), so that a
-person is measured at its legs themselves (:meth:`Imm.update_legs`), each to a detected leg centre's noise
-``leg_noise_m``: the pair's midpoint says where the centre is, a lone leg says where the centre is *given
-the offset that leg has held*. The offset is a Gauss-Markov (Ornstein-Uhlenbeck) process about zero with
-correlation time ``leg_offset_tau_s`` (about a gait cycle: a leg stands while the body passes it, then
-swings ahead) whose long-run spread is the gait's (issue 29): across the line of walking a leg stays within
-a hip's half-width (``hip_half_width_m``), and so does it every way while the person stands (the stance's
-half-width); along the line it swings with the stride, ``leg_swing_s`` times the speed more (a step's
-length is about the speed times half a second, 0.3 m at 0.5 m/s to 0.7 m at 1.4 m/s, and the shin at the
-laser's height swings about two thirds of the foot's half-step either side of the pelvis). So the spread
-is, per model, ``hip_half_width_m**2 I + leg_swing_s**2 v v^T`` at that model's velocity ``v`` (standing:
-zero). A lone leg is no longer the body's position with white noise (its offset is one value for as long
-as the leg stands, and the filter took its stance for the body standing). The swing's scale is fitted by
-maximum likelihood to the detected legs of the labelled walkers of the
-recordings positive_1-3 (``tools/fit_person_motion.py``; positive_6 held out).
-
 The models switch with rate ``switch_per_s`` (a Markov chain: with ``leave = 1 - exp(-rate dt)`` in a
 step of ``dt``, standing starts a walk with probability ``leave``, shared by the walking models, and a
 walking model stops, or changes pace to each other walking model, with ``leave`` each: standing and
@@ -60,25 +43,11 @@ class ImmConfig:
     init_speed_sigma_mps: float = 0.8
     #: P(moving) of a new track
     init_p_moving: float = 0.2
-    #: the first leg's offset from the body's centre: its spread across the line of walking, and every way
-    #: standing (a hip's half-width, the stance's: 0.10 m); how much more it spreads along the line per unit
-    #: of walking speed (the stride: a step of ~0.5 s, the shin at the laser's height two thirds of the
-    #: foot's half-step, a sinusoid's standard deviation 1/sqrt(2) of its amplitude: 0.5 * 2/3 / 2 / sqrt(2)
-    #: = 0.12 s; the maximum-likelihood fit on positive_1-3's detected walkers, tools/fit_person_motion.py:
-    #: 0.155 s, 2.06 nats per scan against 1.98 without the swing); how long it keeps its offset
-    #: (correlation time: about a gait cycle; the isotropic fit's 1.0 s); a detected leg centre's noise: the
-    #: fit says 0.030 m on walkers at 1-5 m, which made a moving person of the drive's far furniture legs
-    #: (negative_2, left laser: 2 reports); 0.04 m kept it 0
-    hip_half_width_m: float = 0.10
-    leg_swing_s: float = 0.155
-    leg_offset_tau_s: float = 1.0
-    leg_noise_m: float = 0.04
 
     def __post_init__(self) -> None:
         if not self.walk_accel_mps2 or min(self.stand_sigma_mps, *self.walk_accel_mps2, self.switch_per_s,
-                                           self.init_speed_sigma_mps, self.hip_half_width_m, self.leg_swing_s,
-                                           self.leg_offset_tau_s, self.leg_noise_m) <= 0.0:
-            raise ValueError("the IMM's noises, switch rate, initial speed sigma and leg offset must be positive")
+                                           self.init_speed_sigma_mps) <= 0.0:
+            raise ValueError("the IMM's noise, switch rate and initial speed sigma must be positive")
         if not 0.0 < self.init_p_moving < 1.0:
             raise ValueError(f"init_p_moving must be in (0, 1), got {self.init_p_moving}")
 
@@ -103,28 +72,19 @@ def _transitions(n: int, leave: float) -> np.ndarray:
     return trans
 
 
-#: state (x, y, vx, vy, bx, by): the body's centre, its velocity, its first leg's offset from the centre
-_DIM = 6
-_H = np.eye(_DIM)[:2]
-#: the first leg (the centre plus the offset), the second leg (the centre less it)
-_H_LEG = (np.array([[1.0, 0, 0, 0, 1, 0], [0, 1, 0, 0, 0, 1]]), np.array([[1.0, 0, 0, 0, -1, 0], [0, 1, 0, 0, 0, -1]]))
+_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
 class Imm:
-    """One track's IMM state: per-model means (m x 6) and covariances (m x 6 x 6), model probabilities.
-    ``offset``: the first leg's offset from the centre when known (a pair's half-difference), else zero
-    with a walking leg's spread."""
+    """One track's IMM state: per-model means (m x 4) and covariances (m x 4 x 4), model probabilities."""
 
-    def __init__(self, x_m: float, y_m: float, pos_sigma_m: float, cfg: ImmConfig,
-                 offset: tuple[float, float] | None = None) -> None:
+    def __init__(self, x_m: float, y_m: float, pos_sigma_m: float, cfg: ImmConfig) -> None:
         self.cfg = cfg
-        b_var = cfg.leg_noise_m**2 / 2 if offset is not None else cfg.hip_half_width_m**2
-        p = np.diag([pos_sigma_m**2, pos_sigma_m**2, cfg.init_speed_sigma_mps**2, cfg.init_speed_sigma_mps**2,
-                     b_var, b_var])
+        p = np.diag([pos_sigma_m**2, pos_sigma_m**2, cfg.init_speed_sigma_mps**2, cfg.init_speed_sigma_mps**2])
         n = 1 + len(cfg.walk_accel_mps2)
-        self.means = np.tile(np.array([x_m, y_m, 0.0, 0.0, *(offset or (0.0, 0.0))]), (n, 1))
+        self.means = np.tile(np.array([x_m, y_m, 0.0, 0.0]), (n, 1))
         p_stand = p.copy()
-        p_stand[2:4, 2:4] = np.eye(2) * 1e-6
+        p_stand[2:, 2:] = np.eye(2) * 1e-6
         self.covs = np.stack([p_stand] + [p] * (n - 1))
         self.probs = np.array([1.0 - cfg.init_p_moving] + [cfg.init_p_moving / (n - 1)] * (n - 1))
         self._mean: np.ndarray | None = None
@@ -133,8 +93,6 @@ class Imm:
         #: measurement) and the model probabilities it started from (the prediction's); None before one
         self.likelihoods: np.ndarray | None = None
         self.prior_probs: np.ndarray | None = None
-        #: the last update's predictive log density of its whole measurement (the fit's objective)
-        self.log_density = 0.0
 
     # ---------------------------------------------------------------- combined estimate
     @property
@@ -175,31 +133,16 @@ class Imm:
         return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
 
     # ---------------------------------------------------------------- filter steps
-    def _models(self, dt: float, means: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Each model's transition and process noise over ``dt`` from its (mixed) ``means``: the offset's
-        noise keeps its spread at the gait's at that model's velocity (:meth:`offset_spread`)."""
+    def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
         c = self.cfg
-        f_walk = np.eye(_DIM)
+        f_walk = np.eye(4)
         f_walk[0, 2] = f_walk[1, 3] = dt
-        keep = math.exp(-dt / c.leg_offset_tau_s)  # the first leg's offset: Ornstein-Uhlenbeck
-        f_walk[4, 4] = f_walk[5, 5] = keep
-        f_stand = np.diag([1.0, 1.0, 0.0, 0.0, keep, keep])
-        g = np.zeros((_DIM, _DIM))
-        g[:4, :4] = [[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
-                     [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]]
-        wander = c.stand_sigma_mps**2 * dt
-        qs = [np.diag([wander, wander, 1e-6, 1e-6, 0.0, 0.0])] + [a**2 * g for a in c.walk_accel_mps2]
-        for j, q in enumerate(qs):
-            q[4:, 4:] += self.offset_spread(means[j][2:4] if j != STANDING else None) * (1.0 - keep * keep)
-        return [f_stand] + [f_walk] * len(c.walk_accel_mps2), qs
-
-    def offset_spread(self, velocity_mps: np.ndarray | None) -> np.ndarray:
-        """The first leg's offset's long-run covariance (2 x 2) at a walking velocity (None: standing): a
-        hip's half-width every way, and along the line of walking the stride's swing."""
-        spread = np.eye(2) * self.cfg.hip_half_width_m**2
-        if velocity_mps is not None:
-            spread += self.cfg.leg_swing_s**2 * np.outer(velocity_mps, velocity_mps)
-        return spread
+        f_stand = np.diag([1.0, 1.0, 0.0, 0.0])
+        g = np.array([[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
+                      [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]])
+        q_stand = np.diag([c.stand_sigma_mps**2 * dt] * 2 + [1e-6, 1e-6])
+        walks = c.walk_accel_mps2
+        return [f_stand] + [f_walk] * len(walks), [q_stand] + [a**2 * g for a in walks]
 
     def predict(self, dt: float) -> None:
         """Mix the models and predict each ``dt`` seconds ahead."""
@@ -214,7 +157,7 @@ class Imm:
         for j in range(n):
             d = self.means - means[j]
             covs[j] = np.einsum("i,ijk->jk", mix[:, j], self.covs + np.einsum("ij,ik->ijk", d, d))
-        fs, qs = self._models(dt, means)
+        fs, qs = self._models(dt)
         for j in range(n):
             means[j] = fs[j] @ means[j]
             covs[j] = fs[j] @ covs[j] @ fs[j].T + qs[j]
@@ -226,64 +169,21 @@ class Imm:
         return z - self.mean[:2], self.cov[:2, :2] + r
 
     def update(self, z: np.ndarray, r: np.ndarray) -> None:
-        """Fold in a measurement ``z`` (2,) of the body's centre with covariance ``r`` (2 x 2)."""
-        self._update(z, r, _H, z, r)
-
-    def update_legs(self, first: tuple[float, float] | None, second: tuple[float, float] | None,
-                    first_sigma_m: float, second_sigma_m: float, centre_sigma_m: float) -> None:
-        """Fold in the person's legs seen this cycle: its first leg's centre (the body's centre plus the
-        offset), its second's (less it), either None when unseen (not both), each with its noise. The
-        likelihoods kept (:attr:`likelihoods`, for the evidence of a body that moves against a static thing)
-        are those of the legs' midpoint (a lone leg: the leg) with noise ``centre_sigma_m``: that evidence
-        must hold against a detection's worst jumps (a static leg's centre jumps up to 9 cm with the part of
-        it seen), which the association's noises say (``PeopleConfig.pair_sigma_m``, ``leg_sigma_m``), not
-        the leg model's."""
-        seen = [(xy, h, s) for xy, h, s in zip((first, second), _H_LEG, (first_sigma_m, second_sigma_m),
-                                               strict=True) if xy is not None]
-        z = np.concatenate([np.asarray(xy, float) for xy, _, _ in seen])
-        h = np.vstack([h for _, h, _ in seen])
-        r = np.diag(np.repeat([s**2 for _, _, s in seen], 2))
-        mid_h = sum(hh for _, hh, _ in seen) / len(seen)
-        self._update(z, r, h, z.reshape(-1, 2).mean(axis=0), np.eye(2) * centre_sigma_m**2, mid_h)
-
-    def flip_offset(self) -> None:
-        """The second leg becomes the first (the first one's track ended): the offset changes sign."""
-        self.means[:, 4:] *= -1.0
-        self.covs[:, 4:, :4] *= -1.0
-        self.covs[:, :4, 4:] *= -1.0
-        self._mean = self._cov = None
-
-    def reset_offset(self) -> None:
-        """New legs: the first leg's offset unknown again (zero, each model's gait spread), uncorrelated."""
-        self.means[:, 4:] = 0.0
-        self.covs[:, 4:, :] = 0.0
-        self.covs[:, :, 4:] = 0.0
-        for j in range(self.probs.size):
-            self.covs[j, 4:, 4:] = self.offset_spread(self.means[j, 2:4] if j != STANDING else None)
-        self._mean = self._cov = None
-
-    def _update(self, z: np.ndarray, r: np.ndarray, h: np.ndarray, mid_z: np.ndarray, mid_r: np.ndarray,
-                mid_h: np.ndarray = _H) -> None:
-        """Kalman update of each model with ``z`` = ``h`` x + noise ``r``; the model probabilities from its
-        density; :attr:`likelihoods` from the density of the centre measurement ``mid_z`` = ``mid_h`` x +
-        noise ``mid_r``; :attr:`log_density` the whole measurement's predictive log density."""
+        """Fold in a position measurement ``z`` (2,) with covariance ``r`` (2 x 2)."""
         like = np.empty(self.probs.size)
-        dens = np.empty(self.probs.size)
         for j in range(self.probs.size):
-            m, c = self.means[j], self.covs[j]
-            ym, sm = mid_z - mid_h @ m, mid_h @ c @ mid_h.T + mid_r
-            like[j] = math.exp(-0.5 * float(ym @ np.linalg.solve(sm, ym))) / math.sqrt(np.linalg.det(2 * math.pi * sm))
-            s, y = h @ c @ h.T + r, z - h @ m
-            dens[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / math.sqrt(np.linalg.det(2 * math.pi * s))
-            k = c @ h.T @ np.linalg.inv(s)
-            self.means[j] = m + k @ y
-            cj = (np.eye(_DIM) - k @ h) @ c
-            self.covs[j] = 0.5 * (cj + cj.T)
+            s = self.covs[j][:2, :2] + r
+            y = z - self.means[j][:2]
+            k = self.covs[j][:, :2] @ np.linalg.inv(s)
+            self.means[j] = self.means[j] + k @ y
+            self.covs[j] = (np.eye(4) - k @ _H) @ self.covs[j]
+            self.covs[j] = 0.5 * (self.covs[j] + self.covs[j].T)
+            like[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / (2 * math.pi * math.sqrt(np.linalg.det(s)))
         self._mean = self._cov = None
         self.likelihoods, self.prior_probs = like, self.probs.copy()
-        post = self.probs * dens
+        post = self.probs * like
         total = float(post.sum())
-        self.log_density = math.log(total) if total > 0.0 else -math.inf
         if total > 0.0 and math.isfinite(total):
             self.probs = np.clip(post / total, 1e-6, 1.0 - 1e-6)
             self.probs /= self.probs.sum()
+

@@ -187,10 +187,6 @@ class PersonTrack:
     age_cycles: int = 1
     #: when a detection last updated it (None: never)
     updated_s: float | None = None
-    #: the leg track whose offset from the centre the filter holds (the first leg, :class:`vipsm.imm.Imm`;
-    #: its other leg lies at minus that offset), and the person's leg tracks at its last update
-    offset_leg: int | None = None
-    updated_legs: tuple[int, ...] = ()
 
     @property
     def p_moving(self) -> float:
@@ -437,9 +433,9 @@ class PeopleTracker:
 
     def _update(self, t: PersonTrack, z: tuple[float, float, float, list[LegTrack]]) -> None:
         c = self.config
-        seen = z[3]
+        x, y, sigma, seen = z
         walks = self._walking_share(t)  # predicted: before this detection
-        self._update_legs(t, seen, z[2])
+        t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
         ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
@@ -455,32 +451,6 @@ class PeopleTracker:
         t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
-
-    def _update_legs(self, t: PersonTrack, seen: list[LegTrack], sigma_m: float) -> None:
-        """The filter's update with the legs seen, each where the body's centre plus (first leg) or less
-        (second leg) the first leg's offset puts it (:meth:`vipsm.imm.Imm.update_legs`), to a detection's
-        noise, or a hip's half-width (``leg_sigma_m``) for a partly hidden leg. The offset the filter holds
-        follows the legs: the first leg's track ended and the second is kept, the second becomes the first
-        (the offset changes sign); no leg kept from the last update, the offset is unknown again."""
-        c = self.config
-        if t.offset_leg not in t.leg_ids:
-            kept = [k for k in t.leg_ids if k in t.updated_legs]
-            if kept:
-                t.filt.flip_offset()
-            else:
-                t.filt.reset_offset()
-            t.offset_leg = (kept or t.leg_ids)[0]
-        first = next((lt for lt in seen if lt.leg_id == t.offset_leg), None)
-        second = next((lt for lt in seen if lt.leg_id != t.offset_leg), None)
-
-        def at(lt: LegTrack | None) -> tuple[tuple[float, float] | None, float]:
-            if lt is None:
-                return None, 0.0
-            return (lt.x_m, lt.y_m), c.leg_sigma_m if lt.det is not None and lt.det.occluded else c.imm.leg_noise_m
-
-        (a, sa), (b, sb) = at(first), at(second)
-        t.filt.update_legs(a, b, sa, sb, sigma_m)
-        t.updated_legs = tuple(t.leg_ids)
 
     def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
         """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's
@@ -590,10 +560,8 @@ class PeopleTracker:
             if di in taken:
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
-            offset = (0.5 * (g[0].x_m - g[1].x_m), 0.5 * (g[0].y_m - g[1].y_m)) if len(g) == 2 else None
-            t = PersonTrack(self._next_id, Imm(x, y, s, c.imm, offset), c.exist_birth * p_leg / max(p_leg, 0.5),
-                            stamp_s, [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g),
-                            offset_leg=g[0].leg_id, updated_legs=tuple(lt.leg_id for lt in g))
+            t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
+                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g))
             self._next_id += 1
             self.tracks.append(t)
             out.append(t)

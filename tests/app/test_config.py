@@ -54,8 +54,6 @@ def test_file_and_overrides(tmp_path: Path) -> None:
         ("estimator.tracker.confirm_onset_step_m=0", "estimator.tracker", "confirm_onset_step_m > 0"),
         ("estimator.tracker.report_window=3", "estimator.tracker", "report_window >= 4"),
         ("estimator.people.stand_dwell_s=0", "estimator.people", "stand_dwell_s must be > 0"),
-        ("estimator.people.imm.leg_swing_s=0", "estimator.people.imm", "leg offset must be positive"),
-        ("estimator.people.imm.hip_half_width_m=-0.1", "estimator.people.imm", "leg offset must be positive"),
         pytest.param("devices.scanner_url=" + "x" * 100_000, "devices.scanner_url", "longer than 4096", id="long-url"),
     ],
 )
@@ -94,11 +92,6 @@ def test_an_old_config_file_with_a_removed_key_is_refused(tmp_path: Path) -> Non
     with pytest.raises(ConfigError, match="estimator.people.person_radius_m") as info:
         load_config(old)
     assert info.value.key == "estimator.bodies.person_radius_m"
-
-
-def test_the_people_filters_gait_keys_reach_the_estimator() -> None:
-    cfg = load_config(None, ["estimator.people.imm.leg_swing_s=0.2", "estimator.people.imm.hip_half_width_m=0.12"])
-    assert cfg.estimator.people.imm.leg_swing_s == 0.2 and cfg.estimator.people.imm.hip_half_width_m == 0.12
 
 
 def test_unreadable_files_are_config_errors(tmp_path: Path) -> None:
