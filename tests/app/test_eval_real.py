@@ -13,6 +13,7 @@ import pytest
 from app.cli import main
 from app.evaluation.real_data import (
     RECORDINGS,
+    ROBOT_REACH_M,
     Cycle,
     Run,
     background_metrics,
@@ -201,8 +202,9 @@ def test_eval_real_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
 
 
 def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """The drive's first 40 scans of each laser: kiss-icp runs as the reference, and the three lasers'
-    kiss-icp headings agree (the reference is consistent whatever the lasers' mounts)."""
+    """The drive's first 40 scans of each laser: kiss-icp runs as the reference, as recorded and configured
+    for the scans (the robot's reach left out, de-skewed), and each path source's three lasers agree with
+    each other (headings; paths after their fitted mounts), whatever the lasers' mounts."""
     pytest.importorskip("kiss_icp", reason="kiss-icp (the optional 'eval' dependency) is not installed")
     src = shared_data / "real_people_laser"
     if not (src / "negative_2.bag").exists():
@@ -217,6 +219,13 @@ def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture
         assert k["heading_vs_other_lasers_max_deg"] < 5.0
         assert k["end_to_start_m"] >= 0.0 and k["kiss_icp_end_to_start_m"] > 0.0
         assert r["reports_per_min"] is not None and "background_reports_per_min" not in r  # not a still laser
+        plain, conf = r["kiss_icp"], r["kiss_icp_configured"]
+        assert (plain["min_range_m"], plain["deskew"]) == (0.1, False)
+        assert conf["done"] and (conf["min_range_m"], conf["deskew"]) == (ROBOT_REACH_M, True)
+        assert conf["kiss_icp_path_m"] > 0.5 and conf["max_offset_m"] < 0.3
+        assert "loop_closure" not in r and "end_vs_loop_closure_m" not in conf  # cut short: the drive is no loop
+        for agree in (r["matcher_vs_other_lasers"], plain["vs_other_lasers"], conf["vs_other_lasers"]):
+            assert 0.0 <= agree["max_offset_m"] < 0.3 and abs(agree["final_heading_deg"]) < 5.0
 
 
 def test_walking_after_onset_leaves_out_the_first_report_budget() -> None:
