@@ -241,6 +241,7 @@ class PeopleTracker:
         self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
         self._seen_free: PointTest | None = None
+        self._visible: PointTest | None = None
         self._stood_before: PointTest | None = None
 
     # ------------------------------------------------------------------ one cycle
@@ -269,6 +270,7 @@ class PeopleTracker:
         self._split()
         self._adopt(stamp_s)
         seen: set[int] = set()
+        self._visible = visible
         for t in self.tracks:
             z = self._measurement(t)
             if z is not None and self._in_gate(t, z[0], z[1]):
@@ -573,19 +575,36 @@ class PeopleTracker:
         lost2 = (2.0 * c.max_position_sigma_m) ** 2
         alive = [t for t in self.tracks if t.existence >= c.exist_drop and np.linalg.eigvalsh(t.filt.cov[:2, :2])[-1]
                  <= lost2]
-        # a duplicate: a younger track within a leg pair's half-width of an older one (its legs go free,
-        # and the older one adopts them if they fit it)
+        # a duplicate: a younger track within a leg pair's half-width of an older one that is not another
+        # person there (``_two_people``; its legs go free, and the older one adopts them if they fit it)
         keep: list[PersonTrack] = []
-        kept_xy = np.zeros((0, 2))
         for t in sorted(alive, key=lambda t: t.track_id):
             xy = t.filt.mean[:2]
-            if kept_xy.size and float(np.min(np.hypot(*(kept_xy - xy).T))) < 0.5 * c.leg_pair_max_m:
+            if any(math.hypot(*(k.filt.mean[:2] - xy)) < 0.5 * c.leg_pair_max_m and not self._two_people(k, t)
+                   for k in keep):
                 continue
             keep.append(t)
-            kept_xy = np.vstack([kept_xy, xy])
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
+
+    def _two_people(self, a: PersonTrack, b: PersonTrack) -> bool:
+        """Two tracks near each other are two people when what each is measured from says so, whatever their
+        distance (two walkers side by side are 0.4 m apart centre to centre, less than half a leg pair): each
+        was measured this cycle from its own seen legs, and those legs cannot be one person's (``_one_body``
+        at the tracks' mean velocity; one person's two legs held by two tracks are a duplicate); or one of
+        them was not measured and its place was hidden from this scan (``visible``: a companion behind the
+        walker is no detection of the walker's, and the walker's legs say nothing about where it is)."""
+        sa, sb = ([lt for k in t.leg_ids if (lt := self.legs[k]).det is not None] for t in (a, b))
+        if sa and sb:
+            if len(sa) + len(sb) > 2:
+                return True
+            v = (0.5 * float(a.filt.mean[2] + b.filt.mean[2]), 0.5 * float(a.filt.mean[3] + b.filt.mean[3]))
+            return not self._one_body((sa[0].x_m, sa[0].y_m), (sb[0].x_m, sb[0].y_m), v)
+        hidden = [t for t, s in ((a, sa), (b, sb)) if not s]
+        if len(hidden) != 1 or self._visible is None:
+            return False
+        return not self._visible(float(hidden[0].filt.mean[0]), float(hidden[0].filt.mean[1]))
 
     def known_legs(self, stamp_s: float) -> list[KnownLeg]:
         """The live leg tracks predicted to ``stamp_s`` (before this cycle's :meth:`step`), each with its

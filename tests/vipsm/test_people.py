@@ -614,3 +614,33 @@ def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
         assert (est._people is not None) == expect  # noqa: SLF001
         if not expect:
             assert e.people == ()
+
+
+def test_two_people_closer_than_half_a_stride_each_on_its_own_legs_are_two_people() -> None:
+    """Two people standing 0.3 m apart centre to centre (less than half a leg pair, where a younger track
+    used to be taken for a duplicate of an older one), each seen by both its legs: two people, each where
+    it stands; and while the second is hidden behind something nearer (no detection, not visible), its
+    track is kept beside the first, not deleted as the first's duplicate."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(10):
+        tr.step(0.1 * k, _pair(2.0, 0.0) + _pair(2.3, 0.0), visible=lambda x, y: True)
+    assert sorted(round(p.x_m, 1) for p in tr.people(0.9)) == [2.0, 2.3]
+    for k in range(10, 15):
+        tr.step(0.1 * k, _pair(2.0, 0.0), visible=lambda x, y: x < 2.15)
+    assert sorted(round(p.x_m, 1) for p in tr.people(1.4)) == [2.0, 2.3]
+
+
+def test_a_track_whose_legs_another_holds_is_a_duplicate() -> None:
+    """A person's track with no leg seen beside another's that is measured from the legs there, both where
+    the scan sees: one person, the younger track goes."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(10):
+        tr.step(0.1 * k, _pair(2.0, 0.0) + _pair(2.3, 0.0), visible=lambda x, y: True)
+    first = min(tr.tracks, key=lambda t: t.track_id)
+    x0 = float(first.filt.mean[0])
+    # the other track's legs gone, its prediction beside the first (as a coasting track drifts)
+    other = max(tr.tracks, key=lambda t: t.track_id)
+    other.filt.means[:, 0] = x0 + 0.1
+    other.filt._mean = other.filt._cov = None
+    tr.step(1.0, _pair(x0, 0.0), visible=lambda x, y: True)
+    assert [t.track_id for t in tr.tracks] == [first.track_id]
