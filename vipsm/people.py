@@ -639,7 +639,7 @@ class PeopleTracker:
     def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
                   ) -> tuple[Obstacle, ...]:
         """The moving ``people`` seen this cycle as moving obstacles, but those a body of ``others`` (the
-        body tracker's confirmed bodies, reported or not) stands for: each body is the nearest moving
+        body tracker's reported bodies, ``Tracker.moving``) stands for: each body is the nearest moving
         person within a leg pair's reach (plus its radius) if the body tracker saw it as a leg pair, within
         a person's radius (plus its own) otherwise (:func:`_explained`): the same body, reported once and
         judged once. A second person beside it, or the person pushing a cart the body tracker holds, is
