@@ -759,8 +759,7 @@ class Tracker:
         """Of ``tracked`` (``step``'s result), the live tracks reported as moving obstacles: confirmed, seen
         lately and :meth:`reported`. Only these stand for a person the people stage sees walk (the estimator):
         a confirmed track not reported (its report window not yet straight, or one that hopped from a cart onto
-        its pusher) has not been seen to walk and hid that person (cart_pusher's pusher located while walking
-        56.8 -> 81.1 %)."""
+        its pusher) has not been seen to walk, and would hide that person (docs/estimator.md, stage 6)."""
         alive = {id(t) for t in self.tracks}
         return [(t, d) for t, d in tracked
                 if id(t) in alive and t.confirmed and self.recently_seen(t) and self.reported(t)]
