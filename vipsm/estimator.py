@@ -459,8 +459,8 @@ class Estimator:
         people = self._people.people(scan.stamp_s) if self._people is not None else ()
         persons, links, live = (), {}, set()
         if self._people is not None:
-            persons = self._people.obstacles(people, obstacles, laser)
             links = self._people.bodies_standing_for(people, obstacles)
+            persons = self._people.obstacles(people, obstacles, laser, links)
             live = {t.track_id for t in self._people.tracks}
         obstacles = self._identity.relabel(obstacles, persons, links, {t.track_id for t in tr.tracks}, live,
                                            scan.stamp_s)

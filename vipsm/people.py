@@ -636,8 +636,8 @@ class PeopleTracker:
         return None, 0.0
 
     # ------------------------------------------------------------------ output
-    def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D
-                  ) -> tuple[Obstacle, ...]:
+    def obstacles(self, people: tuple[Person, ...], others: tuple[Obstacle, ...], laser: Pose2D,
+                  standing_for: dict[int, tuple[int, float]] | None = None) -> tuple[Obstacle, ...]:
         """The moving ``people`` seen this cycle as moving obstacles, but those a body of ``others`` (the
         body tracker's reported bodies, ``Tracker.moving``) stands for: each body is the nearest moving
         person within a leg pair's reach (plus its radius) if the body tracker saw it as a leg pair, within
@@ -646,13 +646,16 @@ class PeopleTracker:
         another body. A walker no leg of whom was seen may have stopped or turned: it stays in ``people``
         while its position is known, but it is no obstacle (the protective field on the raw scan still
         guards the robot). The bearing interval is the person's radius seen from ``laser``; scan indices
-        -1 (a track, not one scan's segment)."""
+        -1 (a track, not one scan's segment). ``standing_for``: :meth:`bodies_standing_for` of the same
+        arguments when the caller has it already (None: found here)."""
         c = self.config
         if not c.report_moving:
             return ()
         out = []
         tracks = {t.track_id: t for t in self.tracks}
-        explained = {pid for pid, _ in self.bodies_standing_for(people, others).values()}
+        if standing_for is None:
+            standing_for = self.bodies_standing_for(people, others)
+        explained = {pid for pid, _ in standing_for.values()}
         for p in people:
             if not (p.moving and p.legs) or p.track_id in explained:
                 continue
