@@ -425,7 +425,8 @@ class Estimator:
         n_good_w = int(np.count_nonzero(cur.good & (cur.weights > 0)))
         too_large = rest.too_large and not self.plain_psm
         return self._matcher.match(cur, n_good_w, predicted, self._last_pose, self._last_cov, not too_large,
-                                   too_large or not scan_ok, scan.ranges_m.copy(), no_odometry)
+                                   too_large or not scan_ok, scan.ranges_m.copy(), no_odometry,
+                                   None if self.plain_psm else rest.ranges_m)
 
     def _update_static(self, scan: Scan, lone_m: np.ndarray, laser: Pose2D, bodies: list[Body]) -> None:
         """Add the scan to the free/occupied grid (the moving-body candidates add no occupancy, so a body

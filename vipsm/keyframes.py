@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import between, compose, inverse
-from .psm import PreparedScan, PsmResult, match_prepared
+from .psm import PreparedScan, PsmResult, match_prepared, prepare_scan
 from .types import EstimateFlag, MatchQuality, Pose2D
 
 
@@ -77,21 +77,34 @@ class KeyframeMatcher:
             self.previous = self.keyframe
         self.keyframe = kf
 
+    def _new_keyframe(self, cur: PreparedScan, pose: Pose2D, cov: np.ndarray, n_good_w: int,
+                      seen_m: np.ndarray | None) -> None:
+        """The current scan becomes the keyframe, its cut beams filled from the old keyframe's view."""
+        old, restored = self.keyframe, getattr(self, "_restored_m", None)
+        if old is not None and seen_m is not None and restored is not None:
+            cfg = self.cfg
+            cur = fill_hidden(cur, pose, seen_m, restored, old, cfg.laser_mount,  # type: ignore[attr-defined]
+                              cfg.restore.bump_m, cfg.psm)  # type: ignore[attr-defined]
+        self._set_keyframe(Keyframe(cur, pose, cov, n_good_w, seen_m))
+
     def match(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D | None,
               last_cov: np.ndarray, usable: bool, refuse: bool, seen_m: np.ndarray | None = None,
-              no_odometry: bool = False) -> MatchOutcome:
+              no_odometry: bool = False, restored_m: np.ndarray | None = None) -> MatchOutcome:
         """``usable``: the scan can become a keyframe; ``refuse``: do not match (restoration too large,
         bad bearings); ``seen_m``: the measured ranges of ``cur`` before restoration (kept with it);
-        ``no_odometry``: the prediction is constant velocity (``no_odometry_refine_iterations`` apply)."""
+        ``no_odometry``: the prediction is constant velocity (``no_odometry_refine_iterations`` apply);
+        ``restored_m``: the ranges ``cur`` was prepared from (a new keyframe's cut beams are filled from
+        the old keyframe's view where it saw behind them, :func:`fill_hidden`)."""
         cfg = self.cfg
         self._no_odometry = no_odometry
+        self._restored_m = restored_m
         if last_pose is None or self.keyframe is None:
             first = last_pose is None
             flags = EstimateFlag.FIRST_SCAN if first else EstimateFlag.ODOMETRY_FALLBACK
             cov = np.zeros((3, 3)) if first else last_cov.copy()
             replaced = usable and n_good_w >= cfg.psm.required_beams(0)  # type: ignore[attr-defined]
             if replaced:
-                self._set_keyframe(Keyframe(cur, predicted, cov, n_good_w, seen_m))
+                self._new_keyframe(cur, predicted, cov, n_good_w, seen_m)
             self._remember(cur, predicted, cov, n_good_w, seen_m, usable)
             return MatchOutcome(predicted, cov, MatchQuality(0, 0, float("nan"), False), flags, None, replaced)
         out = self._match_or_recover(cur, n_good_w, predicted, last_pose, last_cov, usable, refuse, seen_m)
@@ -139,7 +152,7 @@ class KeyframeMatcher:
             or res.beams_used < cfg.keyframe_min_overlap * max(kf.n_good_weighted, 1)  # type: ignore[attr-defined]
         )
         if replaced:
-            self._set_keyframe(Keyframe(cur, cand, cov, n_good_w, seen_m))
+            self._new_keyframe(cur, cand, cov, n_good_w, seen_m)
         return MatchOutcome(cand, cov, quality, EstimateFlag.NONE, res, replaced)
 
     def _psm(self, cur: PreparedScan, predicted: Pose2D, kf: Keyframe | None = None, recovery: bool = False
@@ -189,7 +202,7 @@ class KeyframeMatcher:
         since = between(self.keyframe.pose, predicted)
         replaced = math.hypot(since.x_m, since.y_m) > cfg.keyframe_stale_dist_m and usable  # type: ignore[attr-defined]
         if replaced:
-            self._set_keyframe(Keyframe(cur, predicted, cov, n_good_w, seen_m))
+            self._new_keyframe(cur, predicted, cov, n_good_w, seen_m)
         return MatchOutcome(predicted, cov, quality, EstimateFlag.ODOMETRY_FALLBACK, res, replaced)
 
     def _constrain_weak_directions(self, res: PsmResult, guess: Pose2D) -> Pose2D:
@@ -212,3 +225,34 @@ class KeyframeMatcher:
                 dx -= (1.0 - keep) * along * v[0]
                 dy -= (1.0 - keep) * along * v[1]
         return Pose2D(guess.x_m + dx, guess.y_m + dy, res.dtheta_rad)
+
+
+def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m: np.ndarray, old: Keyframe,
+                mount: Pose2D, behind_m: float, psm_config: object) -> PreparedScan:
+    """A new keyframe ``cur`` (robot at ``pose``) whose restoration cut beams (weight 0: a moving body stood
+    there) with those beams filled from the old keyframe ``old``: where ``old`` saw a surface the matcher
+    may use at least ``behind_m`` beyond what this scan returned on that beam (``seen_m``), that surface is
+    the static background the body hides now (the nearest of them where several fall in one beam). Without
+    it, a body that hides the only wall constraining one direction (a crowd before a corridor's end wall)
+    leaves the keyframe blind along it, and every later match there is pulled by whatever else moves. Other
+    beams as prepared from ``restored_m``."""
+    cut = cur.weights <= 0.0
+    src = old.prep.good & (old.prep.weights > 0.0)
+    n = cur.bearings_rad.size
+    if not (cut.any() and src.any()) or n < 2:
+        return cur
+    rel = between(compose(pose, mount), compose(old.pose, mount))  # the old laser in the new laser's frame
+    c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
+    ox, oy = old.prep.x_m[src], old.prep.y_m[src]
+    x, y = rel.x_m + c * ox - s * oy, rel.y_m + s * ox + c * oy
+    b = cur.bearings_rad
+    k = np.rint((np.arctan2(y, x) - b[0]) / cur.dphi_rad).astype(np.int64)
+    inside = (k >= 0) & (k < n)
+    fill = np.full(n, np.inf)
+    np.minimum.at(fill, k[inside], np.hypot(x, y)[inside])
+    seen = np.where(np.isfinite(seen_m), seen_m, 0.0)
+    use = cut & np.isfinite(fill) & (fill >= seen + behind_m)
+    if not use.any():
+        return cur
+    return prepare_scan(np.where(use, fill, restored_m), b, psm_config,  # type: ignore[arg-type]
+                        np.where(use, 1.0, cur.weights))
