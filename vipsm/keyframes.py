@@ -232,27 +232,54 @@ def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m:
     """A new keyframe ``cur`` (robot at ``pose``) whose restoration cut beams (weight 0: a moving body stood
     there) with those beams filled from the old keyframe ``old``: where ``old`` saw a surface the matcher
     may use at least ``behind_m`` beyond what this scan returned on that beam (``seen_m``), that surface is
-    the static background the body hides now (the nearest of them where several fall in one beam). Without
-    it, a body that hides the only wall constraining one direction (a crowd before a corridor's end wall)
-    leaves the keyframe blind along it, and every later match there is pulled by whatever else moves. Other
-    beams as prepared from ``restored_m``."""
+    the static background the body hides now (the nearest, where several lie on one beam). Without it, a
+    body that hides the only wall constraining one direction (a crowd before a corridor's end wall) leaves
+    the keyframe blind along it, and every later match there is pulled by whatever else moves. Other beams
+    as prepared from ``restored_m``."""
     cut = cur.weights <= 0.0
-    src = old.prep.good & (old.prep.weights > 0.0)
-    n = cur.bearings_rad.size
-    if not (cut.any() and src.any()) or n < 2:
+    if not cut.any() or cur.bearings_rad.size < 2:
         return cur
-    rel = between(compose(pose, mount), compose(old.pose, mount))  # the old laser in the new laser's frame
-    c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
-    ox, oy = old.prep.x_m[src], old.prep.y_m[src]
-    x, y = rel.x_m + c * ox - s * oy, rel.y_m + s * ox + c * oy
-    b = cur.bearings_rad
-    k = np.rint((np.arctan2(y, x) - b[0]) / cur.dphi_rad).astype(np.int64)
-    inside = (k >= 0) & (k < n)
-    fill = np.full(n, np.inf)
-    np.minimum.at(fill, k[inside], np.hypot(x, y)[inside])
+    fill = _cast_keyframe(old, between(compose(old.pose, mount), compose(pose, mount)), cur.bearings_rad,
+                          cur.dphi_rad)
     seen = np.where(np.isfinite(seen_m), seen_m, 0.0)
     use = cut & np.isfinite(fill) & (fill >= seen + behind_m)
     if not use.any():
         return cur
-    return prepare_scan(np.where(use, fill, restored_m), b, psm_config,  # type: ignore[arg-type]
+    return prepare_scan(np.where(use, fill, restored_m), cur.bearings_rad, psm_config,  # type: ignore[arg-type]
                         np.where(use, 1.0, cur.weights))
+
+
+def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, dphi_rad: float) -> np.ndarray:
+    """Per beam of ``bearings_rad`` (uniform, step ``dphi_rad``) of a laser at ``rel`` from ``kf``'s laser,
+    the range to the nearest surface ``kf`` saw: each pair of neighbouring usable returns of one segment is a
+    piece of surface (inf where none)."""
+    p = kf.prep
+    ok = p.good & (p.weights > 0.0)
+    c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
+    # kf's points in the new laser's frame (rel is the new laser's pose in kf's laser frame)
+    dx, dy = p.x_m - rel.x_m, p.y_m - rel.y_m
+    x, y = c * dx + s * dy, -s * dx + c * dy
+    a = p.pair_a[ok[p.pair_a] & ok[p.pair_b]]
+    b = a + 1
+    pa, pb = np.arctan2(y[a], x[a]), np.arctan2(y[b], x[b])
+    keep = np.abs(pa - pb) < math.pi / 2  # a piece across the new laser's back is no piece of its view
+    a, b, pa, pb = a[keep], b[keep], pa[keep], pb[keep]
+    b0, step = bearings_rad[0], abs(dphi_rad)
+    k_lo = np.ceil((np.minimum(pa, pb) - b0) / step - 1e-9).astype(np.int64)
+    k_hi = np.floor((np.maximum(pa, pb) - b0) / step + 1e-9).astype(np.int64)
+    n = bearings_rad.size
+    k_lo, k_hi = np.maximum(k_lo, 0), np.minimum(k_hi, n - 1)
+    count = np.maximum(k_hi - k_lo + 1, 0)
+    out = np.full(n, np.inf)
+    if not count.any():
+        return out
+    piece = np.repeat(np.arange(a.size), count)
+    k = k_lo[piece] + (np.arange(piece.size) - np.repeat(np.cumsum(count) - count, count))
+    ux, uy = np.cos(bearings_rad[k]), np.sin(bearings_rad[k])
+    xa, ya, ex, ey = x[a][piece], y[a][piece], (x[b] - x[a])[piece], (y[b] - y[a])[piece]
+    den = ux * ey - uy * ex
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rng = (xa * ey - ya * ex) / den
+    hit = np.isfinite(rng) & (rng > 0.0)
+    np.minimum.at(out, k[hit], rng[hit])
+    return out
