@@ -83,8 +83,9 @@ class KeyframeMatcher:
         old, restored = self.keyframe, getattr(self, "_restored_m", None)
         if old is not None and seen_m is not None and restored is not None:
             cfg = self.cfg
+            rc = cfg.restore  # type: ignore[attr-defined]
             cur = fill_hidden(cur, pose, seen_m, restored, old, cfg.laser_mount,  # type: ignore[attr-defined]
-                              cfg.restore.bump_m, cfg.psm)  # type: ignore[attr-defined]
+                              rc.bump_m, rc.max_body_chord_m, cfg.psm)  # type: ignore[attr-defined]
         self._set_keyframe(Keyframe(cur, pose, cov, n_good_w, seen_m))
 
     def match(self, cur: PreparedScan, n_good_w: int, predicted: Pose2D, last_pose: Pose2D | None,
@@ -228,11 +229,12 @@ class KeyframeMatcher:
 
 
 def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m: np.ndarray, old: Keyframe,
-                mount: Pose2D, behind_m: float, psm_config: object) -> PreparedScan:
+                mount: Pose2D, behind_m: float, min_chord_m: float, psm_config: object) -> PreparedScan:
     """A new keyframe ``cur`` (robot at ``pose``) whose restoration cut beams (weight 0: a moving body stood
-    there) with those beams filled from the old keyframe ``old``: where ``old`` saw a surface the matcher
-    may use at least ``behind_m`` beyond what this scan returned on that beam (``seen_m``), that surface is
-    the static background the body hides now (the nearest, where several lie on one beam). Without it, a
+    there) with those beams filled from the old keyframe ``old``: where ``old`` saw background (a surface
+    the matcher may use, of a segment wider than ``min_chord_m``: no body) at least ``behind_m`` beyond what
+    this scan returned on that beam (``seen_m``), that background is what the body hides now (the nearest,
+    where several lie on one beam). Without it, a
     body that hides the only wall constraining one direction (a crowd before a corridor's end wall) leaves
     the keyframe blind along it, and every later match there is pulled by whatever else moves. Other beams
     as prepared from ``restored_m``."""
@@ -240,7 +242,7 @@ def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m:
     if not cut.any() or cur.bearings_rad.size < 2:
         return cur
     fill = _cast_keyframe(old, between(compose(old.pose, mount), compose(pose, mount)), cur.bearings_rad,
-                          cur.dphi_rad)
+                          cur.dphi_rad, min_chord_m)
     seen = np.where(np.isfinite(seen_m), seen_m, 0.0)
     use = cut & np.isfinite(fill) & (fill >= seen + behind_m)
     if not use.any():
@@ -249,12 +251,13 @@ def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m:
                         np.where(use, 1.0, cur.weights))
 
 
-def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, dphi_rad: float) -> np.ndarray:
+def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, dphi_rad: float, min_chord_m: float
+                   ) -> np.ndarray:
     """Per beam of ``bearings_rad`` (uniform, step ``dphi_rad``) of a laser at ``rel`` from ``kf``'s laser,
-    the range to the nearest surface ``kf`` saw: each pair of neighbouring usable returns of one segment is a
-    piece of surface (inf where none)."""
+    the range to the nearest surface ``kf`` saw on a segment wider than ``min_chord_m``: each pair of
+    neighbouring usable returns of such a segment is a piece of surface (inf where none)."""
     p = kf.prep
-    ok = p.good & (p.weights > 0.0)
+    ok = p.good & (p.weights > 0.0) & (_chords(p) > min_chord_m)
     c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
     # kf's points in the new laser's frame (rel is the new laser's pose in kf's laser frame)
     dx, dy = p.x_m - rel.x_m, p.y_m - rel.y_m
@@ -283,3 +286,19 @@ def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, dphi_rad
     hit = np.isfinite(rng) & (rng > 0.0)
     np.minimum.at(out, k[hit], rng[hit])
     return out
+
+
+def _chords(p: PreparedScan) -> np.ndarray:
+    """Per beam, the distance between the first and the last return of its segment (0 outside segments)."""
+    n = p.segments.size
+    ids = p.segments.astype(np.int64)
+    first = np.full(int(ids.max(initial=0)) + 1, n)
+    last = np.full(first.size, -1)
+    order = np.arange(n)
+    np.minimum.at(first, ids, order)
+    np.maximum.at(last, ids, order)
+    f, z = first[ids], last[ids]
+    ok = (ids > 0) & (z >= f)
+    chord = np.zeros(n)
+    chord[ok] = np.hypot(p.x_m[z[ok]] - p.x_m[f[ok]], p.y_m[z[ok]] - p.y_m[f[ok]])
+    return chord

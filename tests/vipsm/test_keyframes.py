@@ -44,7 +44,8 @@ def test_a_cut_body_is_filled_with_the_wall_the_old_keyframe_saw_behind_it() -> 
     cur, seen = _prepared(_world(circles=[body]), new_pose, True)
     hidden = (cur.weights == 0.0) & _end_wall_beams(new_pose)
     assert hidden.sum() > 20
-    filled = fill_hidden(cur, new_pose, seen, seen, old, CFG.laser_mount, CFG.restore.bump_m, CFG.psm)
+    filled = fill_hidden(cur, new_pose, seen, seen, old, CFG.laser_mount, CFG.restore.bump_m,
+                         CFG.restore.max_body_chord_m, CFG.psm)
     truth, _ = _world().cast(new_pose.x_m, new_pose.y_m, UTM_BEARINGS + new_pose.theta_rad)
     inner = hidden & np.roll(hidden, 2) & np.roll(hidden, -2)  # away from the cut's ends (the median's window)
     assert np.all(filled.weights[inner] == 1.0)
@@ -60,7 +61,8 @@ def test_no_fill_where_the_old_keyframe_saw_something_nearer_than_the_body_now()
     old_prep, old_seen = _prepared(_world(extra_walls=[(2.0, -0.5, 2.0, 0.5)]), pose, False)
     old = Keyframe(old_prep, pose, np.zeros((3, 3)), old_prep.n_usable, old_seen)
     cur, seen = _prepared(_world(circles=[Circle(4.0, 0.0, 0.3)]), pose, True)
-    filled = fill_hidden(cur, pose, seen, seen, old, CFG.laser_mount, CFG.restore.bump_m, CFG.psm)
+    filled = fill_hidden(cur, pose, seen, seen, old, CFG.laser_mount, CFG.restore.bump_m,
+                         CFG.restore.max_body_chord_m, CFG.psm)
     assert filled is cur
 
 
