@@ -66,6 +66,24 @@ def test_no_fill_where_the_old_keyframe_saw_something_nearer_than_the_body_now()
     assert filled is cur
 
 
+def test_an_old_keyframes_body_is_no_background_for_the_new_one() -> None:
+    """A narrow thing the old keyframe saw (a person its cut missed) fills nothing: only segments wider than a
+    body (``restore.max_body_chord_m``) are background."""
+    pose = Pose2D(0.0, 0.0, 0.0)
+    person = Circle(5.0, 0.0, 0.2)
+    old_prep, old_seen = _prepared(_world(circles=[person]), pose, False)
+    old = Keyframe(old_prep, pose, np.zeros((3, 3)), old_prep.n_usable, old_seen)
+    cur, seen = _prepared(_world(circles=[Circle(3.0, 0.0, 0.6)]), pose, True)
+    filled = fill_hidden(cur, pose, seen, seen, old, CFG.laser_mount, CFG.restore.bump_m,
+                         CFG.restore.max_body_chord_m, CFG.psm)
+    _, ident = _world(circles=[person]).cast(0.0, 0.0, UTM_BEARINGS)
+    behind_person = (ident < 0) & (cur.weights == 0.0)
+    assert behind_person.sum() >= 5
+    assert np.all(filled.weights[behind_person] == 0.0)  # nothing known behind it: still cut
+    wall = (cur.weights == 0.0) & ~behind_person & _end_wall_beams(pose)
+    assert np.mean(filled.weights[wall] == 1.0) > 0.8  # the end wall beside it is filled
+
+
 def test_the_travel_along_a_corridor_is_measured_after_a_keyframe_whose_end_wall_a_body_hid() -> None:
     """The end wall is all that constrains the travel along a corridor. A body hides it while a keyframe is
     taken (cut there). Once the body has gone, the matches against that keyframe still measure the travel
