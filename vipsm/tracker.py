@@ -18,7 +18,9 @@ midpoint, or quick enough to follow a sidestep. The measurement noise comes with
 leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
 changed (another point of the body). A lone leg of a track seen as a leg pair before is one of a
 person's legs: the centre lies anywhere within half the widest pair of it, its noise that wide. Two lone
-legs standing where the track's legs stood are the person's two legs, measured as the pair they are.
+legs standing where the track's legs stood are the person's two legs, measured as the pair they are. A
+confirmed track does not take a detection without motion evidence where the static map saw something stand
+before (``Detection.held``) outside its body's footprint: that is the background beside it, not its body.
 
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
