@@ -274,7 +274,8 @@ class Estimator:
                                 self._people.known_legs(scan.stamp_s) if self._people is not None else None)
         sigma = self._heading_sigma_rad
         sigma = self.config.seen_through.heading_sigma_rad if sigma is None else sigma
-        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, sigma) for b in bodies])
+        held = _held_before(self._static, laser, scan, bodies)
+        tracked = self._tracker.step(scan.stamp_s, [_detection(b, laser, sigma, h) for b, h in zip(bodies, held)])
         if self._people is not None:
             # the leg detector's view also without the ramps of mixed pixels (stage 1's second rule)
             ramps = ramp_masks(scan.ranges_m, scan.bearings_rad, self.config.prefilter)
@@ -643,15 +644,32 @@ def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:
     return flags
 
 
-def _detection(b: Body, laser: Pose2D, heading_sigma_rad: float = math.nan) -> Detection:
+def _held_before(grid: FreeSpaceGrid, laser: Pose2D, scan: Scan, bodies: list[Body]) -> list[bool]:
+    """Per body: something stood at its nearest return when the laser last saw that place before this scan
+    (:meth:`FreeSpaceGrid.held`, asked before this scan is integrated; tracked moving bodies write no
+    occupancy, so it is the static background's or a body's that stood untracked). A body with no finite
+    return: False."""
+    if not bodies:
+        return []
+    r = np.where(np.isfinite(scan.ranges_m), scan.ranges_m, np.inf)
+    k = np.array([b.scan_index_start + int(np.argmin(r[b.scan_index_start : b.scan_index_stop]))
+                  if b.scan_index_stop > b.scan_index_start else 0 for b in bodies])
+    ok = np.isfinite(r[k]) & np.array([b.scan_index_stop > b.scan_index_start for b in bodies])
+    ang = laser.theta_rad + scan.bearings_rad[k]
+    rk = np.where(ok, r[k], 0.0)
+    xy = np.stack([laser.x_m + rk * np.cos(ang), laser.y_m + rk * np.sin(ang)], axis=1)
+    return [bool(h) for h in grid.held(xy) & ok]
+
+
+def _detection(b: Body, laser: Pose2D, heading_sigma_rad: float = math.nan, held: bool = False) -> Detection:
     """The tracker's detection of a body seen from ``laser`` (world frame) whose own heading error is
-    ``heading_sigma_rad``."""
+    ``heading_sigma_rad``; ``held``: something stood where it is when the laser last saw the place."""
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
                      b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind],
                      sigma_across_m=_SIGMA_ACROSS_M.get(b.kind), kind=b.kind,
                      occluded=b.occluded, view_rad=math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m),
                      laser_x_m=laser.x_m, laser_y_m=laser.y_m, laser_theta_rad=laser.theta_rad,
-                     heading_sigma_rad=heading_sigma_rad)
+                     heading_sigma_rad=heading_sigma_rad, held=held)
 
 
 def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, float]) -> Obstacle:

@@ -18,7 +18,9 @@ midpoint, or quick enough to follow a sidestep. The measurement noise comes with
 leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
 changed (another point of the body). A lone leg of a track seen as a leg pair before is one of a
 person's legs: the centre lies anywhere within half the widest pair of it, its noise that wide. Two lone
-legs standing where the track's legs stood are the person's two legs, measured as the pair they are.
+legs standing where the track's legs stood are the person's two legs, measured as the pair they are. A
+confirmed track does not take a detection without motion evidence where the static map saw something stand
+before (``Detection.held``) outside its body's footprint: that is the background beside it, not its body.
 
 The laser sees only the front surface of a round body, so the centroid of the hit points sits
 about half a radius too close (``shared/protocols/psm.md`` §9.14). The body's centre is found by
@@ -252,6 +254,9 @@ class Detection:
     laser_y_m: float = math.nan
     laser_theta_rad: float = math.nan
     heading_sigma_rad: float = math.nan
+    #: something stood where its returns lie when the laser last saw that place (before this scan; tracked moving
+    #: bodies write no occupancy): the static background, unless it shows motion (``evidence``)
+    held: bool = False
 
 
 def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
@@ -946,7 +951,7 @@ class Tracker:
                     # it moves: an unconfirmed one (a table leg a passer-by uncovered) took the next
                     # table leg 0.6 m away and "walked" at 1.7 m/s
                     gate += 2.0 * math.sqrt(max(t.cov[0, 0] + t.cov[1, 1], 0.0))
-                if dist < gate:
+                if dist < gate and not self._relocks(t, d):
                     pairs.append((dist, ti, di))
         pairs.sort()
         used_t: set[int] = set()
@@ -966,6 +971,27 @@ class Tracker:
                 taken[id(detections[other])] = ti
                 got[ti] = _pair_of(d, detections[other], DEFAULT_SIGMA_M)
         return got, taken
+
+    def _relocks(self, t: Track, d: Detection) -> bool:
+        """``d`` is something else that stood where it is before the confirmed track came: no motion evidence,
+        its place held when the laser last saw it (``Detection.held``), and outside the footprint of the
+        track's body, where the returns may be the body's own: around the predicted centre and each of the
+        track's last ``report_window`` detections, a person's legs up to ``KIND_CHANGE_M`` from its centre (a
+        leg pair's midpoint), a lone leg's other leg up to a pair's width (``2 KIND_CHANGE_M``) from it, a round
+        body's outline its radius from its centre; each plus ``confirm_vacated_m`` (a leg's width plus its
+        jitter). A confirmed track that takes it re-locks onto the static background beside its body (a wall's
+        piece, a table leg) and is reported reading the hop there as motion (an unconfirmed one is not
+        confirmed on it: the place it left is not vacated, ``_left``)."""
+        if d.evidence or not d.held or not t.confirmed:
+            return False
+        person = t.seen_as_person or t.kind != "body"
+        own = np.array(t.recent)
+        xy = np.vstack([own[:, 1:3], t.state[:2]])
+        reach = np.append(np.where(own[:, 3] == _KIND_CODE["leg"], 2.0 * KIND_CHANGE_M,
+                                   np.where(own[:, 3] == _KIND_CODE["person"], KIND_CHANGE_M, t.radius_m)),
+                          KIND_CHANGE_M if person else t.radius_m)
+        dist = np.hypot(xy[:, 0] - d.x_m, xy[:, 1] - d.y_m)
+        return bool(np.all(dist > reach + self.config.confirm_vacated_m))
 
     def _other_leg(self, t: Track, leg: Detection, detections: list[Detection], used: set[int]) -> int | None:
         """The index of the track's other leg, seen as a lone leg of its own beside ``leg`` (the body stage
