@@ -5,10 +5,15 @@ is a pair of leg tracks):
 
 1. **legs** (:mod:`vipsm.legs`): every leg-sized segment of the pre-filtered scan gets a leg probability
    from the learned detector; those at or above its operating point are legs, placed at their returns'
-   centroid pushed back by a leg's radius along the viewing ray;
+   centroid pushed back by a leg's radius along the viewing ray; those below it (down to
+   :func:`weak_floor`) are *weak* candidates (``weak_legs``);
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
-   ``leg_max_speed_mps`` per second); a leg track unseen for ``leg_memory_s`` ends. A static leg's
+   ``leg_max_speed_mps`` per second), then of the weak candidates to the person's leg tracks no leg
+   continued (a far leg of 3 returns often scores below the operating point); a weak candidate never
+   starts a leg track, joins no leg to a person and starts no person, is weighed by its leg probability
+   in the person's existence, and is no evidence that a body moves (it may be another thing's segment);
+   a leg track unseen for ``leg_memory_s`` ends. A static leg's
    detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint. A
    track that took a detection where something else already stood (the laser returned there when it last
    saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
