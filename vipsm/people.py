@@ -5,10 +5,15 @@ is a pair of leg tracks):
 
 1. **legs** (:mod:`vipsm.legs`): every leg-sized segment of the pre-filtered scan gets a leg probability
    from the learned detector; those at or above its operating point are legs, placed at their returns'
-   centroid pushed back by a leg's radius along the viewing ray;
+   centroid pushed back by a leg's radius along the viewing ray; those below it (down to
+   :func:`weak_floor`) are *weak* candidates (``weak_legs``);
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
-   ``leg_max_speed_mps`` per second); a leg track unseen for ``leg_memory_s`` ends. A static leg's
+   ``leg_max_speed_mps`` per second), then of the weak candidates to the person's leg tracks no leg
+   continued (a far leg of 3 returns often scores below the operating point); a weak candidate never
+   starts a leg track, joins no leg to a person and starts no person, is weighed by its leg probability
+   in the person's existence, and is no evidence that a body moves (it may be another thing's segment);
+   a leg track unseen for ``leg_memory_s`` ends. A static leg's
    detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint. A
    track that took a detection where something else already stood (the laser returned there when it last
    saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
@@ -110,6 +115,9 @@ class PeopleConfig:
     person_radius_m: float = PersonSize.person_radius_m
     #: bound on the number of person tracks (the least likely to exist go first); leg tracks: twice it
     max_tracks: int = 40
+    #: leg candidates below the detector's operating point continue existing leg tracks (weighed by their
+    #: leg probability); off: such segments are dropped before the leg tracker
+    weak_legs: bool = True
 
     def __post_init__(self) -> None:
         probs = (self.gate_p, self.p_detect, self.p_clutter, self.exist_birth, self.exist_confirm, self.exist_drop,
@@ -139,6 +147,9 @@ class LegDetection:
     #: a nearer return right beside it: only part of it is seen, and its centre moves with the edge of
     #: what hides it (a wall piece behind a table leg slides along the wall as the robot drives by)
     occluded: bool = False
+    #: below the detector's operating point: a leg candidate only, weighed by ``p_leg`` (it may continue a
+    #: leg track within its reach, never start a leg track or a person)
+    weak: bool = False
 
 
 @dataclass
@@ -187,6 +198,10 @@ class PersonTrack:
     age_cycles: int = 1
     #: when a detection last updated it (None: never)
     updated_s: float | None = None
+    #: seen this cycle by a leg the detector took, or by weak candidates while its existence stays at
+    #: ``exist_confirm`` or above: only then is a moving person a moving obstacle (weak candidates alone may
+    #: be other things' segments: they are believed only for a person they do not make doubtful)
+    leg_seen: bool = False
 
     @property
     def p_moving(self) -> float:
@@ -196,13 +211,17 @@ class PersonTrack:
 
 def detect_legs(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, model: LegModel,
                 cfg: PeopleConfig, bodies_cfg: BodiesConfig, dropped: np.ndarray | None = None) -> list[LegDetection]:
-    """Legs in one pre-filtered scan (world frame, laser at ``laser``)."""
+    """Leg candidates in one pre-filtered scan (world frame, laser at ``laser``): the segments at or above
+    the detector's operating point are legs, those below it ``weak`` candidates (a far leg of 3 returns
+    often scores below it, and so does a near leg seen edge-on for a scan) unless ``p_leg`` says less for a
+    leg than no detection at all would (:func:`weak_floor`)."""
     spans = segments(ranges_m, bearings_rad, bodies_cfg, dropped)
     kept, x = segment_features(ranges_m, bearings_rad, spans, cfg.legs)
     if not kept:
         return []
     p = model.predict(x)
     thr = cfg.legs.threshold or model.threshold_p
+    floor = weak_floor(cfg) if cfg.weak_legs else thr
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     # how far the returns beside each segment lie behind it (negative: in front): nearer on both sides
     # is background seen between two things, nearer on one side a partly hidden segment
@@ -210,14 +229,26 @@ def detect_legs(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, m
     nearer = front < -bodies_cfg.foreground_m
     legs = []
     for (a, z, pts), q, near in zip(kept, p, nearer, strict=True):
-        if q < thr or near.all():
+        if q < floor or near.all():
             continue
         cx, cy = (float(v) for v in pts.mean(axis=0))
         d = max(math.hypot(cx, cy), 1e-6)
         lx, ly = cx + cfg.leg_radius_m * cx / d, cy + cfg.leg_radius_m * cy / d
         legs.append(LegDetection(laser.x_m + c * lx - s * ly, laser.y_m + s * lx + c * ly, float(q), a, z,
-                                 occluded=bool(near.any())))
+                                 occluded=bool(near.any()), weak=bool(q < thr)))
     return legs
+
+
+def weak_floor(cfg: PeopleConfig) -> float:
+    """The least leg probability with which a candidate below the operating point still counts for a person
+    rather than against it: where its likelihood ratio in the existence update (``p_detect`` p against
+    ``p_clutter`` (1 - p); the detector's forest is trained with balanced classes, so p / (1 - p) is the
+    ratio of the two classes' score densities) equals a miss's ((1 - ``p_detect``) against
+    (1 - ``p_clutter``)). Below it the segment is no detection of a leg at all: a miss says more for the
+    person than it does."""
+    miss = (1.0 - cfg.p_detect) / (1.0 - cfg.p_clutter)
+    odds = miss * cfg.p_clutter / cfg.p_detect
+    return odds / (1.0 + odds)
 
 
 #: a yes/no question about a world point (x_m, y_m) asked of this cycle's scan
@@ -282,7 +313,7 @@ class PeopleTracker:
             seen.add(t.track_id)
         for t in self.tracks:
             if t.track_id not in seen:
-                t.legs = ()
+                t.legs, t.leg_seen = (), False
                 x, y = (float(v) for v in t.filt.mean[:2])
                 if visible is None or visible(x, y):
                     t.existence = _bayes(t.existence, 1.0 - c.p_detect, 1.0 - c.p_clutter)
@@ -297,17 +328,14 @@ class PeopleTracker:
         tracks = list(self.legs.values())
         for lt in tracks:
             lt.det = None
-        got: dict[int, int] = {}
-        if tracks and detections:
-            cost = np.full((len(tracks), len(detections)), np.inf)
-            for i, lt in enumerate(tracks):
-                px, py = lt.predicted(stamp_s, c.leg_memory_s)
-                reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-                for j, d in enumerate(detections):
-                    dist = math.hypot(d.x_m - px, d.y_m - py)
-                    if dist <= reach:
-                        cost[i, j] = dist
-            got = assign_gated(cost)
+        # legs first; a weak candidate only continues a person's leg track that no leg continued (it never
+        # displaces a leg, and a free leg track, no person's, is not kept alive by it)
+        strong = [j for j, d in enumerate(detections) if not d.weak]
+        got = self._associate(stamp_s, tracks, detections, strong)
+        owned = {k for t in self.tracks for k in t.leg_ids}
+        rest = [i for i, lt in enumerate(tracks) if i not in got and lt.leg_id in owned]
+        weak = [j for j, d in enumerate(detections) if d.weak]
+        got |= {rest[i]: j for i, j in self._associate(stamp_s, [tracks[i] for i in rest], detections, weak).items()}
         partner = {a: b for t in self.tracks if len(t.leg_ids) == 2 for a, b in (t.leg_ids, t.leg_ids[::-1])}
         for i, j in got.items():
             lt, d = tracks[i], detections[j]
@@ -320,7 +348,7 @@ class PeopleTracker:
             lt.seen(stamp_s, d, c.leg_memory_s)
         taken = set(got.values())
         for j, d in enumerate(detections):
-            if j not in taken:
+            if j not in taken and not d.weak:
                 self.legs[self._next_leg] = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s)
                 self.legs[self._next_leg].seen(stamp_s, d, c.leg_memory_s)
                 self._next_leg += 1
@@ -332,6 +360,24 @@ class PeopleTracker:
             del self.legs[k]
         for t in self.tracks:
             t.leg_ids = [k for k in t.leg_ids if k in self.legs]
+
+    def _associate(self, stamp_s: float, tracks: list[LegTrack], detections: list[LegDetection], cols: list[int]
+                   ) -> dict[int, int]:
+        """Global nearest neighbour of the leg tracks to the detections ``cols`` within each track's reach
+        (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen): track index -> detection
+        index."""
+        c = self.config
+        if not tracks or not cols:
+            return {}
+        cost = np.full((len(tracks), len(cols)), np.inf)
+        for i, lt in enumerate(tracks):
+            px, py = lt.predicted(stamp_s, c.leg_memory_s)
+            reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+            for k, j in enumerate(cols):
+                dist = math.hypot(detections[j].x_m - px, detections[j].y_m - py)
+                if dist <= reach:
+                    cost[i, k] = dist
+        return {i: cols[k] for i, k in assign_gated(cost).items()}
 
     def _one_body(self, a: tuple[float, float], b: tuple[float, float], v: tuple[float, float]) -> bool:
         """Two leg centres ``a``, ``b`` can be one person's whose body moves at velocity ``v``: within a
@@ -375,9 +421,11 @@ class PeopleTracker:
         return across_beyond_m(dx, dy, *line) <= self.config.leg_across_max_m
 
     def _free(self) -> list[LegTrack]:
-        """Leg tracks seen this cycle that belong to nobody."""
+        """Leg tracks seen this cycle that belong to nobody, by a leg (a weak candidate continues a leg track
+        and its place in a person, but joins no leg to a person: that would be a new pairing on a segment
+        the detector did not take for a leg)."""
         owned = {k for t in self.tracks for k in t.leg_ids}
-        return [lt for k, lt in self.legs.items() if k not in owned and lt.det is not None]
+        return [lt for k, lt in self.legs.items() if k not in owned and lt.det is not None and not lt.det.weak]
 
     def _adopt(self, stamp_s: float) -> None:
         """A person with one leg takes the nearest free leg within a leg pair's reach of it whose
@@ -440,19 +488,27 @@ class PeopleTracker:
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
-        ev = any(lt.det.evidence or self._travelled(lt) for lt in seen)
         share = self._walking_share(t)
-        e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
+        legs = [lt for lt in seen if not lt.det.weak]
+        p_leg = max(lt.det.p_leg for lt in legs or seen)
         dt = min(t.stamp_s - t.updated_s, c.leg_memory_s) if t.updated_s is not None else 0.0
         stayed = math.exp(-(1.0 - share) * max(dt, 0.0) / c.stand_dwell_s)
-        p_leg = max(lt.det.p_leg for lt in seen)
-        # the kinematics as evidence too; motion evidence measures the same displacement: counted once
-        kin_dyn, kin_static = (1.0, 1.0) if ev else self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
-        t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
-                             (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
+        if legs:
+            # motion evidence and kinematics from the detector's legs alone: a weak candidate may be another
+            # thing's segment (a wall piece sliding by as the robot drives, a table leg beside the track), and
+            # a midpoint with one jumps: it tells nothing of whether the body moves
+            ev = any(lt.det.evidence or self._travelled(lt) for lt in legs)
+            e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
+            # the kinematics as evidence too; motion evidence measures the same displacement: counted once
+            kin_dyn, kin_static = (1.0, 1.0) if ev or len(legs) < len(seen) else \
+                self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
+            t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
+                                 (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
+        else:
+            t.p_dynamic = _bayes(t.p_dynamic, stayed, 1.0)
         t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
-        t.legs = tuple((lt.x_m, lt.y_m) for lt in seen)
+        t.legs, t.leg_seen = tuple((lt.x_m, lt.y_m) for lt in seen), bool(legs) or t.existence >= c.exist_confirm
 
     def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
         """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's
@@ -559,7 +615,7 @@ class PeopleTracker:
             out.append(t)
         taken = set(got.values())
         for di, (x, y, s, g) in enumerate(dets):
-            if di in taken:
+            if di in taken or all(lt.det.weak for lt in g):  # weak candidates alone start no person
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
             t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
@@ -657,7 +713,7 @@ class PeopleTracker:
             standing_for = self.bodies_standing_for(people, others)
         explained = {pid for pid, _ in standing_for.values()}
         for p in people:
-            if not (p.moving and p.legs) or p.track_id in explained:
+            if not (p.moving and p.legs and tracks[p.track_id].leg_seen) or p.track_id in explained:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
@@ -673,7 +729,8 @@ class PeopleTracker:
         """Per body of ``others`` that a moving person seen this cycle stands for (as in :meth:`obstacles`),
         the person's track id and its distance from the body (``vipsm.identity`` gives both one id)."""
         c = self.config
-        moving = [p for p in people if p.moving and p.legs]
+        seen = {t.track_id for t in self.tracks if t.leg_seen}
+        moving = [p for p in people if p.moving and p.legs and p.track_id in seen]
         found = _explained(moving, others, c.leg_pair_max_m, c.person_radius_m)
         return {others[k].track_id: (p.track_id, math.hypot(p.x_m - others[k].x_m, p.y_m - others[k].y_m))
                 for p, k in zip(moving, found, strict=True) if k is not None}
