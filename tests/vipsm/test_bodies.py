@@ -442,3 +442,63 @@ def test_the_people_stage_gives_each_walking_leg_its_line_of_walking() -> None:
             assert [k.line for k in people.known_legs(0.1)] == [None, None]
     lines = [k.line for k in people.known_legs(1.2)]
     assert len(lines) == 2 and all(line is not None and line[0] > 0.95 for line in lines)  # along +x
+
+
+def _standing_person(people, legs: list[tuple[float, float]], t0_s: float, cycles: int) -> float:
+    """Feeds the people stage ``legs`` standing still for ``cycles`` scans from ``t0_s``; the next stamp."""
+    from vipsm.people import LegDetection
+
+    for k in range(cycles):
+        people.step(t0_s + 0.1 * k, [LegDetection(x, y, 0.9, 2 * i, 2 * i + 1) for i, (x, y) in enumerate(legs)])
+    return t0_s + 0.1 * cycles
+
+
+def test_a_standing_persons_seen_leg_pairs_with_no_thing_that_stood_beside_it_while_the_other_is_hidden() -> None:
+    """turn_in_place: a person stood (the people stage holds both legs as its leg tracks); one leg was hidden
+    for 0.3 s, and a leg-sized thing that had stood 0.6 m from the seen leg came into view. The hidden leg's
+    reach (a swing leg's 3 m/s while unseen) took the thing, and the seen leg and the thing were paired into
+    a "person" 0.25 m off the pelvis, which the body tracker read as a step. A leg does not arrive where
+    something stood before it came, and a person's legs pair only with each other: the seen leg is alone. A
+    leg that steps where nothing stood (a walk's first step, the hidden leg come out) still pairs."""
+    from app.legmodel import default_leg_model
+    from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
+
+    world = box_room(8.0, 6.0, pillars=False)
+    seen, hidden, thing = (2.5, 0.1), (2.5, -0.15), (2.55, -0.5)
+    world.circles = [Circle(*seen, 0.06), Circle(*hidden, 0.06), Circle(*thing, 0.05)]
+    grid = _seen_empty(world)
+    for k in range(30):  # all three stood there for 3 s
+        scan = world.scan(ORIGIN)
+        grid.integrate(1.0 + 0.1 * k, (0.0, 0.0), 0.0, scan.ranges_m, scan.bearings_rad)
+    people = PeopleTracker(PeopleConfig(), default_leg_model())
+    t = _standing_person(people, [seen, hidden], 1.0, 20)
+    for _ in range(3):  # the other leg hidden for 0.3 s
+        people.step(t, [LegDetection(*seen, 0.9, 0, 1)])
+        t += 0.1
+    known = people.known_legs(t)
+    assert sorted(k.person is not None for k in known) == [True, True]  # a standing person's two legs
+    world.circles = [Circle(*seen, 0.06), Circle(*thing, 0.05)]
+    scan = world.scan(ORIGIN)
+    args = (scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG, TrackerConfig())
+    assert sorted(b.kind for b in extract_bodies(*args, known_legs=known)) == ["leg", "leg"]
+    assert [b.kind for b in extract_bodies(*args)] == ["person"]  # distance alone: one "person" between them
+    # the same place where nothing stood: the hidden leg stepped there, the person's own pair
+    fresh = _seen_empty(box_room(8.0, 6.0, pillars=False))
+    args = (scan.ranges_m, scan.bearings_rad, ORIGIN, fresh, [], CFG, TrackerConfig())
+    assert [b.kind for b in extract_bodies(*args, known_legs=known)] == ["person"]
+
+
+def test_the_people_stage_names_the_person_of_two_leg_tracks_walking_or_standing() -> None:
+    """``PeopleTracker.known_legs``: both leg tracks of a confirmed person, standing still, carry its id; a
+    leg track that re-locked onto a thing standing where it arrived (``arrived_held``) is that thing, and its
+    person then holds one leg: neither carries the id."""
+    from app.legmodel import default_leg_model
+    from vipsm.people import PeopleConfig, PeopleTracker
+
+    people = PeopleTracker(PeopleConfig(), default_leg_model())
+    t = _standing_person(people, [(2.5, 0.1), (2.5, -0.15)], 0.0, 20)
+    person = next(p for p in people.tracks if len(p.leg_ids) == 2)
+    assert person.confirmed and not person.moving
+    assert [k.person for k in people.known_legs(t)] == [person.track_id] * 2
+    people.legs[person.leg_ids[1]].arrived_held = True
+    assert [k.person for k in people.known_legs(t)] == [None, None]
