@@ -361,8 +361,8 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
 @dataclass(frozen=True)
 class KnownLeg:
     """A leg the people stage (:mod:`vipsm.people`) tracks, predicted to this scan: where it should be, how
-    far from that its detection may lie (a leg's reach in the elapsed time), and the person (walking or
-    standing, confirmed) whose two leg tracks it is one of (None: a leg of no such person)."""
+    far from that its detection may lie (a leg's reach in the elapsed time), and the walking person whose
+    two leg tracks it is one of (None: a leg of no such person)."""
 
     x_m: float
     y_m: float
@@ -375,23 +375,18 @@ class KnownLeg:
     line_sigma_rad: float = 0.0
 
 
-def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg], own_m: float
-                ) -> list[KnownLeg | None]:
+def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
     """Per leg, the tracked leg it continues: global nearest neighbour of the leg centres to the tracked
     legs' predictions within their reach (:func:`vipsm.assignment.assign`); None for a leg that continues
-    none. A leg-sized thing that has stood where it is (``_Segment.stood``: its cells long occupied)
-    continues only a tracked leg predicted within its own reach (``own_m``, :attr:`Derived.fixture_own_m`):
-    a leg that arrives at a place has not occupied it before it came, so a tracked leg that would reach it
-    from further away re-locks onto something that stood there (the people stage's model of a re-lock,
-    ``PeopleTracker._judge_arrival``; a hidden leg's reach grows by a swing leg's speed while unseen)."""
+    none."""
     out: list[KnownLeg | None] = [None] * len(legs)
     if not legs or not known:
         return out
     cost = np.full((len(legs), len(known)), np.inf)
-    for i, (sg, x, y) in enumerate(legs):
+    for i, (_, x, y) in enumerate(legs):
         for j, k in enumerate(known):
             d = math.hypot(x - k.x_m, y - k.y_m)
-            if d <= k.reach_m and not (sg.stood and d > own_m):
+            if d <= k.reach_m:
                 cost[i, j] = d
     for r, k in assign_gated(cost).items():
         out[r] = known[k]
@@ -400,11 +395,10 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
 
 def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, across_max_m: float) -> bool:
     """Two legs ``(dx, dy)`` apart that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one
-    person's: a person who holds two leg tracks (walking or standing) has both its legs, so its legs pair
-    only with each other; the other legs pair among themselves, and only within ``across_max_m`` across the
-    line of walking of either, widened by the line's uncertainty (:func:`vipsm.person.across_beyond_m`; the
-    feet swing along it a hip's width apart; two walkers side by side have each leg 0.4 m across from the
-    other's same leg)."""
+    person's: a walking person who holds two leg tracks has both its legs, so its legs pair only with each
+    other; the other legs pair among themselves, and only within ``across_max_m`` across the line of walking
+    of either, widened by the line's uncertainty (:func:`vipsm.person.across_beyond_m`; the feet swing along
+    it a hip's width apart; two walkers side by side have each leg 0.4 m across from the other's same leg)."""
     if (None if a is None else a.person) != (None if b is None else b.person):
         return False
     return all(k is None or k.line is None or across_beyond_m(dx, dy, k.line, k.line_sigma_rad) <= across_max_m
@@ -414,12 +408,12 @@ def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, acro
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
                ) -> list[tuple[int, int | None]]:
     """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture, never two legs that
-    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`): a person's two leg
+    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`): a walker's two leg
     tracks pair only with each other (leg_tracker's model: a person is two leg tracks whose association
     persists), and no two legs lie further apart across the line of walking of either than
     ``leg_across_max_m`` (two people walking side by side in step have each leg 0.4 m across from the other's
     same leg, nearer than their own other leg a stride away); the rest alone."""
-    owner = _leg_people(legs, known or [], der.fixture_own_m)
+    owner = _leg_people(legs, known or [])
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
         for i in range(len(legs)) for j in range(i + 1, len(legs))

@@ -665,21 +665,19 @@ class PeopleTracker:
     def known_legs(self, stamp_s: float) -> list[KnownLeg]:
         """The live leg tracks predicted to ``stamp_s`` (before this cycle's :meth:`step`), each with its
         reach (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen, as the leg
-        association gates it) and, if it is one of the two leg tracks of a person (confirmed, or moving;
-        walking or standing), that person's id: a person has two legs, and once the people stage holds both
-        as its leg tracks, the body stage pairs either only with the other (:func:`vipsm.bodies._may_pair`),
-        never with another piece nearby (a standing person whose other leg is hidden, beside a cart's leg or
-        an occluded piece: their midpoint, a quarter of a metre off the pelvis, read as a step). A leg track
-        that re-locked onto something that stood where it arrived (``arrived_held``, :meth:`_judge_arrival`)
-        is that thing, not a leg the person holds: its person holds one leg."""
+        association gates it) and, if it is one of the two leg tracks of a moving person (``moving``), that
+        person's id: the body stage pairs such a leg only with the person's other leg
+        (:func:`vipsm.bodies._may_pair`). Only a walker's pairing says more than the legs' distance: its
+        legs pair along its line of walking (``_one_body``, ``_split``) and were kept as they moved; a
+        standing person's legs were paired by distance alone (a standing cart pusher's leg and a leg of
+        the cart, which then kept the pusher's own legs apart)."""
         c = self.config
-        held = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and (t.confirmed or t.moving)
-                and not any(self.legs[j].arrived_held for j in t.leg_ids) for k in t.leg_ids}
+        walker = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.moving for k in t.leg_ids}
         out = []
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            out.append(KnownLeg(x, y, reach, held.get(k), *self._walking_line(k)))
+            out.append(KnownLeg(x, y, reach, walker.get(k), *self._walking_line(k)))
         return out
 
     def _walking_line(self, k: int) -> tuple[tuple[float, float] | None, float]:
