@@ -61,6 +61,8 @@ class KeyframeMatcher:
         self.last: Keyframe | None = None
         #: matches accepted only by a retry (diagnostics: a prediction that keeps missing shows here)
         self.recoveries = 0
+        #: the ranges the current scan was prepared from (``match``'s ``restored_m``)
+        self._restored_m: np.ndarray | None = None
         psm = cfg.psm  # type: ignore[attr-defined]
         recovery = dataclasses.replace(
             psm, search_window_first_rad=max(cfg.recovery_window_rad, psm.search_window_first_rad),  # type: ignore[attr-defined]
@@ -80,7 +82,7 @@ class KeyframeMatcher:
     def _new_keyframe(self, cur: PreparedScan, pose: Pose2D, cov: np.ndarray, n_good_w: int,
                       seen_m: np.ndarray | None) -> None:
         """The current scan becomes the keyframe, its cut beams filled from the old keyframe's view."""
-        old, restored = self.keyframe, getattr(self, "_restored_m", None)
+        old, restored = self.keyframe, self._restored_m
         if old is not None and seen_m is not None and restored is not None:
             cfg = self.cfg
             rc = cfg.restore  # type: ignore[attr-defined]
@@ -242,7 +244,7 @@ def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m:
     if not cut.any() or cur.bearings_rad.size < 2:
         return cur
     fill = _cast_keyframe(old, between(compose(old.pose, mount), compose(pose, mount)), cur.bearings_rad,
-                          cur.dphi_rad, min_chord_m)
+                          min_chord_m)
     seen = np.where(np.isfinite(seen_m), seen_m, 0.0)
     use = cut & np.isfinite(fill) & (fill >= seen + behind_m)
     if not use.any():
@@ -251,9 +253,8 @@ def fill_hidden(cur: PreparedScan, pose: Pose2D, seen_m: np.ndarray, restored_m:
                         np.where(use, 1.0, cur.weights))
 
 
-def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, dphi_rad: float, min_chord_m: float
-                   ) -> np.ndarray:
-    """Per beam of ``bearings_rad`` (uniform, step ``dphi_rad``) of a laser at ``rel`` from ``kf``'s laser,
+def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, min_chord_m: float) -> np.ndarray:
+    """Per beam of ``bearings_rad`` (ascending) of a laser at ``rel`` from ``kf``'s laser,
     the range to the nearest surface ``kf`` saw on a segment wider than ``min_chord_m``: each pair of
     neighbouring usable returns of such a segment is a piece of surface (inf where none)."""
     p = kf.prep
@@ -267,11 +268,9 @@ def _cast_keyframe(kf: Keyframe, rel: Pose2D, bearings_rad: np.ndarray, dphi_rad
     pa, pb = np.arctan2(y[a], x[a]), np.arctan2(y[b], x[b])
     keep = np.abs(pa - pb) < math.pi / 2  # a piece across the new laser's back is no piece of its view
     a, b, pa, pb = a[keep], b[keep], pa[keep], pb[keep]
-    b0, step = bearings_rad[0], abs(dphi_rad)
-    k_lo = np.ceil((np.minimum(pa, pb) - b0) / step - 1e-9).astype(np.int64)
-    k_hi = np.floor((np.maximum(pa, pb) - b0) / step + 1e-9).astype(np.int64)
     n = bearings_rad.size
-    k_lo, k_hi = np.maximum(k_lo, 0), np.minimum(k_hi, n - 1)
+    k_lo = np.searchsorted(bearings_rad, np.minimum(pa, pb), side="left")
+    k_hi = np.searchsorted(bearings_rad, np.maximum(pa, pb), side="right") - 1
     count = np.maximum(k_hi - k_lo + 1, 0)
     out = np.full(n, np.inf)
     if not count.any():
