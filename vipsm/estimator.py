@@ -652,9 +652,9 @@ def _held_before(grid: FreeSpaceGrid, laser: Pose2D, scan: Scan, bodies: list[Bo
     if not bodies:
         return []
     r = np.where(np.isfinite(scan.ranges_m), scan.ranges_m, np.inf)
-    k = np.array([b.scan_index_start + int(np.argmin(r[b.scan_index_start : b.scan_index_stop]))
-                  if b.scan_index_stop > b.scan_index_start else 0 for b in bodies])
-    ok = np.isfinite(r[k]) & np.array([b.scan_index_stop > b.scan_index_start for b in bodies])
+    spans = [(b.scan_index_start, b.scan_index_stop) for b in bodies]
+    k = np.array([a + int(np.argmin(r[a:z])) if z > a else 0 for a, z in spans])
+    ok = np.isfinite(r[k]) & np.array([z > a for a, z in spans])
     ang = laser.theta_rad + scan.bearings_rad[k]
     rk = np.where(ok, r[k], 0.0)
     xy = np.stack([laser.x_m + rk * np.cos(ang), laser.y_m + rk * np.sin(ang)], axis=1)

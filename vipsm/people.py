@@ -619,7 +619,7 @@ class PeopleTracker:
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
             t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
-                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g))
+                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), leg_seen=True)
             self._next_id += 1
             self.tracks.append(t)
             out.append(t)
@@ -712,8 +712,8 @@ class PeopleTracker:
         if standing_for is None:
             standing_for = self.bodies_standing_for(people, others)
         explained = {pid for pid, _ in standing_for.values()}
-        for p in people:
-            if not (p.moving and p.legs and tracks[p.track_id].leg_seen) or p.track_id in explained:
+        for p in self._seen_moving(people):
+            if p.track_id in explained:
                 continue
             dx, dy = p.x_m - laser.x_m, p.y_m - laser.y_m
             b = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
@@ -729,11 +729,16 @@ class PeopleTracker:
         """Per body of ``others`` that a moving person seen this cycle stands for (as in :meth:`obstacles`),
         the person's track id and its distance from the body (``vipsm.identity`` gives both one id)."""
         c = self.config
-        seen = {t.track_id for t in self.tracks if t.leg_seen}
-        moving = [p for p in people if p.moving and p.legs and p.track_id in seen]
+        moving = self._seen_moving(people)
         found = _explained(moving, others, c.leg_pair_max_m, c.person_radius_m)
         return {others[k].track_id: (p.track_id, math.hypot(p.x_m - others[k].x_m, p.y_m - others[k].y_m))
                 for p, k in zip(moving, found, strict=True) if k is not None}
+
+    def _seen_moving(self, people: tuple[Person, ...]) -> list[Person]:
+        """The moving ``people`` a leg of whom was seen this cycle (``PersonTrack.leg_seen``): the moving
+        obstacles this stage may report."""
+        seen = {t.track_id for t in self.tracks if t.leg_seen}
+        return [p for p in people if p.moving and p.track_id in seen]
 
     def people(self, stamp_s: float) -> tuple[Person, ...]:
         """The confirmed tracks at ``stamp_s`` (positions predicted at constant velocity)."""
