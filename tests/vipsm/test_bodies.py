@@ -442,3 +442,55 @@ def test_the_people_stage_gives_each_walking_leg_its_line_of_walking() -> None:
             assert [k.line for k in people.known_legs(0.1)] == [None, None]
     lines = [k.line for k in people.known_legs(1.2)]
     assert len(lines) == 2 and all(line is not None and line[0] > 0.95 for line in lines)  # along +x
+
+
+def test_a_standing_persons_seen_leg_does_not_pair_with_a_piece_where_its_hidden_leg_cannot_be() -> None:
+    """turn_in_place (issue 29): a confirmed standing person, one leg hidden for 0.4 s, and a leg-sized piece
+    0.4 m from where that leg stood (0.6 m from the seen leg: within a stride; within the hidden leg's reach,
+    1.3 m after 0.4 s). A standing person's leg stays within a few cm (``KnownLeg.ratio``): the piece
+    continues no leg of the person, so the seen leg is the person's alone, not half of a pair whose midpoint
+    lies 0.3 m off its pelvis. By distance alone (no people stage) they pair; the person's own two legs pair."""
+    from app.legmodel import default_leg_model
+    from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
+
+    world = box_room(8.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+    people = PeopleTracker(PeopleConfig(), default_leg_model())
+    own = [(3.0, -0.1), (3.0, 0.1)]
+    for k in range(20):
+        people.step(0.1 * k, [LegDetection(x, y, 0.9, 2 * i, 2 * i + 1) for i, (x, y) in enumerate(own)])
+    for k in range(20, 23):
+        people.step(0.1 * k, [LegDetection(3.0, -0.1, 0.9, 0, 1)])
+
+    def kinds(legs: list[tuple[float, float]], people_stage: bool = True) -> list[str]:
+        world.circles = [Circle(x, y, 0.06) for x, y in legs]
+        scan = world.scan(ORIGIN)
+        known = people.known_legs(2.3) if people_stage else None
+        return sorted(b.kind for b in extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG,
+                                                     TrackerConfig(), known_legs=known))
+
+    with_piece = [own[0], (3.0, 0.5)]
+    assert kinds(with_piece, people_stage=False) == ["person"]
+    assert kinds(with_piece) == ["leg", "leg"]
+    assert kinds(own) == ["person"]
+
+
+def test_two_legs_two_people_hold_are_not_one_person() -> None:
+    """cart_pusher (issue 29): a standing pusher's leg and a cart leg the people stage holds for another person
+    (``KnownLeg.held_by``), 0.4 m apart, are two lone legs, not a pair between the two; held by nobody, or by
+    one person with both its legs found, they pair by distance."""
+    from vipsm.bodies import KnownLeg
+
+    world = box_room(8.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+    legs = [(3.0, -0.2), (3.0, 0.2)]
+    world.circles = [Circle(x, y, 0.06) for x, y in legs]
+    scan = world.scan(ORIGIN)
+
+    def kinds(held: tuple[int | None, int | None]) -> list[str]:
+        known = [KnownLeg(x, y, 0.1, None, held_by=h) for (x, y), h in zip(legs, held, strict=True)]
+        return sorted(b.kind for b in extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG,
+                                                     TrackerConfig(), known_legs=known))
+
+    assert kinds((1, 2)) == ["leg", "leg"]
+    assert kinds((None, None)) == ["person"] and kinds((1, 1)) == ["person"]

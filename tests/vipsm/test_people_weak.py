@@ -147,3 +147,57 @@ def test_the_daemons_config_file_switches_weak_candidates_off() -> None:
 
     assert load_config(None, []).estimator.people.weak_legs
     assert not load_config(None, ["estimator.people.weak_legs=false"]).estimator.people.weak_legs
+
+
+def _standing_person(tr: PeopleTracker, x: float = 2.1, y: float = -2.15, cycles: int = 20) -> tuple[int, int]:
+    """A person standing at (x, y) on two legs the detector takes, confirmed and standing: its leg ids."""
+    for k in range(cycles):
+        tr.step(0.1 * k, _pair(x, y, 0.9, weak=False))
+    (t,) = tr.tracks
+    assert t.confirmed and not t.moving and len(t.leg_ids) == 2
+    return tuple(sorted(t.leg_ids, key=lambda k: tr.legs[k].y_m))
+
+
+def test_a_standing_persons_hidden_leg_does_not_jump_onto_a_weak_piece_half_a_metre_away() -> None:
+    """turn_in_place (issue 29): a standing person's leg hidden for a few scans while a leg-sized piece of
+    leg probability 0.05 shows 0.5 m from where it stood, well within the leg's reach. A standing leg stays
+    within a few cm: the piece is clutter, the leg stays hidden where it stood, and the person stays where it
+    is (before: the leg track took the piece and the person's midpoint jumped 0.25 m)."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    low, high = _standing_person(tr)
+    stood = (tr.legs[high].x_m, tr.legs[high].y_m)
+    for k in range(20, 23):
+        tr.step(0.1 * k, [LegDetection(2.1, -2.25, 0.9, 0, 1), LegDetection(2.1, -2.05 + 0.5, 0.05, 2, 3, weak=True)])
+    assert tr.legs[high].det is None and (tr.legs[high].x_m, tr.legs[high].y_m) == pytest.approx(stood)
+    (p,) = tr.people(2.2)
+    assert (p.x_m, p.y_m) == pytest.approx((2.1, -2.15), abs=0.03) and not p.moving
+
+
+def test_a_weak_candidate_near_a_standing_legs_place_still_continues_it() -> None:
+    """wall_hugger's far standing person: a leg scoring below the operating point (0.1) 3 cm from where the
+    leg stood continues that leg, and so does one with the floor's probability 1 cm from it."""
+    c = PeopleConfig()
+    for p, off in ((0.1, 0.03), (weak_floor(c) + 1e-3, 0.01)):
+        tr = PeopleTracker(c, default_leg_model())
+        low, high = _standing_person(tr)
+        tr.step(2.0, [LegDetection(2.1, -2.25, 0.9, 0, 1), LegDetection(2.1 + off, -2.05, p, 2, 3, weak=True)])
+        assert tr.legs[high].det is not None and tr.legs[high].det.weak
+
+
+def test_a_walkers_hidden_leg_takes_a_weak_candidate_where_it_swings_ahead() -> None:
+    """A walker at 1.2 m/s: its leg, hidden for 0.2 s, is taken up by a weak candidate 0.4 m ahead along the
+    line of walking (where a swing leg lands), not by one 0.4 m across it."""
+    got = {}
+    for ahead, across in ((0.4, 0.0), (0.0, 0.4)):
+        tr = PeopleTracker(PeopleConfig(), default_leg_model())
+        for k in range(15):
+            tr.step(0.1 * k, _pair(1.0 + 0.12 * k, 2.0, 0.9, weak=False))
+        (t,) = tr.tracks
+        assert t.moving
+        k_hi = max(t.leg_ids, key=lambda k: tr.legs[k].y_m)
+        seen = (tr.legs[k_hi].x_m, tr.legs[k_hi].y_m)
+        tr.step(1.5, [LegDetection(2.8, 1.9, 0.9, 0, 1)])
+        tr.step(1.6, [LegDetection(2.92, 1.9, 0.9, 0, 1),
+                      LegDetection(seen[0] + ahead, seen[1] + across, 0.2, 2, 3, weak=True)])
+        got[ahead] = tr.legs[k_hi].det is not None
+    assert got[0.4] and not got[0.0]
