@@ -797,19 +797,25 @@ class Tracker:
         start = self._walk_start(t.recent)
         if start is None:
             return False
+        if any(math.isfinite(row[4]) for row in t.recent[start:]):
+            # a fitted centre drifts with the part of a box the laser sees, beyond its radius's change (cart_pusher's
+            # stopped cart, 4 cm in 0.2 s as the robot drove up to it): its stand outvotes that, as before
+            start = 0
         # the detections must move both as placed and with each fitted centre moved by its radius's change
         return all(self._moves(rec, t.seen_as_person, start) for rec in (raw, _report_rows(t.recent)))
 
     @staticmethod
     def _walk_start(recent: list[tuple[float, ...]]) -> int | None:
         """Where the walk judged by the report window's speed starts: at the last detection with which the
-        confirmed track's filter stood (a change point: the track stood there and moves now), else at the
+        confirmed track's filter stood, for two detections in a row at least (a change point: the track stood
+        there and moves now), else at the
         window's first; None while fewer than ``ONSET_STEPS`` steps between detections of one kind followed
         that stand (two steps define a direction; one detection of a standing person whose composition
         changed, a leg paired with a piece 0.25 m off, is a jump, not a walk). The detections from before
         the stand would outvote a start: a walker who stood for 0.8 s of the window was reported 0.2 s
         after its filter showed the walk."""
-        stood = [i for i, row in enumerate(recent) if row[6]]
+        # a stand lasts: two detections in a row (a walker turning back passes through zero speed in one)
+        stood = [i for i, row in enumerate(recent) if row[6] and (i == 0 or recent[i - 1][6])]
         if not stood:
             return 0
         walk = recent[stood[-1]:]
