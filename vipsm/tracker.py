@@ -785,7 +785,9 @@ class Tracker:
         return t.standing
 
     def reported(self, t: Track) -> bool:
-        """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
+        """A confirmed track that still moves (or just lost its detection for a cycle or two): its filter has not
+        stood since (``_stands``: with hysteresis), or it walked ``ONSET_STEPS`` steps from where it stood, and its
+        report window goes somewhere at a walker's speed (the speed from its last stand on)."""
         c = self.config
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
@@ -808,12 +810,11 @@ class Tracker:
     def _walk_start(recent: list[tuple[float, ...]]) -> int | None:
         """Where the walk judged by the report window's speed starts: at the last detection with which the
         confirmed track's filter stood, for two detections in a row at least (a change point: the track stood
-        there and moves now), else at the
-        window's first; None while fewer than ``ONSET_STEPS`` steps between detections of one kind followed
-        that stand (two steps define a direction; one detection of a standing person whose composition
-        changed, a leg paired with a piece 0.25 m off, is a jump, not a walk). The detections from before
-        the stand would outvote a start: a walker who stood for 0.8 s of the window was reported 0.2 s
-        after its filter showed the walk."""
+        there and moves now), else at the window's first; None while fewer than ``ONSET_STEPS`` steps between
+        detections of one kind followed that stand (two steps define a direction; one detection of a standing
+        person whose composition changed, a leg paired with a piece 0.25 m off, is a jump, not a walk). The
+        detections from before the stand would outvote a start: a walker who stood for 0.8 s of the window
+        was reported 0.1 s after the window from its stand showed the walk."""
         # a stand lasts: two detections in a row (a walker turning back passes through zero speed in one)
         stood = [i for i, row in enumerate(recent) if row[6] and (i == 0 or recent[i - 1][6])]
         if not stood:
