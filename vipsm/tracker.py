@@ -811,17 +811,19 @@ class Tracker:
         """Where the walk judged by the report window's speed starts: at the last detection with which the
         confirmed track's filter stood, for two detections in a row at least (a change point: the track stood
         there and moves now), else at the window's first; None while fewer than ``ONSET_STEPS`` steps between
-        detections of one kind followed that stand (two steps define a direction; one detection of a standing
-        person whose composition changed, a leg paired with a piece 0.25 m off, is a jump, not a walk). The
-        detections from before the stand would outvote a start: a walker who stood for 0.8 s of the window
-        was reported 0.1 s after the window from its stand showed the walk."""
+        detections of one kind followed that stand (two steps of one point define a direction; a lone leg and a
+        pair's midpoint, one step each, do not; one detection of a standing person whose composition changed, a
+        leg paired with a piece 0.25 m off, is a jump, not a walk). The detections from before the stand would
+        outvote a start: a walker who stood for 0.8 s of the window was reported 0.1 s after the window from its
+        stand showed the walk."""
         # a stand lasts: two detections in a row (a walker turning back passes through zero speed in one)
         stood = [i for i, row in enumerate(recent) if row[6] and (i == 0 or recent[i - 1][6])]
         if not stood:
             return 0
         walk = recent[stood[-1]:]
-        # a lone leg and a pair's midpoint are different points of a person: a step between them is no motion
-        steps = len(walk) - len({row[3] for row in walk})
+        # a lone leg and a pair's midpoint are different points of a person: a direction is two steps of one of them
+        kinds = [row[3] for row in walk]
+        steps = max(kinds.count(k) for k in set(kinds)) - 1
         return stood[-1] if steps >= ONSET_STEPS else None
 
     def _moves(self, rec: np.ndarray, person: bool, start: int = 0) -> bool:

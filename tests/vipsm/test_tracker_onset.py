@@ -108,6 +108,7 @@ def test_a_stand_lasts_two_detections_and_a_walk_from_it_needs_two_steps_of_one_
     assert start(rows("2222222222", "SSSSSSSS--")) == 7
     assert start(rows("2222222212", "------SS--")) is None  # pair, leg, pair: one step between pairs
     assert start(rows("2222221222", "-----SS---")) == 6  # pair, leg, pair, pair: two
+    assert start(rows("2222221212", "-----SS---")) is None  # leg, pair, leg, pair: one step of each
     assert start(rows("2222222222", "-------SS-")) is None  # one step since the stand
     assert start(rows("2222222222", "SSSSSSSSSS")) is None  # standing
 
