@@ -468,7 +468,8 @@ class Track:
     evidence: int = 0
     confirmed: bool = False
     #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, view_rad,
-    #: 1.0 if the confirmed track's filter stood with it (``Tracker._stands``) else 0.0)
+    #: 1.0 if the confirmed track's filter stood with it (``Tracker._stands``) else 0.0, its noise about the
+    #: point of the body its kind sees, ``Tracker._point_noise_m``)
     recent: list[tuple[float, ...]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
@@ -635,7 +636,8 @@ class Tracker:
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
-                         det.radius_m if det.radius_fitted else math.nan, det.view_rad, float(self._stands(t))))
+                         det.radius_m if det.radius_fitted else math.nan, det.view_rad, float(self._stands(t)),
+                         self._point_noise_m(t, det)))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
@@ -803,6 +805,8 @@ class Tracker:
             # a fitted centre drifts with the part of a box the laser sees, beyond its radius's change (cart_pusher's
             # stopped cart, 4 cm in 0.2 s as the robot drove up to it): its stand outvotes that, as before
             start = 0
+        if start and not self._walks_off(t.recent[start:]):
+            return False
         # the detections must move both as placed and with each fitted centre moved by its radius's change
         return all(self._moves(rec, t.seen_as_person, start) for rec in (raw, _report_rows(t.recent)))
 
@@ -825,6 +829,34 @@ class Tracker:
         kinds = [row[3] for row in walk]
         steps = max(kinds.count(k) for k in set(kinds)) - 1
         return stood[-1] if steps >= ONSET_STEPS else None
+
+    @staticmethod
+    def _point_noise_m(t: Track, det: Detection) -> float:
+        """A detection's noise about the point of the body its kind sees (a pair's midpoint, a lone leg, a fitted
+        centre): its own, a person's lone leg being either leg (``KIND_CHANGE_M``), a partly hidden one placed
+        within half a radius. The offset between kinds is not in it (:func:`kind_aligned` fits it)."""
+        sigma = DEFAULT_SIGMA_M if det.sigma_m is None else det.sigma_m
+        extra = KIND_CHANGE_M if det.kind == "leg" and t.seen_as_person else 0.0
+        if det.occluded:
+            extra = math.hypot(extra, 0.5 * t.radius_m)
+        return math.hypot(sigma, extra)
+
+    def _walks_off(self, walk: list[tuple[float, ...]]) -> bool:
+        """The detections since the stand move faster than ``report_window_speed_mps`` by one standard error of
+        their least-squares speed (weighted by each one's noise, an offset per kind): three leg pairs of a start
+        (0.15 m in 0.2 s) do, three pairs of a standing person, 7 cm apart as its seen legs change, do not."""
+        rows = np.array(walk)
+        t, xy, kinds, w = rows[:, 0], rows[:, 1:3], rows[:, 3], 1.0 / rows[:, 7] ** 2
+        tc, xyc = np.empty_like(t), np.empty_like(xy)
+        for k in np.unique(kinds):
+            m = kinds == k
+            tc[m] = t[m] - np.average(t[m], weights=w[m])
+            xyc[m] = xy[m] - np.average(xy[m], axis=0, weights=w[m])
+        info = float(w @ tc**2)
+        if info <= 0.0:
+            return False
+        v = (w * tc) @ xyc / info
+        return math.hypot(*v) - 1.0 / math.sqrt(info) >= self.config.report_window_speed_mps
 
     def _moves(self, rec: np.ndarray, person: bool, start: int = 0) -> bool:
         """The report window's (stamp_s, x_m, y_m, kind) rows go somewhere at a walker's speed: its path
