@@ -467,7 +467,9 @@ class Track:
     history: list[tuple[float, ...]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
-    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, view_rad)
+    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, view_rad,
+    #: 1.0 if the confirmed track's filter stood with it (``Tracker._stands``) else 0.0, its noise about the
+    #: point of the body its kind sees, ``Tracker._point_noise_m``)
     recent: list[tuple[float, ...]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
@@ -477,6 +479,8 @@ class Track:
     model_states: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     model_covs: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     model_probs: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: the confirmed track's filter holds it still (``Tracker._stands``)
+    standing: bool = False
 
     @property
     def speed_mps(self) -> float:
@@ -632,7 +636,8 @@ class Tracker:
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
-                         det.radius_m if det.radius_fitted else math.nan, det.view_rad))
+                         det.radius_m if det.radius_fitted else math.nan, det.view_rad, float(self._stands(t)),
+                         self._point_noise_m(t, det)))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
@@ -769,8 +774,22 @@ class Tracker:
         return [(t, d) for t, d in tracked
                 if id(t) in alive and t.confirmed and self.recently_seen(t) and self.reported(t)]
 
+    def _stands(self, t: Track) -> bool:
+        """Whether the confirmed track's filter, updated with its newest detection, holds it still, with
+        hysteresis: it stands from below ``report_min_speed_mps`` (the speed below which a track is not
+        reported) until it reaches ``report_window_speed_mps`` (the speed a walk must show): a standing
+        person's filter drifting to 0.08-0.09 m/s on a 5 cm jitter of its pairs has not started."""
+        c = self.config
+        if t.confirmed and t.speed_mps < c.report_min_speed_mps:
+            t.standing = True
+        elif t.speed_mps >= c.report_window_speed_mps:
+            t.standing = False
+        return t.standing
+
     def reported(self, t: Track) -> bool:
-        """A confirmed track that still moves (or just lost its detection for a cycle or two)."""
+        """A confirmed track that still moves (or just lost its detection for a cycle or two): its filter has not
+        stood since (``_stands``: with hysteresis), or it walked ``ONSET_STEPS`` steps from where it stood, and its
+        report window goes somewhere at a walker's speed (the speed from its last stand on)."""
         c = self.config
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
@@ -779,16 +798,76 @@ class Tracker:
             return False
         if raw[-1, 0] - raw[0, 0] < 0.5:
             return True
+        start = self._walk_start(t.recent)
+        if start is None:
+            return False
+        if any(math.isfinite(row[4]) for row in t.recent[start:]):
+            # a fitted centre drifts with the part of a box the laser sees, beyond its radius's change (cart_pusher's
+            # stopped cart, 4 cm in 0.2 s as the robot drove up to it): its stand outvotes that, as before
+            start = 0
+        if start and not self._walks_off(t.recent[start:]):
+            return False
         # the detections must move both as placed and with each fitted centre moved by its radius's change
-        return all(self._moves(rec, t.seen_as_person) for rec in (raw, _report_rows(t.recent)))
+        return all(self._moves(rec, t.seen_as_person, start) for rec in (raw, _report_rows(t.recent)))
 
-    def _moves(self, rec: np.ndarray, person: bool) -> bool:
-        """The report window's (stamp_s, x_m, y_m, kind) rows go somewhere at a walker's speed."""
+    @staticmethod
+    def _walk_start(recent: list[tuple[float, ...]]) -> int | None:
+        """Where the walk judged by the report window's speed starts: at the last detection with which the
+        confirmed track's filter stood, for two detections in a row at least (a change point: the track stood
+        there and moves now), else at the window's first; None while fewer than ``ONSET_STEPS`` steps between
+        detections of one kind followed that stand (two steps of one point define a direction; a lone leg and a
+        pair's midpoint, one step each, do not; one detection of a standing person whose composition changed, a
+        leg paired with a piece 0.25 m off, is a jump, not a walk). The detections from before the stand would
+        outvote a start: a walker who stood for 0.8 s of the window was reported 0.1 s after the window from its
+        stand showed the walk."""
+        # a stand lasts: two detections in a row (a walker turning back passes through zero speed in one)
+        stood = [i for i, row in enumerate(recent) if row[6] and (i == 0 or recent[i - 1][6])]
+        if not stood:
+            return 0
+        walk = recent[stood[-1]:]
+        # a lone leg and a pair's midpoint are different points of a person: a direction is two steps of one of them
+        kinds = [row[3] for row in walk]
+        steps = max(kinds.count(k) for k in set(kinds)) - 1
+        return stood[-1] if steps >= ONSET_STEPS else None
+
+    @staticmethod
+    def _point_noise_m(t: Track, det: Detection) -> float:
+        """A detection's noise about the point of the body its kind sees (a pair's midpoint, a lone leg, a fitted
+        centre): its own, a person's lone leg being either leg (``KIND_CHANGE_M``), a partly hidden one placed
+        within half a radius. The offset between kinds is not in it (:func:`kind_aligned` fits it)."""
+        sigma = DEFAULT_SIGMA_M if det.sigma_m is None else det.sigma_m
+        extra = KIND_CHANGE_M if det.kind == "leg" and t.seen_as_person else 0.0
+        if det.occluded:
+            extra = math.hypot(extra, 0.5 * t.radius_m)
+        return math.hypot(sigma, extra)
+
+    def _walks_off(self, walk: list[tuple[float, ...]]) -> bool:
+        """The detections since the stand move faster than ``report_window_speed_mps`` by one standard error of
+        their least-squares speed (weighted by each one's noise, an offset per kind): three leg pairs of a start
+        (0.15 m in 0.2 s) do, three pairs of a standing person, 7 cm apart as its seen legs change, do not."""
+        rows = np.array(walk)
+        t, xy, kinds, w = rows[:, 0], rows[:, 1:3], rows[:, 3], 1.0 / rows[:, 7] ** 2
+        tc, xyc = np.empty_like(t), np.empty_like(xy)
+        for k in np.unique(kinds):
+            m = kinds == k
+            tc[m] = t[m] - np.average(t[m], weights=w[m])
+            xyc[m] = xy[m] - np.average(xy[m], axis=0, weights=w[m])
+        info = float(w @ tc**2)
+        if info <= 0.0:
+            return False
+        v = (w * tc) @ xyc / info
+        return math.hypot(*v) - 1.0 / math.sqrt(info) >= self.config.report_window_speed_mps
+
+    def _moves(self, rec: np.ndarray, person: bool, start: int = 0) -> bool:
+        """The report window's (stamp_s, x_m, y_m, kind) rows go somewhere at a walker's speed: its path
+        (straight enough) and, from row ``start`` on (a walk since the track last stood), its speed."""
         c = self.config
         path = self._window_path(rec, person)
         if path is None:
             return False
         parts, v = path
+        if start > 0:
+            v = kind_aligned(rec[start:])[1]
         # back and forth, over the window or its newest part: a standing body's detection jumping
         # between legs and wall, or a walker who stopped half a window ago
         for part in parts:
