@@ -29,8 +29,6 @@ one where the pre-filter removed a return (a thin thing in front).
 from __future__ import annotations
 
 import math
-from collections import Counter
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
@@ -363,9 +361,8 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
 @dataclass(frozen=True)
 class KnownLeg:
     """A leg the people stage (:mod:`vipsm.people`) tracks, predicted to this scan: where it should be, how
-    far from that its detection may lie (a leg's reach in the elapsed time), the walking person whose two
-    leg tracks it is one of (None: a leg of no such person), the person that holds it and how likely a
-    detection is this leg given its person's motion state."""
+    far from that its detection may lie (a leg's reach in the elapsed time), and the walking person whose
+    two leg tracks it is one of (None: a leg of no such person)."""
 
     x_m: float
     y_m: float
@@ -376,25 +373,12 @@ class KnownLeg:
     line: tuple[float, float] | None = None
     #: how uncertain the line's direction is (one sigma, radians)
     line_sigma_rad: float = 0.0
-    #: the confirmed person (walking or standing) that holds this leg track (None: none): two legs two people
-    #: hold are not one person's, and while only one of a person's two leg tracks is found in a scan the
-    #: other is hidden (where the people stage predicts it), so the one found pairs with no other leg
-    held_by: int | None = None
-    #: ``ratio(x, y, p_leg)``: how much likelier a leg candidate at (x, y) with leg probability ``p_leg`` is
-    #: this leg than clutter, given its person's motion state (None: a leg of no person, its reach alone)
-    ratio: Callable[[float, float, float], float] | None = None
-
-
-#: the leg probability of a leg-sized segment of this stage, which scores none: as likely a leg as not
-UNSCORED_P = 0.5
 
 
 def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]) -> list[KnownLeg | None]:
     """Per leg, the tracked leg it continues: global nearest neighbour of the leg centres to the tracked
-    legs' predictions within their reach (:func:`vipsm.assignment.assign`) that a person's leg takes for
-    itself rather than clutter (``ratio`` above 1 for a segment of this stage, unscored: a leg probability of
-    :data:`UNSCORED_P`; a standing person's leg stays within a few cm, a walker's swings ahead along its line
-    of walking); None for a leg that continues none."""
+    legs' predictions within their reach (:func:`vipsm.assignment.assign`); None for a leg that continues
+    none."""
     out: list[KnownLeg | None] = [None] * len(legs)
     if not legs or not known:
         return out
@@ -402,7 +386,7 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
     for i, (_, x, y) in enumerate(legs):
         for j, k in enumerate(known):
             d = math.hypot(x - k.x_m, y - k.y_m)
-            if d <= k.reach_m and (k.ratio is None or k.ratio(x, y, UNSCORED_P) > 1.0):
+            if d <= k.reach_m:
                 cost[i, j] = d
     for r, k in assign_gated(cost).items():
         out[r] = known[k]
@@ -421,14 +405,6 @@ def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, acro
                for k in (a, b))
 
 
-def _held_apart(a: int | None, b: int | None, alone: set[int]) -> bool:
-    """Two legs held by the people ``a`` and ``b`` (``KnownLeg.held_by``; None: by nobody) cannot be one
-    person's: two people hold them, or one is the only leg found this scan of a person who holds two
-    (``alone``; its other leg is hidden where the people stage predicts it, not this one: a standing person's
-    seen leg and a leg-sized piece 0.6 m away, a cart pusher's leg and the cart's)."""
-    return a in alone or b in alone or (a is not None and b is not None and a != b)
-
-
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
                ) -> list[tuple[int, int | None]]:
     """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture, never two legs that
@@ -436,12 +412,8 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: l
     tracks pair only with each other (leg_tracker's model: a person is two leg tracks whose association
     persists), and no two legs lie further apart across the line of walking of either than
     ``leg_across_max_m`` (two people walking side by side in step have each leg 0.4 m across from the other's
-    same leg, nearer than their own other leg a stride away); two legs two people hold are not paired, nor
-    is the one leg found of a person's two (:func:`_held_apart`); the rest alone."""
+    same leg, nearer than their own other leg a stride away); the rest alone."""
     owner = _leg_people(legs, known or [])
-    held = [None if k is None else k.held_by for k in owner]
-    tracks, found = Counter(k.held_by for k in known or []), Counter(held)
-    alone = {h for h in found if h is not None and tracks[h] == 2 and found[h] == 1}
     pairs = sorted(
         (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
         for i in range(len(legs)) for j in range(i + 1, len(legs))
@@ -452,7 +424,7 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: l
         if d > der.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
             continue
         dx, dy = legs[j][1] - legs[i][1], legs[j][2] - legs[i][2]
-        if not _may_pair(owner[i], owner[j], dx, dy, der.leg_across_max_m) or _held_apart(held[i], held[j], alone):
+        if not _may_pair(owner[i], owner[j], dx, dy, der.leg_across_max_m):
             continue
         used |= {i, j}
         out.append((i, j))

@@ -10,9 +10,7 @@ is a pair of leg tracks):
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
    ``leg_max_speed_mps`` per second), then of the weak candidates to the person's leg tracks no leg
-   continued (a far leg of 3 returns often scores below the operating point) where it is likelier that leg
-   than clutter given the person's motion state (``_leg_ratio``: a standing person's leg stays within a
-   few cm, a walker's swings ahead along its line of walking); a weak candidate never
+   continued (a far leg of 3 returns often scores below the operating point); a weak candidate never
    starts a leg track, joins no leg to a person and starts no person, is weighed by its leg probability
    in the person's existence, and is no evidence that a body moves (it may be another thing's segment);
    a leg track unseen for ``leg_memory_s`` ends. A static leg's
@@ -48,7 +46,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import partial
 
 import numpy as np
 
@@ -57,7 +54,7 @@ from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
-from .person import PersonSize, across_beyond_m, leg_density
+from .person import PersonSize, across_beyond_m
 from .types import Obstacle, Person, Pose2D
 
 
@@ -205,9 +202,6 @@ class PersonTrack:
     #: ``exist_confirm`` or above: only then is a moving person a moving obstacle (weak candidates alone may
     #: be other things' segments: they are believed only for a person they do not make doubtful)
     leg_seen: bool = False
-    #: seen this cycle by weak candidates alone: no sign that a body moves there (they may be another thing's
-    #: segments), so the static map is not kept from integrating its place on their account
-    weak_only: bool = False
 
     @property
     def p_moving(self) -> float:
@@ -370,42 +364,20 @@ class PeopleTracker:
     def _associate(self, stamp_s: float, tracks: list[LegTrack], detections: list[LegDetection], cols: list[int]
                    ) -> dict[int, int]:
         """Global nearest neighbour of the leg tracks to the detections ``cols`` within each track's reach
-        (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen, a physical bound), a weak
-        candidate only to a person's leg track and only where :meth:`_leg_ratio` takes it for that leg rather
-        than clutter: track index -> detection index."""
+        (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen): track index -> detection
+        index."""
         c = self.config
         if not tracks or not cols:
             return {}
-        owner = {k: t for t in self.tracks for k in t.leg_ids}
         cost = np.full((len(tracks), len(cols)), np.inf)
         for i, lt in enumerate(tracks):
             px, py = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            t = owner.get(lt.leg_id)  # a weak candidate is offered to a person's leg tracks only
             for k, j in enumerate(cols):
-                d = detections[j]
-                dist = math.hypot(d.x_m - px, d.y_m - py)
-                if dist <= reach and not (d.weak and self._leg_ratio(t, lt, stamp_s, d.x_m, d.y_m, d.p_leg) <= 1.0):
+                dist = math.hypot(detections[j].x_m - px, detections[j].y_m - py)
+                if dist <= reach:
                     cost[i, k] = dist
         return {i: cols[k] for i, k in assign_gated(cost).items()}
-
-    def _leg_ratio(self, t: PersonTrack, lt: LegTrack, stamp_s: float, x: float, y: float, p_leg: float) -> float:
-        """How much likelier a candidate at (x, y) with leg probability ``p_leg`` is person ``t``'s leg
-        ``lt`` (seen with ``p_detect``: the odds p / (1 - p) of its score under the two classes, the detector
-        being trained on balanced classes, times the leg's predicted position density there,
-        :func:`vipsm.person.leg_density`, given the person's motion state) than clutter (``p_clutter``,
-        anywhere in the gate's largest disc, twice ``person_radius_m``) with the leg unseen (``1 - p_detect``):
-        odds(p) x density x disc area over odds(:func:`weak_floor`). Above 1 the candidate is the leg (MAP).
-        So the floor is the least leg probability of a candidate as likely anywhere in the disc as clutter,
-        and a candidate 0.5 m from where a standing person's leg stood (an occluded wall piece) is clutter
-        whatever its score: the leg stays hidden and predicted."""
-        c = self.config
-        floor = weak_floor(c)
-        v = t.filt.walking()[0][2:4]
-        dens = leg_density(x - lt.x_m, y - lt.y_m, min(max(stamp_s - lt.seen_s, 0.0), c.leg_memory_s),
-                           self._walking_share(t), (float(v[0]), float(v[1])), c.leg_step_m)
-        area = math.pi * (2.0 * c.person_radius_m) ** 2
-        return p_leg / (1.0 - p_leg) * dens * area * (1.0 - floor) / floor
 
     def _one_body(self, a: tuple[float, float], b: tuple[float, float], v: tuple[float, float]) -> bool:
         """Two leg centres ``a``, ``b`` can be one person's whose body moves at velocity ``v``: within a
@@ -537,7 +509,6 @@ class PeopleTracker:
         t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs, t.leg_seen = tuple((lt.x_m, lt.y_m) for lt in seen), bool(legs) or t.existence >= c.exist_confirm
-        t.weak_only = not legs
 
     def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
         """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's
@@ -696,24 +667,17 @@ class PeopleTracker:
         reach (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen, as the leg
         association gates it) and, if it is one of the two leg tracks of a moving person (``moving``), that
         person's id: the body stage pairs such a leg only with the person's other leg
-        (:func:`vipsm.bodies._may_pair`). A person's leg also carries :meth:`_leg_ratio` (the body stage
-        takes a segment for that leg only where its motion state puts the leg: a standing person's stays
-        within a few cm, not anywhere in the reach), and a leg of a confirmed person measured last cycle
-        carries that person's id (``held_by``): two people's legs are not paired, nor is the one leg found
-        of a person's two with another segment (:func:`vipsm.bodies._held_apart`; a standing person's seen
-        leg with a piece 0.6 m away where its hidden leg cannot be, whose midpoint stage 6 read as a walk).
-        Only for a person measured last cycle: one unseen for longer (its legs predicted from old
-        detections) holds no leg apart from a walker now passing there."""
+        (:func:`vipsm.bodies._may_pair`). Only a walker's pairing says more than the legs' distance: its
+        legs pair along its line of walking (``_one_body``, ``_split``) and were kept as they moved; a
+        standing person's legs were paired by distance alone (a standing cart pusher's leg and a leg of
+        the cart, which then kept the pusher's own legs apart)."""
         c = self.config
-        owner = {k: t for t in self.tracks for k in t.leg_ids}
         walker = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.moving for k in t.leg_ids}
-        held = {k: t.track_id for t in self.tracks if t.confirmed and t.updated_s == t.stamp_s for k in t.leg_ids}
         out = []
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            ratio = None if k not in owner else partial(self._leg_ratio, owner[k], lt, stamp_s)
-            out.append(KnownLeg(x, y, reach, walker.get(k), *self._walking_line(k), held.get(k), ratio))
+            out.append(KnownLeg(x, y, reach, walker.get(k), *self._walking_line(k)))
         return out
 
     def _walking_line(self, k: int) -> tuple[tuple[float, float] | None, float]:

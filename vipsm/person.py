@@ -7,7 +7,6 @@ and takes its defaults from :class:`PersonSize`; the body stage and the tracker 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -46,22 +45,3 @@ def across_beyond_m(dx: float, dy: float, line: tuple[float, float], sigma_rad: 
     stage's split judge alike)."""
     ux, uy = line
     return abs(dx * uy - dy * ux) - 2.0 * sigma_rad * abs(dx * ux + dy * uy)
-
-
-def leg_density(dx: float, dy: float, hidden_s: float, walk_share: float, v_mps: tuple[float, float],
-                sigma_m: float) -> float:
-    """The density (per square metre) of a leg's position ``(dx, dy)`` from where it was last seen, ``hidden_s``
-    ago, given its person's motion state: standing, the leg stays there (a leg centre's noise ``sigma_m``);
-    walking (probability ``walk_share``, at velocity ``v_mps``), it either stands or swings ahead along the
-    line of walking at up to twice the body's speed, i.e. anywhere from 0 to 2 |v| ``hidden_s`` ahead: a
-    Gaussian of that spread's mean and variance along the line (plus the noise), the noise across it."""
-    stand = math.exp(-0.5 * (dx * dx + dy * dy) / sigma_m**2) / (2.0 * math.pi * sigma_m**2)
-    speed = math.hypot(*v_mps)
-    if walk_share <= 0.0 or speed <= 0.0:
-        return stand
-    ux, uy = v_mps[0] / speed, v_mps[1] / speed
-    ahead = speed * hidden_s
-    along, across = dx * ux + dy * uy - ahead, -dx * uy + dy * ux
-    s_along = math.sqrt(sigma_m**2 + ahead**2 / 3.0)
-    walk = math.exp(-0.5 * ((along / s_along) ** 2 + (across / sigma_m) ** 2)) / (2.0 * math.pi * s_along * sigma_m)
-    return (1.0 - walk_share) * stand + walk_share * walk
