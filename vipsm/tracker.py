@@ -370,16 +370,23 @@ def kind_aligned(rows: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     so a change of kind moves the detection without the body moving), and the positions moved onto the
     newest row's kind by those offsets. A kind seen once carries no velocity information."""
     t, xy, kinds = rows[:, 0], rows[:, 1:3].copy(), rows[:, 3]
-    tc, xyc = t.copy(), xy.copy()
-    for k in np.unique(kinds):
-        m = kinds == k
-        tc[m] -= t[m].mean()
-        xyc[m] -= xy[m].mean(axis=0)
-    den = float(tc @ tc)
-    v = (tc @ xyc) / den if den > 0.0 else np.zeros(2)
+    v, _ = _kind_fit(t, xy, kinds, np.ones(t.size))
     offsets = {k: xy[kinds == k].mean(axis=0) - v * t[kinds == k].mean() for k in np.unique(kinds)}
     aligned = xy - np.array([offsets[k] for k in kinds]) + offsets[kinds[-1]]
     return aligned, (float(v[0]), float(v[1]))
+
+
+def _kind_fit(t: np.ndarray, xy: np.ndarray, kinds: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
+    """The weighted (``w``) least-squares velocity common to rows at stamps ``t`` and positions ``xy`` with an
+    offset per kind (``kinds``), and its information (weight times squared time spread: one over the speed's
+    variance for weights one over each row's variance); zero velocity and information without a spread."""
+    tc, xyc = np.empty_like(t), np.empty_like(xy)
+    for k in np.unique(kinds):
+        m = kinds == k
+        tc[m] = t[m] - np.average(t[m], weights=w[m])
+        xyc[m] = xy[m] - np.average(xy[m], axis=0, weights=w[m])
+    info = float(w @ tc**2)
+    return ((w * tc) @ xyc / info if info > 0.0 else np.zeros(2)), info
 
 
 def _kind_slack_m(a: Detection, b: Detection, kind_change_m: float) -> float:
@@ -846,16 +853,9 @@ class Tracker:
         their least-squares speed (weighted by each one's noise, an offset per kind): three leg pairs of a start
         (0.15 m in 0.2 s) do, three pairs of a standing person, 7 cm apart as its seen legs change, do not."""
         rows = np.array(walk)
-        t, xy, kinds, w = rows[:, 0], rows[:, 1:3], rows[:, 3], 1.0 / rows[:, 7] ** 2
-        tc, xyc = np.empty_like(t), np.empty_like(xy)
-        for k in np.unique(kinds):
-            m = kinds == k
-            tc[m] = t[m] - np.average(t[m], weights=w[m])
-            xyc[m] = xy[m] - np.average(xy[m], axis=0, weights=w[m])
-        info = float(w @ tc**2)
+        v, info = _kind_fit(rows[:, 0], rows[:, 1:3], rows[:, 3], 1.0 / rows[:, 7] ** 2)
         if info <= 0.0:
             return False
-        v = (w * tc) @ xyc / info
         return math.hypot(*v) - 1.0 / math.sqrt(info) >= self.config.report_window_speed_mps
 
     def _moves(self, rec: np.ndarray, person: bool, start: int = 0) -> bool:
