@@ -460,3 +460,23 @@ def test_the_matchers_median_barely_moves_a_table_leg_at_any_range() -> None:
     far, near = _leg_push_back_m(3.5, window), _leg_push_back_m(1.0, window)
     assert abs(far - near) < 0.004 and far < 0.006
     assert _leg_push_back_m(3.5, 5) - _leg_push_back_m(1.0, 5) > 0.008
+
+
+def test_returns_near_a_point_are_the_scans_own_within_the_radius() -> None:
+    """``occupied(x, y)`` of the people stage: a return within the radius of the world point, from a laser placed
+    and turned anywhere; none where the beams went past, where the returns were removed (NaN) or out of view."""
+    from vipsm.estimator import _returns_near
+
+    b = np.linspace(-math.pi / 2, math.pi / 2, 721)
+    ranges = np.full(b.size, 8.0)
+    hit = np.abs(b - 0.3) < 0.02  # a body 3 m away at bearing 0.3 rad (laser frame)
+    ranges[hit] = 3.0
+    laser = Pose2D(1.0, -2.0, 0.5)
+    ang = laser.theta_rad + 0.3
+    x, y = laser.x_m + 3.1 * math.cos(ang), laser.y_m + 3.1 * math.sin(ang)  # 0.1 m behind its front
+    occupied = _returns_near(b, ranges, laser, 0.25)
+    assert occupied(x, y)
+    assert not occupied(laser.x_m + 5.0 * math.cos(ang), laser.y_m + 5.0 * math.sin(ang))  # beams went past
+    assert not _returns_near(b, np.where(hit, np.nan, ranges), laser, 0.25)(x, y)  # removed returns
+    back = laser.theta_rad + math.pi
+    assert not occupied(laser.x_m + 3.0 * math.cos(back), laser.y_m + 3.0 * math.sin(back))  # out of view
