@@ -536,15 +536,18 @@ class Estimator:
 
     def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
-        margin around where it is now), or on a person who walks (the IMM's walking models more likely
-        than standing): a body that moves, or pauses in the candidate test for a cycle, must not write
-        itself into the static map (its trail of occupied cells would hide its next steps' evidence)."""
+        margin around where it is now), or on a confirmed person a leg of whom was seen this scan, walking or
+        standing: a body that moves, or pauses in the candidate test for a cycle, must not write itself into
+        the static map (its trail of occupied cells would hide its next steps' evidence), nor a person who
+        stands (the cells its legs held would lie around its first step, and the free-space test asks for no
+        occupied evidence around a point). A person standing still shows no free-space violation for it: the
+        test at beam resolution (``seen_through``) finds its legs stopping the beams beside them."""
         tr = self._tracker
         live = [(float(t.state[0]), float(t.state[1]), t.radius_m) for t in tr.tracks
                 if (tr.reported(t) or (not t.confirmed and t.evidence >= 1)) and tr.recently_seen(t)]
         if self._people is not None:
             live += [(float(t.filt.mean[0]), float(t.filt.mean[1]), self.config.people.person_radius_m)
-                     for t in self._people.tracks if t.filt.p_moving >= 0.5 and t.legs]
+                     for t in self._people.tracks if t.confirmed and t.legs]
         out = np.zeros(scan.ranges_m.size, bool)
         if not live:
             return out
