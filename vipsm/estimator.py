@@ -283,7 +283,9 @@ class Estimator:
                                               self._people.model, self.config.people, self.config.bodies,
                                               dropped | ramps), bodies)
             self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser),
-                              _returned_before(self._static, laser, self.config.people.leg_radius_m))
+                              _returned_before(self._static, laser, self.config.people.leg_radius_m),
+                              _returns_near(scan.bearings_rad, np.where(dropped, np.nan, scan.ranges_m), laser,
+                                            self.config.people.person_radius_m))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -534,15 +536,18 @@ class Estimator:
 
     def _near_tracks(self, scan: Scan, laser: Pose2D) -> np.ndarray:
         """Beams whose return lies on a live track with motion evidence (its radius plus the mask
-        margin around where it is now), or on a person who walks (the IMM's walking models more likely
-        than standing): a body that moves, or pauses in the candidate test for a cycle, must not write
-        itself into the static map (its trail of occupied cells would hide its next steps' evidence)."""
+        margin around where it is now), or on a confirmed person a leg of whom was seen this scan, walking or
+        standing: a body that moves, or pauses in the candidate test for a cycle, must not write itself into
+        the static map (its trail of occupied cells would hide its next steps' evidence), nor a person who
+        stands (the cells its legs held would lie around its first step, and the free-space test asks for no
+        occupied evidence around a point). A person standing still shows no free-space violation for it: the
+        test at beam resolution (``seen_through``) finds its legs stopping the beams beside them."""
         tr = self._tracker
         live = [(float(t.state[0]), float(t.state[1]), t.radius_m) for t in tr.tracks
                 if (tr.reported(t) or (not t.confirmed and t.evidence >= 1)) and tr.recently_seen(t)]
         if self._people is not None:
             live += [(float(t.filt.mean[0]), float(t.filt.mean[1]), self.config.people.person_radius_m)
-                     for t in self._people.tracks if t.filt.p_moving >= 0.5 and t.legs]
+                     for t in self._people.tracks if t.confirmed and t.legs]
         out = np.zeros(scan.ranges_m.size, bool)
         if not live:
             return out
@@ -611,6 +616,28 @@ def _visibility(scan: Scan, laser: Pose2D, margin_m: float = 0.3):
         return beam is not None and not (math.isfinite(beam[0]) and beam[0] < beam[1] - margin_m)
 
     return visible
+
+
+def _returns_near(b: np.ndarray, ranges_m: np.ndarray, laser: Pose2D, radius_m: float):
+    """``occupied(x, y)``: a return of the scan (``ranges_m`` on bearings ``b``; NaN: none, or removed) lies within
+    ``radius_m`` of that world point: something stands there now, whether or not the leg detector took it."""
+
+    def occupied(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        d = math.hypot(dx, dy)
+        if b.size < 2 or d <= radius_m:
+            return False
+        bearing = wrap_angle(math.atan2(dy, dx) - laser.theta_rad)
+        half = math.asin(radius_m / d)
+        i0, i1 = np.searchsorted(b, bearing - half), np.searchsorted(b, bearing + half, side="right")
+        if i1 <= i0:
+            return False
+        r, a = ranges_m[i0:i1], b[i0:i1] + laser.theta_rad
+        with np.errstate(invalid="ignore"):
+            near = np.hypot(laser.x_m + r * np.cos(a) - x, laser.y_m + r * np.sin(a) - y) <= radius_m
+        return bool(np.any(near))
+
+    return occupied
 
 
 def _seen_through(scan: Scan, laser: Pose2D, margin_m: float = 0.15):

@@ -199,7 +199,8 @@ class PersonTrack:
     #: when a detection last updated it (None: never)
     updated_s: float | None = None
     #: seen this cycle by a leg the detector took, or by weak candidates while its existence stays at
-    #: ``exist_confirm`` or above: only then is a moving person a moving obstacle (weak candidates alone may
+    #: ``exist_confirm`` or above, or by no leg but the laser returned where it stands while it stays so sure
+    #: (``PeopleTracker._missed``): only then is a moving person a moving obstacle (weak candidates alone may
     #: be other things' segments: they are believed only for a person they do not make doubtful)
     leg_seen: bool = False
 
@@ -277,7 +278,8 @@ class PeopleTracker:
 
     # ------------------------------------------------------------------ one cycle
     def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
-             seen_free: PointTest | None = None, stood_before: PointTest | None = None) -> None:
+             seen_free: PointTest | None = None, stood_before: PointTest | None = None,
+             occupied: PointTest | None = None) -> None:
         """Predict every person to ``stamp_s``, track the legs ``detections``, measure each person from
         its legs, start people from free legs, update existence and motion state. ``visible(x, y) ->
         bool`` (optional): whether the scan could have seen a person there (a miss elsewhere, e.g.
@@ -286,7 +288,8 @@ class PeopleTracker:
         is seen empty (a leg track that hopped to a neighbouring table leg left one standing there).
         ``stood_before(x, y) -> bool`` (optional): something stood at that leg position when the laser
         last saw it before this scan: a leg track that arrived where something else already stood
-        re-locked onto it and did not travel (:meth:`_judge_arrival`)."""
+        re-locked onto it and did not travel (:meth:`_judge_arrival`). ``occupied(x, y) -> bool`` (optional): the
+        scan returned from within a person's radius of that point (:meth:`_missed`)."""
         c = self.config
         self._seen_free = seen_free
         self._stood_before = stood_before
@@ -313,14 +316,26 @@ class PeopleTracker:
             seen.add(t.track_id)
         for t in self.tracks:
             if t.track_id not in seen:
-                t.legs, t.leg_seen = (), False
-                x, y = (float(v) for v in t.filt.mean[:2])
-                if visible is None or visible(x, y):
-                    t.existence = _bayes(t.existence, 1.0 - c.p_detect, 1.0 - c.p_clutter)
+                self._missed(t, visible, occupied)
             t.confirmed = t.confirmed or t.existence >= c.exist_confirm
             p = t.p_moving
             t.moving = p >= c.moving_on or (t.moving and p >= c.moving_off)
         self._prune()
+
+    def _missed(self, t: PersonTrack, visible: PointTest | None, occupied: PointTest | None) -> None:
+        """A person no leg of whom was detected this cycle. Where the scan could have seen it, that is a miss
+        against its existence. It is still seen (``PersonTrack.leg_seen``: a moving person stays a moving
+        obstacle) while it surely exists (``exist_confirm``) and the laser returned from where it stands
+        (``occupied``): the detector missed the legs of a body that is there (a walker's legs merged into one
+        segment, or scored under the operating point for a scan). A person whose place the laser saw through,
+        or could not see, is no obstacle until a leg is seen again."""
+        c = self.config
+        x, y = (float(v) for v in t.filt.mean[:2])
+        in_view = visible is None or visible(x, y)
+        if in_view:
+            t.existence = _bayes(t.existence, 1.0 - c.p_detect, 1.0 - c.p_clutter)
+        t.legs = ()
+        t.leg_seen = t.existence >= c.exist_confirm and in_view and occupied is not None and occupied(x, y)
 
     # ------------------------------------------------------------------ legs
     def _track_legs(self, stamp_s: float, detections: list[LegDetection]) -> None:
@@ -699,11 +714,11 @@ class PeopleTracker:
         person within a leg pair's reach (plus its radius) if the body tracker saw it as a leg pair, within
         a person's radius (plus its own) otherwise (:func:`_explained`): the same body, reported once and
         judged once. A second person beside it, or the person pushing a cart the body tracker holds, is
-        another body. A walker no leg of whom was seen may have stopped or turned: it stays in ``people``
-        while its position is known, but it is no obstacle (the protective field on the raw scan still
-        guards the robot). The bearing interval is the person's radius seen from ``laser``; scan indices
-        -1 (a track, not one scan's segment). ``standing_for``: :meth:`bodies_standing_for` of the same
-        arguments when the caller has it already (None: found here)."""
+        another body. A walker seen by no leg (``PersonTrack.leg_seen``: nor by the laser where it is predicted)
+        may have stopped or turned: it stays in ``people`` while its position is known, but it is no obstacle
+        (the protective field on the raw scan still guards the robot). The bearing interval is the person's
+        radius seen from ``laser``; scan indices -1 (a track, not one scan's segment). ``standing_for``:
+        :meth:`bodies_standing_for` of the same arguments when the caller has it already (None: found here)."""
         c = self.config
         if not c.report_moving:
             return ()

@@ -460,3 +460,49 @@ def test_the_matchers_median_barely_moves_a_table_leg_at_any_range() -> None:
     far, near = _leg_push_back_m(3.5, window), _leg_push_back_m(1.0, window)
     assert abs(far - near) < 0.004 and far < 0.006
     assert _leg_push_back_m(3.5, 5) - _leg_push_back_m(1.0, 5) > 0.008
+
+
+def test_returns_near_a_point_are_the_scans_own_within_the_radius() -> None:
+    """``occupied(x, y)`` of the people stage: a return within the radius of the world point, from a laser placed
+    and turned anywhere; none where the beams went past, where the returns were removed (NaN) or out of view."""
+    from vipsm.estimator import _returns_near
+
+    b = np.linspace(-math.pi / 2, math.pi / 2, 721)
+    ranges = np.full(b.size, 8.0)
+    hit = np.abs(b - 0.3) < 0.02  # a body 3 m away at bearing 0.3 rad (laser frame)
+    ranges[hit] = 3.0
+    laser = Pose2D(1.0, -2.0, 0.5)
+    ang = laser.theta_rad + 0.3
+    x, y = laser.x_m + 3.1 * math.cos(ang), laser.y_m + 3.1 * math.sin(ang)  # 0.1 m behind its front
+    occupied = _returns_near(b, ranges, laser, 0.25)
+    assert occupied(x, y)
+    assert not occupied(laser.x_m + 5.0 * math.cos(ang), laser.y_m + 5.0 * math.sin(ang))  # beams went past
+    assert not _returns_near(b, np.where(hit, np.nan, ranges), laser, 0.25)(x, y)  # removed returns
+    back = laser.theta_rad + math.pi
+    assert not occupied(laser.x_m + 3.0 * math.cos(back), laser.y_m + 3.0 * math.sin(back))  # out of view
+
+
+def test_a_standing_person_writes_no_occupancy_into_the_static_map() -> None:
+    """A confirmed person is kept out of the static map, walking or standing: the cells its legs held would lie
+    around its first step, where the free-space test asks for no occupied evidence. Its legs hold only the first
+    scan's occupancy (before the person was confirmed), decaying; a chair leg (no person) and the walls gain a
+    scan's worth each scan. (Keeping out only walking people, the legs gathered as much as the chair.)"""
+    from app.legmodel import default_leg_model
+
+    world = box_room(9.0, 6.0, x0=-1.0, y0=-3.0)
+    person = [(2.5, 0.4), (2.5, 0.65)]
+    chair = (2.0, -1.0)
+    world.circles = [Circle(x, y, 0.06) for x, y in person] + [Circle(*chair, 0.0125)]
+    est = Estimator(CFG, leg_model=default_leg_model())
+    _run(est, _sequence(world, 30, v=0.0, frames=False, seed=7))
+    assert [(t.confirmed, len(t.legs)) for t in est._people.tracks] == [(True, 2)]
+    grid = est._static
+
+    def occupied(x: float, y: float) -> float:
+        i, j, inside = grid._cells(np.array([[x, y]]))
+        assert inside[0]
+        return float(grid.occ[i[0] - 1:i[0] + 2, j[0] - 1:j[0] + 2].max())
+
+    front = [(x - CFG.people.leg_radius_m, y) for x, y in person]  # where the legs' returns lie
+    assert all(occupied(x, y) <= 1.0 for x, y in front)
+    assert occupied(chair[0] - 0.0125, chair[1]) > 10.0 and occupied(8.0, 0.0) > 10.0

@@ -644,3 +644,43 @@ def test_a_track_whose_legs_another_holds_is_a_duplicate() -> None:
     other.filt._mean = other.filt._cov = None
     tr.step(1.0, _pair(x0, 0.0), visible=lambda x, y: True)
     assert [t.track_id for t in tr.tracks] == [first.track_id]
+
+
+@pytest.mark.parametrize("returns_there, in_view, reported", [(True, True, True), (False, True, False),
+                                                              (True, False, False)])
+def test_a_walker_whose_legs_the_detector_missed_for_a_scan_stays_an_obstacle_where_the_laser_returns(
+        returns_there: bool, in_view: bool, reported: bool) -> None:
+    """A walker no leg of whom was detected in one scan: where the laser returned from its predicted place (the
+    detector missed the legs of a body that is there) it stays a moving obstacle at its prediction; where the laser
+    saw through that place, or could not see it (behind something nearer, out of view), it is none."""
+    laser = Pose2D(0.0, 0.0, 0.0)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(20):
+        tr.step(0.1 * k, _pair(1.0 + 0.1 * k, 2.0, evidence=k % 3 == 0))
+    asked: list[tuple[float, float]] = []
+
+    def occupied(x: float, y: float) -> bool:
+        asked.append((x, y))
+        return returns_there
+
+    tr.step(2.0, [], visible=lambda x, y: in_view, occupied=occupied)
+    (p,) = tr.people(2.0)
+    assert p.moving and p.legs == ()
+    obstacles = tr.obstacles((p,), (), laser)
+    assert len(obstacles) == int(reported)
+    if reported:
+        assert obstacles[0].x_m == pytest.approx(3.0, abs=0.05) and obstacles[0].y_m == pytest.approx(2.0, abs=0.05)
+    if in_view:  # asked where the walker is predicted
+        assert asked and math.hypot(asked[0][0] - 3.0, asked[0][1] - 2.0) < 0.05
+
+
+def test_a_doubtful_walker_is_no_obstacle_when_its_legs_are_missed() -> None:
+    """Below ``exist_confirm`` a walker seen by no leg is no obstacle, whatever the laser returns there."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(20):
+        tr.step(0.1 * k, _pair(1.0 + 0.1 * k, 2.0, evidence=k % 3 == 0))
+    tr.tracks[0].existence = 0.75  # one miss in view takes it below exist_confirm (0.7)
+    tr.step(2.0, [], visible=lambda x, y: True, occupied=lambda x, y: True)
+    (p,) = tr.people(2.0)
+    assert tr.tracks[0].existence < tr.config.exist_confirm
+    assert tr.obstacles((p,), (), Pose2D(0.0, 0.0, 0.0)) == ()
