@@ -808,10 +808,6 @@ class Tracker:
         start = self._walk_start(t.recent)
         if start is None:
             return False
-        if any(math.isfinite(row[4]) for row in t.recent[start:]):
-            # a fitted centre drifts with the part of a box the laser sees, beyond its radius's change (cart_pusher's
-            # stopped cart, 4 cm in 0.2 s as the robot drove up to it): its stand outvotes that, as before
-            start = 0
         if start and not self._walks_off(t.recent[start:]):
             return False
         # the detections must move both as placed and with each fitted centre moved by its radius's change
