@@ -615,22 +615,14 @@ class Tracker:
         uu = np.outer((vx / speed, vy / speed), (vx / speed, vy / speed))
         return along * uu + math.hypot(det.sigma_across_m, extra) ** 2 * (np.eye(2) - uu)
 
-    def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None, person: bool = False) -> bool:
-        """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker (``kinds``: per row, the
-        detection's kind code; a step between kinds may also move between a leg and a pair's midpoint;
-        for a ``person``, a step between two lone legs may move from one leg to the other, each up to
-        ``KIND_CHANGE_M`` from the pelvis)."""
+    def _steady(self, pts: np.ndarray) -> bool:
+        """(stamp_s, x_m, y_m, ...) rows of one kind: no step faster than a walker (confirmation's path: an
+        association that flips between two nearby things, a chair's legs, jumps faster)."""
         if pts.shape[0] < 2:
             return True
         c = self.config
         step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
-        allowed = c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m
-        if kinds is not None:
-            allowed = allowed + KIND_CHANGE_M * (np.diff(kinds) != 0.0)
-            if person:
-                legs = (kinds[1:] == _KIND_CODE["leg"]) & (kinds[:-1] == _KIND_CODE["leg"])
-                allowed = allowed + 2.0 * KIND_CHANGE_M * legs
-        return bool(np.all(step <= allowed))
+        return bool(np.all(step <= c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m))
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
         """The detection into the track's bounded windows (the birth detection too: it is where the
@@ -801,17 +793,11 @@ class Tracker:
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
         raw = np.array(t.recent)[:, :4]
-        if not self._steady(raw, raw[:, 3], t.seen_as_person):
-            return False
         if raw[-1, 0] - raw[0, 0] < 0.5:
             return True
         start = self._walk_start(t.recent)
         if start is None:
             return False
-        if any(math.isfinite(row[4]) for row in t.recent[start:]):
-            # a fitted centre drifts with the part of a box the laser sees, beyond its radius's change (cart_pusher's
-            # stopped cart, 4 cm in 0.2 s as the robot drove up to it): its stand outvotes that, as before
-            start = 0
         if start and not self._walks_off(t.recent[start:]):
             return False
         # the detections must move both as placed and with each fitted centre moved by its radius's change
