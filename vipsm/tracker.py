@@ -615,14 +615,22 @@ class Tracker:
         uu = np.outer((vx / speed, vy / speed), (vx / speed, vy / speed))
         return along * uu + math.hypot(det.sigma_across_m, extra) ** 2 * (np.eye(2) - uu)
 
-    def _steady(self, pts: np.ndarray) -> bool:
-        """(stamp_s, x_m, y_m, ...) rows of one kind: no step faster than a walker (confirmation's path: an
-        association that flips between two nearby things, a chair's legs, jumps faster)."""
+    def _steady(self, pts: np.ndarray, kinds: np.ndarray | None = None, person: bool = False) -> bool:
+        """(stamp_s, x_m, y_m, ...) rows: no step faster than a walker (``kinds``: per row, the
+        detection's kind code; a step between kinds may also move between a leg and a pair's midpoint;
+        for a ``person``, a step between two lone legs may move from one leg to the other, each up to
+        ``KIND_CHANGE_M`` from the pelvis)."""
         if pts.shape[0] < 2:
             return True
         c = self.config
         step = np.hypot(np.diff(pts[:, 1]), np.diff(pts[:, 2]))
-        return bool(np.all(step <= c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m))
+        allowed = c.max_speed_mps * np.diff(pts[:, 0]) + c.step_noise_m
+        if kinds is not None:
+            allowed = allowed + KIND_CHANGE_M * (np.diff(kinds) != 0.0)
+            if person:
+                legs = (kinds[1:] == _KIND_CODE["leg"]) & (kinds[:-1] == _KIND_CODE["leg"])
+                allowed = allowed + 2.0 * KIND_CHANGE_M * legs
+        return bool(np.all(step <= allowed))
 
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
         """The detection into the track's bounded windows (the birth detection too: it is where the
@@ -793,6 +801,8 @@ class Tracker:
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
         raw = np.array(t.recent)[:, :4]
+        if not self._steady(raw, raw[:, 3], t.seen_as_person):
+            return False
         if raw[-1, 0] - raw[0, 0] < 0.5:
             return True
         start = self._walk_start(t.recent)
