@@ -488,13 +488,22 @@ class PeopleTracker:
             sigma = c.leg_sigma_m
         return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
 
-    def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None) -> bool:
-        mean, cov = t.filt.mean[:2], t.filt.cov[:2, :2]
-        dv = np.array([x, y]) - mean
-        if math.hypot(*dv) > 2.0 * self.config.person_radius_m:
-            return False
-        s = cov + np.eye(2) * (sigma_m or self.config.pair_sigma_m) ** 2
-        return float(dv @ np.linalg.solve(s, dv)) <= self._gate
+    def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None, any_model: bool = False
+                 ) -> bool:
+        """Within the gate of the models' combination, or (``any_model``: a person no leg of whom is left, found
+        again) of its likelier motion state's prediction: where its walk has taken it while P(walking) is the
+        larger, where it stands otherwise (the combination lies between, held back by the other)."""
+        r = np.eye(2) * (sigma_m or self.config.pair_sigma_m) ** 2
+        z = np.array([x, y])
+        models = [(t.filt.mean, t.filt.cov)]
+        if any_model:
+            models.append(t.filt.walking() if t.filt.p_moving >= 0.5 else (t.filt.means[0], t.filt.covs[0]))
+        for mean, cov in models:
+            dv = z - mean[:2]
+            if math.hypot(*dv) <= 2.0 * self.config.person_radius_m and \
+                    float(dv @ np.linalg.solve(cov[:2, :2] + r, dv)) <= self._gate:
+                return True
+        return False
 
     def _update(self, t: PersonTrack, z: tuple[float, float, float, list[LegTrack]]) -> None:
         c = self.config
@@ -619,7 +628,7 @@ class PeopleTracker:
             cost = np.full((len(empty), len(dets)), np.inf)
             for ti, t in enumerate(empty):
                 for di, (x, y, s, _) in enumerate(dets):
-                    if self._in_gate(t, x, y, s):
+                    if self._in_gate(t, x, y, s, any_model=True):
                         cost[ti, di] = math.hypot(x - t.filt.mean[0], y - t.filt.mean[1])
             got = assign_gated(cost)
         out = []
@@ -642,10 +651,11 @@ class PeopleTracker:
 
     def _prune(self) -> None:
         c = self.config
-        # lost: existence gone, or the position unknown beyond twice the reporting bound
+        # lost: existence gone, or the position unknown beyond twice the reporting bound under every motion model
+        # (a walker unseen for a second is still known where its walk has taken it; ``_in_gate`` finds it there)
         lost2 = (2.0 * c.max_position_sigma_m) ** 2
-        alive = [t for t in self.tracks if t.existence >= c.exist_drop and np.linalg.eigvalsh(t.filt.cov[:2, :2])[-1]
-                 <= lost2]
+        alive = [t for t in self.tracks if t.existence >= c.exist_drop
+                 and min(np.linalg.eigvalsh(cv[:2, :2])[-1] for cv in t.filt.covs) <= lost2]
         # a duplicate: a younger track within a leg pair's half-width of an older one that is not another
         # person there (``_two_people``; its legs go free, and the older one adopts them if they fit it)
         keep: list[PersonTrack] = []

@@ -684,3 +684,24 @@ def test_a_doubtful_walker_is_no_obstacle_when_its_legs_are_missed() -> None:
     (p,) = tr.people(2.0)
     assert tr.tracks[0].existence < tr.config.exist_confirm
     assert tr.obstacles((p,), (), Pose2D(0.0, 0.0, 0.0)) == ()
+
+
+def test_a_walker_out_of_view_for_a_second_is_found_again_where_its_walk_took_it() -> None:
+    """A walker unseen for 1.5 s (out of the laser's view: no miss against its existence) comes back into view
+    where its walk has taken it. The models' combination lags there (P(standing) grows while nothing is seen)
+    and its covariance spreads past the reporting bound, but the walking models' prediction holds: the same
+    person takes the legs, not a new one (turn_in_place's walker, back in view after the robot's turn)."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    rng = np.random.default_rng(RNG_SEED)
+    for k in range(20):
+        tr.step(0.1 * k, _pair(1.0 + 0.1 * k + rng.normal(0, 0.02), 2.0, evidence=k % 3 == 0))
+    (walker,) = tr.tracks
+    for k in range(20, 35):
+        tr.step(0.1 * k, [], visible=lambda x, y: False)
+    assert [t.track_id for t in tr.tracks] == [walker.track_id]
+    (t,) = tr.tracks
+    assert float(np.hypot(*(t.filt.mean[:2] - (4.5, 2.0)))) > 0.5  # the combination lags ...
+    assert np.linalg.eigvalsh(t.filt.cov[:2, :2])[-1] > (2.0 * tr.config.max_position_sigma_m) ** 2  # ... and spreads
+    tr.step(3.5, _pair(4.5, 2.0))
+    assert [t.track_id for t in tr.tracks] == [walker.track_id] and len(tr.tracks[0].legs) == 2
+
