@@ -488,16 +488,13 @@ class PeopleTracker:
             sigma = c.leg_sigma_m
         return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
 
-    def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None, any_model: bool = False
-                 ) -> bool:
-        """Within the gate of the models' combination, or (``any_model``: a person no leg of whom is left, found
-        again) of its likelier motion state's prediction: where its walk has taken it while P(walking) is the
-        larger, where it stands otherwise (the combination lies between, held back by the other)."""
+    def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None,
+                 likelier: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
+        """Within the gate of the models' combination, or of ``likelier`` (:func:`_likelier_state`: for a person
+        no leg of whom is left, found again)."""
         r = np.eye(2) * (sigma_m or self.config.pair_sigma_m) ** 2
         z = np.array([x, y])
-        models = [(t.filt.mean, t.filt.cov)]
-        if any_model:
-            models.append(t.filt.walking() if t.filt.p_moving >= 0.5 else (t.filt.means[0], t.filt.covs[0]))
+        models = [(t.filt.mean, t.filt.cov)] + ([likelier] if likelier is not None else [])
         for mean, cov in models:
             dv = z - mean[:2]
             if math.hypot(*dv) <= 2.0 * self.config.person_radius_m and \
@@ -627,8 +624,9 @@ class PeopleTracker:
         if empty and dets:
             cost = np.full((len(empty), len(dets)), np.inf)
             for ti, t in enumerate(empty):
+                likelier = _likelier_state(t)
                 for di, (x, y, s, _) in enumerate(dets):
-                    if self._in_gate(t, x, y, s, any_model=True):
+                    if self._in_gate(t, x, y, s, likelier):
                         cost[ti, di] = math.hypot(x - t.filt.mean[0], y - t.filt.mean[1])
             got = assign_gated(cost)
         out = []
@@ -780,6 +778,13 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _likelier_state(t: PersonTrack) -> tuple[np.ndarray, np.ndarray]:
+    """The prediction (state, covariance) of the person's likelier motion state: where its walk has taken it
+    while P(walking) is at least a half, where it stands otherwise. While nothing is seen the models'
+    combination lies between the two, held back by the other."""
+    return t.filt.walking() if t.filt.p_moving >= 0.5 else (t.filt.means[0], t.filt.covs[0])
 
 
 def _line_of_walking(t: PersonTrack) -> tuple[tuple[float, float], float] | None:
