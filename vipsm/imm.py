@@ -181,9 +181,21 @@ class Imm:
             like[j] = math.exp(-0.5 * float(y @ np.linalg.solve(s, y))) / (2 * math.pi * math.sqrt(np.linalg.det(s)))
         self._mean = self._cov = None
         self.likelihoods, self.prior_probs = like, self.probs.copy()
+        self._weigh(like)
+
+    def weigh_walking(self, walking: float, standing: float) -> None:
+        """Bayes' rule on the model probabilities for an observation other than the position, seen with
+        likelihood ``walking`` under every walking model and ``standing`` under the standing model (a leg's
+        step: :meth:`vipsm.people.PeopleTracker._update`). The states are unchanged."""
+        like = np.full(self.probs.size, walking)
+        like[STANDING] = standing
+        self._weigh(like)
+
+    def _weigh(self, like: np.ndarray) -> None:
         post = self.probs * like
         total = float(post.sum())
         if total > 0.0 and math.isfinite(total):
             self.probs = np.clip(post / total, 1e-6, 1.0 - 1e-6)
             self.probs /= self.probs.sum()
+            self._mean = self._cov = None
 

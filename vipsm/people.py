@@ -170,6 +170,12 @@ class LegTrack:
     #: it arrived where it stands now at a place where something else already stood (the laser returned
     #: there when it last saw the place, before this track came): it re-locked onto that thing
     arrived_held: bool = False
+    #: it has left its footprint (:meth:`PeopleTracker._travelled`) at its newest detection
+    travelled: bool = False
+    #: a step not yet weighed for a person: it left its footprint at a detection after one where it had not
+    #: (counted once, however long the leg stays ``leg_travel_m`` from where it stood; a free leg's step is
+    #: weighed for the person that takes it while it has not landed back)
+    stepped: bool = False
 
     def seen(self, stamp_s: float, det: LegDetection, window_s: float) -> None:
         self.x_m, self.y_m, self.seen_s, self.det = det.x_m, det.y_m, stamp_s, det
@@ -361,6 +367,8 @@ class PeopleTracker:
                 lt.vx_mps = 0.5 * lt.vx_mps + 0.5 * float(np.clip((d.x_m - lt.x_m) / dt, -vmax, vmax))
                 lt.vy_mps = 0.5 * lt.vy_mps + 0.5 * float(np.clip((d.y_m - lt.y_m) / dt, -vmax, vmax))
             lt.seen(stamp_s, d, c.leg_memory_s)
+            before, lt.travelled = lt.travelled, self._travelled(lt)
+            lt.stepped = lt.travelled and (lt.stepped or not before)
         taken = set(got.values())
         for j, d in enumerate(detections):
             if j not in taken and not d.weak:
@@ -525,6 +533,15 @@ class PeopleTracker:
                 self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
             t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
                                  (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
+            if any(lt.stepped for lt in legs):
+                # a step, given a person: a walker's legs step on ``evidence_moving`` of its detections, a
+                # standing person's as rarely as a still thing's. A detection without a step says little: most
+                # of a walker's cannot show one (the leg half hidden, the place it left not seen, a step shorter
+                # than a footprint), so only a step is weighed. It is the early cue of a start: the swing leg
+                # has left its footprint while the legs' midpoint has moved a few cm
+                t.filt.weigh_walking(c.evidence_moving, c.evidence_standing)
+                for lt in legs:
+                    lt.stepped = False
         else:
             t.p_dynamic = _bayes(t.p_dynamic, stayed, 1.0)
         t.updated_s = t.stamp_s

@@ -153,6 +153,19 @@ def test_imm_walk_onset_is_set_by_the_measurements_not_the_switch_rate() -> None
             assert max(p[50:57]) >= 0.8, (rate, seed)
 
 
+def test_imm_weighs_its_models_by_an_observation_other_than_the_position() -> None:
+    """Bayes' rule on the model probabilities alone: every walking model's odds against standing scale by the
+    likelihood ratio, the states stay."""
+    f = Imm(0.0, 0.0, 0.05, ImmConfig())
+    _run(f, [0.0] * 5)
+    probs, means = f.probs.copy(), f.means.copy()
+    f.weigh_walking(0.2, 0.02)
+    odds = (1.0 - probs[0]) / probs[0] * 10.0
+    assert f.p_moving == pytest.approx(odds / (1.0 + odds), rel=1e-6)
+    assert f.probs[1] / f.probs[2] == pytest.approx(probs[1] / probs[2], rel=1e-6)
+    assert np.array_equal(f.means, means) and f.mean[:2] == pytest.approx(probs @ means[:, :2] @ np.eye(2), abs=0.05)
+
+
 def test_imm_config_rejects_nonsense() -> None:
     with pytest.raises(ValueError):
         ImmConfig(switch_per_s=0.0)
@@ -705,3 +718,37 @@ def test_a_walker_out_of_view_for_a_second_is_found_again_where_its_walk_took_it
     tr.step(3.5, _pair(4.5, 2.0))
     assert [t.track_id for t in tr.tracks] == [walker.track_id] and len(tr.tracks[0].legs) == 2
 
+
+
+def _step_from_standing(place_left_seen_empty: bool) -> tuple[PeopleTracker, list[float], list[bool]]:
+    """A person stands 1 s, then one leg swings 0.25 m forward within a scan and lands (a walk's first step);
+    the other stands. Returns the tracker, P(walking) after each of the last three scans (before the swing,
+    the swing, the scan after) and whether the swing leg's track had left its footprint at the last two."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(10):
+        tr.step(0.1 * k, _pair(2.0, 0.0), seen_free=lambda x, y: place_left_seen_empty)
+    pw, stepped = [tr.tracks[0].filt.p_moving], []
+    for k in (10, 11):
+        tr.step(0.1 * k, [LegDetection(2.25, -0.1, 0.9, 0, 1), _pair(2.0, 0.0)[1]],
+                seen_free=lambda x, y: place_left_seen_empty)
+        (person,) = tr.tracks
+        swing = min((tr.legs[i] for i in person.leg_ids), key=lambda lt: lt.y_m)
+        pw.append(person.filt.p_moving)
+        stepped.append(swing.travelled)
+    return tr, pw, stepped
+
+
+def test_a_legs_step_is_the_early_cue_of_a_walk_and_counts_once() -> None:
+    """A standing person's leg that leaves its footprint (the place it left seen empty) is a step: a walker's
+    legs step on ``evidence_moving`` of its detections, a standing person's on ``evidence_standing``, so P(walking)
+    rises on that scan beyond what the legs' midpoint (moved 0.125 m) tells. The step is counted once: the
+    leg stays ``leg_travel_m`` from where it stood for ``leg_memory_s``, but it stepped only at the detection
+    where it left. Where the place it left is not seen empty the same detections are no step."""
+    _, pw_step, left = _step_from_standing(True)
+    _, pw_none, not_left = _step_from_standing(False)
+    assert left == [True, True] and not_left == [False, False]
+    assert pw_step[0] == pytest.approx(pw_none[0])
+    ratio = [(a / (1.0 - a)) / (b / (1.0 - b)) for a, b in zip(pw_step[1:], pw_none[1:], strict=True)]
+    c = PeopleConfig()
+    assert ratio[0] == pytest.approx(c.evidence_moving / c.evidence_standing)
+    assert ratio[1] < 1.5 * ratio[0]  # weighed again, it would be about the ratio's square
