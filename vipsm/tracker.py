@@ -247,7 +247,7 @@ class Detection:
     #: line, so a change of the fitted radius moves the centre along it with nothing moving: confirmation and
     #: reporting take that out (a box 4.3 m away whose fit grew 0.19 -> 0.26 m as more of a face showed "moved"
     #: 5.5 cm away from the robot, its front 1.3 cm). For a round body seen whole it is the view line from the
-    #: laser; for a flat face seen obliquely, the face's normal: an open door's leaf 30 deg off the view line,
+    #: laser; for a flat face seen obliquely, the face's normal: an open door's leaf 27-28 deg off the view line,
     #: fitted 1.28 -> 1.49 m as the curl of its ends changed, slid 0.21 m along its normal, and taken out along
     #: the view line that left 0.1 m of "motion" across it, reported (tests/vipsm/test_tracker_face.py)
     behind_rad: float = math.nan

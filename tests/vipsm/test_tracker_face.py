@@ -2,11 +2,12 @@
 radius is set by the curl of its ends and changes with the beams that hit them, and its centre lies that radius
 behind the face along the face's normal, not along the view line from the laser.
 
-Traced (realistic scene ``door_swing``, seed 9001, 9.2-9.6 s): the open door's leaf, 0.9 m at 3 m and 30 deg off the
-robot's heading, fitted with radii 1.28 -> 1.32 -> 1.41 -> 1.49 m (its near end's edge and the return at the hinge
-curl the face's ends by 2-3 cm), its fitted centre sliding 0.21 m along the leaf's normal; a flow error gave it
-motion evidence, and it was confirmed and reported (3.0 false moving obstacles a minute). Taking the radius's change
-out along the view line (the line a round body's centre lies behind its front on) left 0.1 m of "motion" across it.
+Traced (realistic scene ``door_swing``, seed 9001, 9.2-9.6 s): the open door's leaf, 0.9 m at 3 m, 32-45 deg off the
+robot's heading (its normal 28 deg off the view line to the fitted centre), fitted with radii 1.28 -> 1.32 -> 1.41
+-> 1.49 m (its near end's edge and the return at the hinge curl the face's ends by 2-3 cm), its fitted centre
+sliding 0.21 m along the leaf's normal; a flow error gave it motion evidence, and it was confirmed and reported (3.0
+false moving obstacles a minute). Taking the radius's change out along the view line (the line a round body's centre
+lies behind its front on) left 0.1 m of "motion" across it.
 """
 
 from __future__ import annotations
