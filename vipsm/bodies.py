@@ -174,6 +174,11 @@ class Body:
     #: partly hidden by something nearer beside it (not by its own other leg): its visible part, and
     #: so its estimated centre, moves with the occluder's edge, not with the body
     occluded: bool = False
+    #: a fitted circle's: the world-frame direction from its visible returns (their mean) to its centre, the
+    #: line along which the centre lies its radius behind the visible surface (NaN: not fitted). For a round
+    #: body seen whole it is the view line from the laser; for a flat face seen obliquely (a door leaf, a
+    #: box's side) it is the face's normal, which the view line is not
+    behind_rad: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -456,7 +461,9 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
         else:
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None)
             if fitted:  # a round body; a wall piece or a room corner fits no circle behind its points
-                bodies.append(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg))
+                mx, my = (float(v) for v in sg.points.mean(axis=0))
+                bodies.append(replace(_body(cx, cy, rad, fitted, "body", [sg], bearings_rad, cfg),
+                                      behind_rad=math.atan2(cy - my, cx - mx)))
     legs = _fixtures(legs, der)
     for i, j in _pair_legs(legs, der, known_legs):
         group = [legs[i]] + ([legs[j]] if j is not None else [])

@@ -694,9 +694,15 @@ def _detection(b: Body, laser: Pose2D, heading_sigma_rad: float = math.nan, held
     return Detection(b.x_m, b.y_m, b.radius_m, b.radius_fitted, b.scan_index_start, b.scan_index_stop,
                      b.bearing_min_rad, b.bearing_max_rad, evidence=b.evidence, sigma_m=_SIGMA_M[b.kind],
                      sigma_across_m=_SIGMA_ACROSS_M.get(b.kind), kind=b.kind,
-                     occluded=b.occluded, view_rad=math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m),
+                     occluded=b.occluded, behind_rad=_behind_rad(b, laser),
                      laser_x_m=laser.x_m, laser_y_m=laser.y_m, laser_theta_rad=laser.theta_rad,
                      heading_sigma_rad=heading_sigma_rad, held=held)
+
+
+def _behind_rad(b: Body, laser: Pose2D) -> float:
+    """The direction from the body's visible surface to its fitted centre (``Body.behind_rad``); a body built
+    without one: the view line from the laser, a round body's seen whole."""
+    return b.behind_rad if math.isfinite(b.behind_rad) else math.atan2(b.y_m - laser.y_m, b.x_m - laser.x_m)
 
 
 def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, float]) -> Obstacle:

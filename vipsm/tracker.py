@@ -242,11 +242,15 @@ class Detection:
     #: uncovered by a passing body: its fit moved 11 cm as the radius went 0.33 -> 0.24 m), so it counts
     #: only with its radius within ``OCCLUDED_RADIUS_TOL``
     occluded: bool = False
-    #: world-frame direction from the laser to the centre (NaN: unknown). A fitted circle's centre lies
-    #: its radius behind the visible surface along this line, so a change of the fitted radius moves the
-    #: centre along it with nothing moving: confirmation takes that out (a box 4.3 m away whose fit grew
-    #: 0.19 -> 0.26 m as more of a face showed "moved" 5.5 cm away from the robot, its front 1.3 cm)
-    view_rad: float = math.nan
+    #: a fitted circle's: the world-frame direction from its visible surface (the returns' middle) to its centre
+    #: (``vipsm.bodies.Body.behind_rad``; NaN: unknown). The centre lies its radius behind the surface along this
+    #: line, so a change of the fitted radius moves the centre along it with nothing moving: confirmation and
+    #: reporting take that out (a box 4.3 m away whose fit grew 0.19 -> 0.26 m as more of a face showed "moved"
+    #: 5.5 cm away from the robot, its front 1.3 cm). For a round body seen whole it is the view line from the
+    #: laser; for a flat face seen obliquely, the face's normal: an open door's leaf 27-28 deg off the view line,
+    #: fitted 1.28 -> 1.49 m as the curl of its ends changed, slid 0.21 m along its normal, and taken out along
+    #: the view line that left 0.1 m of "motion" across it, reported (tests/vipsm/test_tracker_face.py)
+    behind_rad: float = math.nan
     #: the world-frame laser pose (x_m, y_m, theta_rad) of the scan the detection came from and that scan's own
     #: heading error (1 sigma; NaN: unknown): two detections placed with two matched poses differ by the
     #: poses' relative error, which confirmation must not read as displacement (see ``Tracker``)
@@ -406,13 +410,12 @@ def _pair_of(a: Detection, b: Detection, default_sigma_m: float) -> Detection:
     """Two lone legs of one person measured as a leg pair: their midpoint, with the noise of a mean of two."""
     sigma = 0.5 * math.hypot(*(default_sigma_m if d.sigma_m is None else d.sigma_m for d in (a, b)))
     mx, my = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
-    view = math.atan2(my - a.laser_y_m, mx - a.laser_x_m) if math.isfinite(a.laser_x_m) else math.nan
     return replace(a, x_m=mx, y_m=my, kind="person", sigma_m=sigma, sigma_across_m=None,
                    evidence=a.evidence or b.evidence, occluded=a.occluded or b.occluded,
                    scan_index_start=min(a.scan_index_start, b.scan_index_start),
                    scan_index_stop=max(a.scan_index_stop, b.scan_index_stop),
                    bearing_min_rad=min(a.bearing_min_rad, b.bearing_min_rad),
-                   bearing_max_rad=max(a.bearing_max_rad, b.bearing_max_rad), view_rad=view)
+                   bearing_max_rad=max(a.bearing_max_rad, b.bearing_max_rad), behind_rad=math.nan)
 
 
 def _onset(hist: np.ndarray) -> int:
@@ -422,22 +425,24 @@ def _onset(hist: np.ndarray) -> int:
 
 
 def _fit_invariant_xy(hist: np.ndarray) -> np.ndarray:
-    """A track's history rows' positions with each fitted centre moved along its view line by its
-    radius's difference from the newest fit's: what the visible surface did (a box's fit grows and
-    recedes as a face turns into view; a round body's keeps its radius, and so its centre)."""
+    """A track's history rows' positions with each fitted centre moved along the line it lies behind its
+    visible surface on (``Detection.behind_rad``) by its radius's difference from the newest fit's: what the
+    visible surface did (a box's fit grows and recedes as a face turns into view, a flat face's with the curl of
+    its ends; a round body's keeps its radius, and so its centre)."""
     if not np.isfinite(hist[-1, 7]):
         return hist[:, 1:3].copy()
     return _fit_invariant(hist[:, 1:3], hist[:, 7], hist[:, 8])
 
 
-def _fit_invariant(xy: np.ndarray, radius: np.ndarray, view: np.ndarray) -> np.ndarray:
-    """Positions ``xy`` (k x 2) of fitted centres (``radius`` NaN: not a fit) moved along their view lines
-    (``view``, world-frame directions from the laser) by their radius's difference from the newest fit's."""
+def _fit_invariant(xy: np.ndarray, radius: np.ndarray, behind: np.ndarray) -> np.ndarray:
+    """Positions ``xy`` (k x 2) of fitted centres (``radius`` NaN: not a fit) moved along the lines they lie
+    behind their visible surfaces on (``behind``, world-frame directions from the surface to the centre) by
+    their radius's difference from the newest fit's."""
     xy = xy.copy()
-    ok = np.isfinite(radius) & np.isfinite(view)
+    ok = np.isfinite(radius) & np.isfinite(behind)
     if ok.any():
         dr = radius[ok] - radius[ok][-1]
-        xy[ok] -= dr[:, None] * np.stack([np.cos(view[ok]), np.sin(view[ok])], axis=1)
+        xy[ok] -= dr[:, None] * np.stack([np.cos(behind[ok]), np.sin(behind[ok])], axis=1)
     return xy
 
 
@@ -470,11 +475,11 @@ class Track:
     #: the last detections: (stamp_s, x_m, y_m, 1.0 if it showed motion evidence else 0.0, kind code,
     #: 1.0 if its position is unreliable for displacement else 0.0: see ``Tracker._remember``, the
     #: radius of a circle fitted to a partly occluded view, else NaN; the fitted radius, else NaN; the
-    #: view direction ``Detection.view_rad``; the laser pose x, y, theta and its heading sigma)
+    #: direction ``Detection.behind_rad``; the laser pose x, y, theta and its heading sigma)
     history: list[tuple[float, ...]] = field(default_factory=list)
     evidence: int = 0
     confirmed: bool = False
-    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, view_rad,
+    #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, behind_rad,
     #: 1.0 if the confirmed track's filter stood with it (``Tracker._stands``) else 0.0, its noise about the
     #: point of the body its kind sees, ``Tracker._point_noise_m``)
     recent: list[tuple[float, ...]] = field(default_factory=list)
@@ -643,14 +648,14 @@ class Tracker:
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
-                         det.radius_m if det.radius_fitted else math.nan, det.view_rad, float(self._stands(t)),
+                         det.radius_m if det.radius_fitted else math.nan, det.behind_rad, float(self._stands(t)),
                          self._point_noise_m(t, det)))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
                           float(not reliable or (det.occluded and not det.radius_fitted and det.kind != "person")),
                           det.radius_m if det.occluded and det.radius_fitted else math.nan,
-                          det.radius_m if det.radius_fitted else math.nan, det.view_rad, det.laser_x_m,
+                          det.radius_m if det.radius_fitted else math.nan, det.behind_rad, det.laser_x_m,
                           det.laser_y_m, det.laser_theta_rad, det.heading_sigma_rad))
         del t.history[: -self.config.confirm_window]
 

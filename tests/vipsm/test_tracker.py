@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -356,7 +357,7 @@ def test_a_box_whose_fit_grows_as_a_face_turns_into_view_does_not_confirm() -> N
         tr = Tracker(TrackerConfig())
         out = False
         for k, ((x, y), r, v) in enumerate(zip(centres, radii, view, strict=True)):
-            det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", view_rad=v)
+            det = Detection(x, y, r, True, 0, 3, 0.0, 0.1, evidence=True, sigma_m=0.03, kind="body", behind_rad=v)
             out |= any(t.confirmed for t, _ in tr.step(0.1 * k, [det]))
         return out
 
@@ -993,7 +994,7 @@ def _turning_laser(k: int, dt: float) -> tuple[float, float, float]:
 def _posed(x: float, y: float, laser: tuple[float, float, float], sigma_rad: float = 0.0) -> Detection:
     lx, ly, lth = laser
     return Detection(x, y, 0.15, True, 0, 8, 0.0, 0.05, evidence=True, sigma_m=0.03, kind="body",
-                     view_rad=math.atan2(y - ly, x - lx), laser_x_m=lx, laser_y_m=ly, laser_theta_rad=lth,
+                     behind_rad=math.atan2(y - ly, x - lx), laser_x_m=lx, laser_y_m=ly, laser_theta_rad=lth,
                      heading_sigma_rad=sigma_rad)
 
 
@@ -1037,7 +1038,7 @@ def _rear(x: float, y: float, kind: str, evidence: bool, laser: tuple[float, ...
     lx, ly, lth, hs = laser
     radius, fitted, sigma = (0.175, True, 0.03) if kind == "body" else (0.25, False, 0.12)
     return Detection(x, y, radius, fitted, 0, 5, 0.0, 0.05, evidence=evidence, sigma_m=sigma, kind=kind,
-                     view_rad=math.atan2(y - ly, x - lx), laser_x_m=lx, laser_y_m=ly, laser_theta_rad=lth,
+                     behind_rad=math.atan2(y - ly, x - lx), laser_x_m=lx, laser_y_m=ly, laser_theta_rad=lth,
                      heading_sigma_rad=hs)
 
 
@@ -1074,7 +1075,7 @@ def test_a_slow_fitted_body_seen_from_a_driving_laser_is_confirmed_as_soon_as_it
     for k in range(8):
         lx, x, y = 0.2 * dt * k, 6.0, 1.0 - 0.13 * dt * k
         d = Detection(x, y, 0.4, True, 0, 8, 0.0, 0.05, evidence=True, sigma_m=0.03, kind="body",
-                      view_rad=math.atan2(y, x - lx), laser_x_m=lx, laser_y_m=0.0, laser_theta_rad=0.0,
+                      behind_rad=math.atan2(y, x - lx), laser_x_m=lx, laser_y_m=0.0, laser_theta_rad=0.0,
                       heading_sigma_rad=0.0)
         if first is None and any(t.confirmed for t, _ in tr.step(dt * k, [d])):
             first = k
@@ -1099,7 +1100,7 @@ def test_a_still_lasers_detections_get_no_pose_allowance() -> None:
 
 def _box(x: float, y: float, radius: float, evidence: bool, laser=(3.1, 0.0)) -> Detection:
     return Detection(x, y, radius, True, 0, 20, 0.0, 0.1, evidence=evidence, sigma_m=0.03, kind="body",
-                     occluded=True, view_rad=math.atan2(y - laser[1], x - laser[0]))
+                     occluded=True, behind_rad=math.atan2(y - laser[1], x - laser[0]))
 
 
 def test_a_stopped_cart_whose_fit_shrinks_as_the_robot_comes_closer_is_not_reported_again() -> None:
@@ -1129,7 +1130,8 @@ def test_the_estimators_detections_carry_the_laser_pose_and_its_heading_error() 
     body = Body(2.0, 1.0, 0.2, True, "body", 1.0, False, 10, 20, 0.1, 0.2)
     d = _detection(body, Pose2D(0.5, -0.5, 0.3), 0.004)
     assert (d.laser_x_m, d.laser_y_m, d.laser_theta_rad, d.heading_sigma_rad) == (0.5, -0.5, 0.3, 0.004)
-    assert d.view_rad == pytest.approx(math.atan2(1.5, 1.5))
+    assert d.behind_rad == pytest.approx(math.atan2(1.5, 1.5))  # no surface direction given: the view line
+    assert _detection(replace(body, behind_rad=0.2), Pose2D(0.5, -0.5, 0.3)).behind_rad == 0.2
     est = Estimator()
     assert est._tracker._poses is est._memory  # noqa: SLF001 - the tracker judges with the evidence's pose model
 

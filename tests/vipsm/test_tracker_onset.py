@@ -123,14 +123,14 @@ def test_a_stopped_cart_whose_fit_drifts_beyond_its_radius_change_is_not_reporte
     for k in range(20):  # pushed across the view, then stopped at (4.15, -1.67)
         t = 0.1 * k
         tr.step(t, [Detection(4.15, -3.47 + 0.09 * k, 0.34, True, 0, 20, 0.0, 0.1, sigma_m=0.03, kind="body",
-                              occluded=True, view_rad=math.atan2(-3.47 + 0.09 * k, 4.15 - 3.1))])
+                              occluded=True, behind_rad=math.atan2(-3.47 + 0.09 * k, 4.15 - 3.1))])
     stood = [(4.15, -1.67, 0.34, -0.99)] * 25
     drift = [(4.11, -1.64, 0.30, -1.035), (4.08, -1.62, 0.27, -1.052), (4.05, -1.58, 0.23, -1.067),
              (4.02, -1.55, 0.20, -1.084), (3.99, -1.53, 0.17, -1.10)]
     for k, (x, y, r, view) in enumerate(stood + drift):
         t = round(2.0 + 0.1 * k, 6)
         out = tr.step(t, [Detection(x, y, r, True, 0, 20, 0.0, 0.1, evidence=False, sigma_m=0.03, kind="body",
-                                    occluded=True, view_rad=view)])
+                                    occluded=True, behind_rad=view)])
         if k >= 10:
             assert not any(tr.reported(trk) for trk, _ in out), t
 
