@@ -308,6 +308,7 @@ class PeopleTracker:
                 t.existence *= math.exp(-dt / c.unseen_memory_s)
         self._track_legs(stamp_s, detections)
         self._split()
+        self._beyond_stride()
         self._adopt(stamp_s)
         seen: set[int] = set()
         self._visible = visible
@@ -428,6 +429,22 @@ class PeopleTracker:
             a_at = {round(st, 3): (x, y) for st, x, y in legs[0].path}
             common = [(a_at[round(st, 3)], (x, y)) for st, x, y in legs[1].path if round(st, 3) in a_at]
             if len(common) < 3 or any(self._across_ok(t, bx - ax, by - ay) for (ax, ay), (bx, by) in common):
+                continue
+            mx, my = float(t.filt.mean[0]), float(t.filt.mean[1])
+            far = max(range(2), key=lambda i: math.hypot(legs[i].x_m - mx, legs[i].y_m - my))
+            t.leg_ids = [lt.leg_id for i, lt in enumerate(legs) if i != far]
+
+    def _beyond_stride(self) -> None:
+        """A person whose two legs, both seen this cycle, lie further apart than a stride (``leg_pair_max_m``)
+        holds a leg that is not its own: a leg track unseen for a while reaches far (``leg_max_speed_mps`` per
+        second) and may take a neighbour's leg, and the person's gate, wide while its walking models are
+        unsure of the velocity, may still hold the midpoint. It keeps the leg nearer its prediction and frees
+        the other (which may start or join another person)."""
+        for t in self.tracks:
+            legs = [self.legs[k] for k in t.leg_ids]
+            if len(legs) != 2 or any(lt.det is None for lt in legs):
+                continue
+            if math.hypot(legs[0].x_m - legs[1].x_m, legs[0].y_m - legs[1].y_m) <= self.config.leg_pair_max_m:
                 continue
             mx, my = float(t.filt.mean[0]), float(t.filt.mean[1])
             far = max(range(2), key=lambda i: math.hypot(legs[i].x_m - mx, legs[i].y_m - my))

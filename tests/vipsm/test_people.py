@@ -752,3 +752,23 @@ def test_a_legs_step_is_the_early_cue_of_a_walk_and_counts_once() -> None:
     c = PeopleConfig()
     assert ratio[0] == pytest.approx(c.evidence_moving / c.evidence_standing)
     assert ratio[1] < 1.5 * ratio[0]  # weighed again, it would be about the ratio's square
+
+
+def test_a_person_never_keeps_two_legs_further_apart_than_a_stride() -> None:
+    """Two walkers side by side (the crowd): a leg track unseen for 0.4 s reaches 1.3 m and took the
+    neighbour's leg 0.7 m from its partner while the person's gate, wide as its walking models were unsure of
+    the velocity, held the midpoint: one person then held a leg of each walker. Two legs of one person lie
+    within a stride (``leg_pair_max_m``): the person keeps the leg nearer its prediction and frees the other."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(3):
+        tr.step(0.1 * k, _pair(2.0, 0.0))
+    (person,) = tr.tracks
+    near, far = (tr.legs[i] for i in sorted(person.leg_ids, key=lambda i: tr.legs[i].y_m))
+    far.x_m, far.y_m = 2.0, 0.65  # taken where a neighbour's leg stands: 0.75 m from the other leg
+    far.det = LegDetection(2.0, 0.65, 0.9, 2, 3)
+    tr._beyond_stride()
+    assert person.leg_ids == [near.leg_id]
+    far.y_m = 0.5  # 0.6 m apart: a stride, kept
+    person.leg_ids = [near.leg_id, far.leg_id]
+    tr._beyond_stride()
+    assert sorted(person.leg_ids) == sorted([near.leg_id, far.leg_id])
