@@ -458,6 +458,17 @@ def _report_rows(recent: list[tuple[float, ...]]) -> np.ndarray:
     return out
 
 
+def _fit_moved_less(raw: np.ndarray, fit_invariant: np.ndarray) -> bool:
+    """A young report window (stamp_s, x_m, y_m, kind rows, as placed and as :func:`_report_rows`) whose body
+    moved at least as far as its fits' change of radius moved their centres: from its first detection to its
+    newest, the displacement with each fitted centre moved by its radius's change is no shorter than what that
+    change accounts for. A flat face whose fit grows as the laser passes slides its centre along its normal with
+    the face standing; a body with no fit, or one that keeps its radius, moves as placed."""
+    moved = fit_invariant[-1, 1:3] - fit_invariant[0, 1:3]
+    by_radius = (raw[-1, 1:3] - raw[0, 1:3]) - moved
+    return bool(np.hypot(*moved) >= np.hypot(*by_radius))
+
+
 @dataclass
 class Track:
     track_id: int
@@ -801,22 +812,26 @@ class Tracker:
     def reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two): its filter has not
         stood since (``_stands``: with hysteresis), or it walked ``ONSET_STEPS`` steps from where it stood, and its
-        report window goes somewhere at a walker's speed (the speed from its last stand on)."""
+        report window goes somewhere at a walker's speed (the speed from its last stand on), both as placed and with
+        each fitted centre moved by its radius's change; a window younger than 0.5 s on its confirmation, unless its
+        fits' change of radius accounts for more of its displacement than the body's own (:func:`_fit_moved_less`)."""
         c = self.config
         if not (t.confirmed and self.recently_seen(t) and t.speed_mps >= c.report_min_speed_mps):
             return False
-        raw = np.array(t.recent)[:, :4]
+        rows = np.array(t.recent)
+        raw = rows[:, :4]
         if not self._steady(raw, raw[:, 3], t.seen_as_person):
             return False
+        # the detections must move both as placed and with each fitted centre moved by its radius's change
+        views = (raw, _report_rows(t.recent))
         if raw[-1, 0] - raw[0, 0] < 0.5:
-            return True
+            return _fit_moved_less(*views)
         start = self._walk_start(t.recent)
         if start is None:
             return False
-        if start and not self._walks_off(t.recent[start:]):
+        if start and not all(self._walks_off(rec[start:], rows[start:, 7]) for rec in views):
             return False
-        # the detections must move both as placed and with each fitted centre moved by its radius's change
-        return all(self._moves(rec, t.seen_as_person, start) for rec in (raw, _report_rows(t.recent)))
+        return all(self._moves(rec, t.seen_as_person, start) for rec in views)
 
     @staticmethod
     def _walk_start(recent: list[tuple[float, ...]]) -> int | None:
@@ -849,12 +864,12 @@ class Tracker:
             extra = math.hypot(extra, 0.5 * t.radius_m)
         return math.hypot(sigma, extra)
 
-    def _walks_off(self, walk: list[tuple[float, ...]]) -> bool:
-        """The detections since the stand move faster than ``report_window_speed_mps`` by one standard error of
-        their least-squares speed (weighted by each one's noise, an offset per kind): three leg pairs of a start
-        (0.15 m in 0.2 s) do, three pairs of a standing person, 7 cm apart as its seen legs change, do not."""
-        rows = np.array(walk)
-        v, info = _kind_fit(rows[:, 0], rows[:, 1:3], rows[:, 3], 1.0 / rows[:, 7] ** 2)
+    def _walks_off(self, rows: np.ndarray, noise_m: np.ndarray) -> bool:
+        """The detections since the stand, (stamp_s, x_m, y_m, kind) ``rows`` with their noise ``noise_m``, move
+        faster than ``report_window_speed_mps`` by one standard error of their least-squares speed (weighted by
+        each one's noise, an offset per kind): three leg pairs of a start (0.15 m in 0.2 s) do, three pairs of a
+        standing person, 7 cm apart as its seen legs change, do not."""
+        v, info = _kind_fit(rows[:, 0], rows[:, 1:3], rows[:, 3], 1.0 / noise_m**2)
         if info <= 0.0:
             return False
         return math.hypot(*v) - 1.0 / math.sqrt(info) >= self.config.report_window_speed_mps
@@ -885,7 +900,8 @@ class Tracker:
         alone while the pair is what is seen now (3 of the newest detections; a person who stopped with
         the legs apart and is seen by one leg keeps the kinds aligned); they must also cover the
         window's speed (a few centimetres of midpoint jitter after the person stopped are "straight"
-        too)."""
+        too), with an offset per kind: a round body's fitted centre among them is another point of the person
+        (a standing person's other leg seen as a leg-sized fit lies 0.23 m from its pairs' midpoints)."""
         c = self.config
         xy, v = kind_aligned(rec)
         parts = [xy, xy[-c.report_recent :]]
@@ -895,7 +911,8 @@ class Tracker:
         newest = rec[-c.report_recent :][pair[-c.report_recent :]]
         if newest.shape[0] < 3:
             return parts, v
-        if float(np.hypot(*(newest[-1, 1:3] - newest[0, 1:3]))) < c.report_window_speed_mps * np.ptp(newest[:, 0]):
+        covered = kind_aligned(newest)[0]
+        if float(np.hypot(*(covered[-1] - covered[0]))) < c.report_window_speed_mps * np.ptp(newest[:, 0]):
             return None
         parts[1] = newest[:, 1:3]
         if np.ptp(rec[pair, 0]) >= 0.5:
