@@ -550,15 +550,18 @@ class PeopleTracker:
                 self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
             t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
                                  (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
-            if any(lt.stepped for lt in legs):
+            # a gait steps one leg at a time, the other standing: two legs of one "person" leaving their
+            # footprints together are two walkers' legs (side by side, paired before either had a velocity)
+            steps = [lt for lt in legs if lt.stepped]
+            if len(steps) == 1 and not any(lt.travelled for lt in seen if lt is not steps[0]):
                 # a step, given a person: a walker's legs step on ``evidence_moving`` of its detections, a
                 # standing person's as rarely as a still thing's. A detection without a step says little: most
                 # of a walker's cannot show one (the leg half hidden, the place it left not seen, a step shorter
                 # than a footprint), so only a step is weighed. It is the early cue of a start: the swing leg
                 # has left its footprint while the legs' midpoint has moved a few cm
                 t.filt.weigh_walking(c.evidence_moving, c.evidence_standing)
-                for lt in legs:
-                    lt.stepped = False
+            for lt in steps:  # a step is judged once, for the person that holds the leg when it is seen
+                lt.stepped = False
         else:
             t.p_dynamic = _bayes(t.p_dynamic, stayed, 1.0)
         t.updated_s = t.stamp_s

@@ -772,3 +772,19 @@ def test_a_person_never_keeps_two_legs_further_apart_than_a_stride() -> None:
     person.leg_ids = [near.leg_id, far.leg_id]
     tr._beyond_stride()
     assert sorted(person.leg_ids) == sorted([near.leg_id, far.leg_id])
+
+
+def test_two_legs_of_one_person_leaving_their_footprints_together_are_no_gait() -> None:
+    """A gait steps one leg at a time while the other stands. Two walkers side by side, paired on their inner
+    legs before either had a velocity, both step at once: that is not one walker's step, and it does not raise
+    the pair's P(walking) (weighed, the pair's gate widened and kept a leg of each walker: the crowd)."""
+    pw = []
+    for place_left_seen_empty in (True, False):
+        tr = PeopleTracker(PeopleConfig(), default_leg_model())
+        for k in range(10):
+            tr.step(0.1 * k, _pair(2.0, 0.0), seen_free=lambda x, y, s=place_left_seen_empty: s)
+        tr.step(1.0, _pair(2.25, 0.0), seen_free=lambda x, y, s=place_left_seen_empty: s)
+        (person,) = tr.tracks
+        assert all(tr.legs[i].travelled == place_left_seen_empty for i in person.leg_ids)
+        pw.append(person.filt.p_moving)
+    assert pw[0] == pytest.approx(pw[1])
