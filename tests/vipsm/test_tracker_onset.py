@@ -114,17 +114,23 @@ def test_a_stand_lasts_two_detections_and_a_walk_from_it_needs_two_steps_of_one_
     assert start(rows("2222222222", "SSSSSSSSSS")) is None  # standing
 
 
+def _cart_pushed_to_a_stop() -> Tracker:
+    """A tracker that saw a partly hidden cart (a fitted 0.34 m circle) pushed across the view for 2 s, up to
+    (4.15, -1.67)."""
+    tr = Tracker(TrackerConfig())
+    for k in range(20):
+        tr.step(0.1 * k, [Detection(4.15, -3.47 + 0.09 * k, 0.34, True, 0, 20, 0.0, 0.1, sigma_m=0.03, kind="body",
+                                    occluded=True, behind_rad=math.atan2(-3.47 + 0.09 * k, 4.15 - 3.1))])
+    return tr
+
+
 def test_a_stopped_cart_whose_fit_drifts_beyond_its_radius_change_is_not_reported() -> None:
     """cart_pusher (default seed, 11.6-12.6 s) as traced: the stopped cart's fit shrank 0.34 -> 0.17 m as the robot
     drove up and its centre, moved back along the view line by the radius's change, still drifted 4 cm in 0.2 s.
     From the filter's stand that read as 0.12 m/s and was reported before the walk had to beat its own standard
     error; now the speed since the stand (0.39 m/s over its three detections) is within one standard error (1.0
     m/s with the partly hidden fit's noise, half its radius): no walk, with no exception for fitted centres."""
-    tr = Tracker(TrackerConfig())
-    for k in range(20):  # pushed across the view, then stopped at (4.15, -1.67)
-        t = 0.1 * k
-        tr.step(t, [Detection(4.15, -3.47 + 0.09 * k, 0.34, True, 0, 20, 0.0, 0.1, sigma_m=0.03, kind="body",
-                              occluded=True, behind_rad=math.atan2(-3.47 + 0.09 * k, 4.15 - 3.1))])
+    tr = _cart_pushed_to_a_stop()
     stood = [(4.15, -1.67, 0.34, -0.99)] * 25
     drift = [(4.11, -1.64, 0.30, -1.035), (4.08, -1.62, 0.27, -1.052), (4.05, -1.58, 0.23, -1.067),
              (4.02, -1.55, 0.20, -1.084), (3.99, -1.53, 0.17, -1.10)]
@@ -163,11 +169,7 @@ def test_a_stopped_cart_whose_shrinking_fit_drifts_and_whose_track_takes_two_pai
     views of the window moved: reported at 0.74 m/s, 0.33 m from the standing pusher. With each fit moved by its
     radius's change the fits drift 4 cm in 0.5 s, within one standard error: no walk, as for every other test of
     the window, both views must show it."""
-    tr = Tracker(TrackerConfig())
-    for k in range(20):  # pushed across the view, then stopped at (4.15, -1.67)
-        t = 0.1 * k
-        tr.step(t, [Detection(4.15, -3.47 + 0.09 * k, 0.34, True, 0, 20, 0.0, 0.1, sigma_m=0.03, kind="body",
-                              occluded=True, behind_rad=math.atan2(-3.47 + 0.09 * k, 4.15 - 3.1))])
+    tr = _cart_pushed_to_a_stop()
     stood = [(4.151, -1.674, 0.344, -0.583)] * 25
     shrink = [(4.115, -1.644, 0.305, -0.641), (4.078, -1.614, 0.265, -0.72), (4.05, -1.584, 0.232, -0.803),
               (4.02, -1.554, 0.197, -0.902), (3.99, -1.526, 0.163, -1.024), (3.971, -1.499, 0.135, -1.133),
