@@ -430,9 +430,7 @@ class PeopleTracker:
             common = [(a_at[round(st, 3)], (x, y)) for st, x, y in legs[1].path if round(st, 3) in a_at]
             if len(common) < 3 or any(self._across_ok(t, bx - ax, by - ay) for (ax, ay), (bx, by) in common):
                 continue
-            mx, my = float(t.filt.mean[0]), float(t.filt.mean[1])
-            far = max(range(2), key=lambda i: math.hypot(legs[i].x_m - mx, legs[i].y_m - my))
-            t.leg_ids = [lt.leg_id for i, lt in enumerate(legs) if i != far]
+            _keep_nearer(t, legs)
 
     def _beyond_stride(self) -> None:
         """A person whose two legs, both seen this cycle, lie further apart than a stride (``leg_pair_max_m``)
@@ -446,9 +444,7 @@ class PeopleTracker:
                 continue
             if math.hypot(legs[0].x_m - legs[1].x_m, legs[0].y_m - legs[1].y_m) <= self.config.leg_pair_max_m:
                 continue
-            mx, my = float(t.filt.mean[0]), float(t.filt.mean[1])
-            far = max(range(2), key=lambda i: math.hypot(legs[i].x_m - mx, legs[i].y_m - my))
-            t.leg_ids = [lt.leg_id for i, lt in enumerate(legs) if i != far]
+            _keep_nearer(t, legs)
 
     def _across_ok(self, t: PersonTrack, dx: float, dy: float) -> bool:
         """Two legs ``(dx, dy)`` apart can be the walking person ``t``'s: not walking (slower than
@@ -543,7 +539,7 @@ class PeopleTracker:
             # motion evidence and kinematics from the detector's legs alone: a weak candidate may be another
             # thing's segment (a wall piece sliding by as the robot drives, a table leg beside the track), and
             # a midpoint with one jumps: it tells nothing of whether the body moves
-            ev = any(lt.det.evidence or self._travelled(lt) for lt in legs)
+            ev = any(lt.det.evidence or lt.travelled for lt in legs)
             e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
             # the kinematics as evidence too; motion evidence measures the same displacement: counted once
             kin_dyn, kin_static = (1.0, 1.0) if ev or len(legs) < len(seen) else \
@@ -815,6 +811,13 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _keep_nearer(t: PersonTrack, legs: list[LegTrack]) -> None:
+    """The person ``t`` keeps the one of its two ``legs`` nearer its prediction and frees the other."""
+    mx, my = float(t.filt.mean[0]), float(t.filt.mean[1])
+    far = max(range(2), key=lambda i: math.hypot(legs[i].x_m - mx, legs[i].y_m - my))
+    t.leg_ids = [lt.leg_id for i, lt in enumerate(legs) if i != far]
 
 
 def _likelier_state(t: PersonTrack) -> tuple[np.ndarray, np.ndarray]:
