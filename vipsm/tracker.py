@@ -374,6 +374,24 @@ def _fresh_offset(track: Track) -> Track:
     return replace(track, model_states=xs, model_covs=ps)
 
 
+#: a fitted circle seen over less than this arc of it is a flat face's: its centre was inferred from a curvature
+#: (a door leaf's 0.9 m face, the curl of its ends 2-3 cm, fitted 1.3-1.45 m: 24-34 deg), not seen as a round
+#: body's half circle or a box corner's two faces
+FACE_ARC_MAX_RAD = math.pi / 2.0
+
+
+def _turns_as_a_face(det: Detection) -> bool:
+    """A fitted detection, seen whole, whose returns span less than ``FACE_ARC_MAX_RAD`` of its circle (the span's
+    chord from its bearings and the laser's distance to its surface): a flat face, whose fitted centre swings with
+    the face's turn (:func:`_fit_invariant`). Unknown laser position: not judged."""
+    if not det.radius_fitted or det.occluded or not (math.isfinite(det.laser_x_m) and math.isfinite(det.behind_rad)):
+        return False
+    sx = det.x_m - det.radius_m * math.cos(det.behind_rad) - det.laser_x_m
+    sy = det.y_m - det.radius_m * math.sin(det.behind_rad) - det.laser_y_m
+    chord = 2.0 * math.hypot(sx, sy) * math.tan(0.5 * abs(det.bearing_max_rad - det.bearing_min_rad))
+    return 2.0 * math.asin(min(1.0, 0.5 * chord / det.radius_m)) < FACE_ARC_MAX_RAD
+
+
 #: a track's filter state per model: x, y, vx, vy and the offset of the person's lone leg seen last from its
 #: centre (``Tracker._update``)
 _N_STATE = 6
@@ -455,36 +473,61 @@ def _fit_invariant_xy(hist: np.ndarray) -> np.ndarray:
     return _fit_invariant(hist[:, 1:3], hist[:, 7], hist[:, 8])
 
 
-def _fit_invariant(xy: np.ndarray, radius: np.ndarray, behind: np.ndarray) -> np.ndarray:
+def _fit_invariant(xy: np.ndarray, radius: np.ndarray, behind: np.ndarray,
+                   laser_xy: np.ndarray | None = None, face: np.ndarray | None = None) -> np.ndarray:
     """Positions ``xy`` (k x 2) of fitted centres (``radius`` NaN: not a fit) moved along the lines they lie
     behind their visible surfaces on (``behind``, world-frame directions from the surface to the centre) by
-    their radius's difference from the newest fit's."""
+    their radius's difference from the newest fit's. With ``laser_xy`` (k x 2, where each was seen from) the
+    flat faces' fits (``face`` 1.0, :func:`_turns_as_a_face`) are also turned onto the newest fit's direction
+    against the view line: put the newest radius behind their surfaces along the direction that lies as far from
+    the view line to that surface as the newest fit's does from its own (another body's fit, a round body's, a
+    box corner's or a partly hidden one, whose direction turns with the part seen, keeps its own; all do where
+    the newest is not a face's). A flat face's fitted centre lies its radius (1.3-1.45 m for a door leaf) behind
+    the face along its normal and swings with the face's turn, three times as far as the face moves and across
+    its motion; a round body seen whole lies behind its surface along the view line and keeps its centre."""
     xy = xy.copy()
     ok = np.isfinite(radius) & np.isfinite(behind)
-    if ok.any():
-        dr = radius[ok] - radius[ok][-1]
-        xy[ok] -= dr[:, None] * np.stack([np.cos(behind[ok]), np.sin(behind[ok])], axis=1)
+    if not ok.any():
+        return xy
+    r, b = radius[ok], behind[ok]
+    surface = xy[ok] - r[:, None] * np.stack([np.cos(b), np.sin(b)], axis=1)
+    direction = b.copy()
+    if laser_xy is not None:
+        lx = laser_xy[ok]
+        seen = np.all(np.isfinite(lx), axis=1)
+        if face is not None:
+            seen &= face[ok] == 1.0
+        if seen[-1]:
+            view = np.arctan2(surface[:, 1] - lx[:, 1], surface[:, 0] - lx[:, 0])
+            direction[seen] = view[seen] + (b[-1] - view[-1])
+    xy[ok] = surface + r[-1] * np.stack([np.cos(direction), np.sin(direction)], axis=1)
     return xy
 
 
-def _report_rows(recent: list[tuple[float, ...]]) -> np.ndarray:
+def _report_rows(recent: list[tuple[float, ...]], turned: bool = False) -> np.ndarray:
     """A track's report window as (stamp_s, x_m, y_m, kind) rows, each fitted centre moved as in
     :func:`_fit_invariant`: a standing box whose visible part shrinks as the robot comes closer (its fit
     0.36 -> 0.12 m) moves its fitted centre 0.24 m with nothing moving, and a track that stopped was
-    reported again on it. Reporting takes both views: a moving box's fit changes as well."""
+    reported again on it. Reporting takes both views: a moving box's fit changes as well. ``turned``: each
+    flat face's fit also turned onto the newest fit's direction against the view line (for :func:`_fit_moved_less`
+    only, the young window's judgement)."""
     rows = np.array(recent)
     out = rows[:, :4].copy()
-    if rows.shape[1] >= 6:
+    if turned and rows.shape[1] >= 11:
+        out[:, 1:3] = _fit_invariant(rows[:, 1:3], rows[:, 4], rows[:, 5], rows[:, 8:10], rows[:, 10])
+    elif rows.shape[1] >= 6:
         out[:, 1:3] = _fit_invariant(rows[:, 1:3], rows[:, 4], rows[:, 5])
     return out
 
 
 def _fit_moved_less(raw: np.ndarray, fit_invariant: np.ndarray) -> bool:
-    """A young report window (stamp_s, x_m, y_m, kind rows, as placed and as :func:`_report_rows`) whose body
-    moved at least as far as its fits' change of radius moved their centres: from its first detection to its
-    newest, the displacement with each fitted centre moved by its radius's change is no shorter than what that
-    change accounts for. A flat face whose fit grows as the laser passes slides its centre along its normal with
-    the face standing; a body with no fit, or one that keeps its radius, moves as placed."""
+    """A young report window (stamp_s, x_m, y_m, kind rows, as placed and as :func:`_report_rows` with ``turned``)
+    whose body moved at least as far as its fits' change moved their centres: from its first detection to its
+    newest, the displacement with each fitted centre moved by its radius's change and turned onto the newest fit's
+    direction against the view line is no shorter than what that change accounts for. A flat face whose fit grows
+    as the laser passes slides its centre along its normal with the face standing; a door leaf in the last of its
+    swing, turning against the view line, swings its fitted centre 1.3 m behind it three times as far as the face
+    moves; a body with no fit, or a round one that keeps its radius and faces the laser, moves as placed."""
     moved = fit_invariant[-1, 1:3] - fit_invariant[0, 1:3]
     by_radius = (raw[-1, 1:3] - raw[0, 1:3]) - moved
     return bool(np.hypot(*moved) >= np.hypot(*by_radius))
@@ -513,7 +556,8 @@ class Track:
     confirmed: bool = False
     #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, behind_rad,
     #: 1.0 if the confirmed track's filter stood with it (``Tracker._stands``) else 0.0, its noise about the
-    #: point of the body its kind sees, ``Tracker._point_noise_m``)
+    #: point of the body its kind sees, ``Tracker._point_noise_m``;
+    #: the laser position x, y it was seen from; 1.0 if a flat face's fit, ``_turns_as_a_face``, else 0.0)
     recent: list[tuple[float, ...]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
@@ -714,7 +758,7 @@ class Tracker:
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
                          det.radius_m if det.radius_fitted else math.nan, det.behind_rad, float(self._stands(t)),
-                         self._point_noise_m(t, det)))
+                         self._point_noise_m(t, det), det.laser_x_m, det.laser_y_m, float(_turns_as_a_face(det))))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
@@ -879,7 +923,7 @@ class Tracker:
         # the detections must move both as placed and with each fitted centre moved by its radius's change
         views = (raw, _report_rows(t.recent))
         if raw[-1, 0] - raw[0, 0] < 0.5:
-            return _fit_moved_less(*views)
+            return _fit_moved_less(raw, _report_rows(t.recent, turned=True))
         start = self._walk_start(t.recent)
         if start is None:
             return False
