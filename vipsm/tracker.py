@@ -17,7 +17,8 @@ model would have to choose: steady enough to average out the gait's 0.1-0.2 m/s 
 midpoint, or quick enough to follow a sidestep. The measurement noise comes with each detection (a
 leg-pair midpoint jitters with the gait more than a circle fit), larger where the detection's kind
 changed (another point of the body). A lone leg of a track seen as a leg pair before is one of a
-person's legs: the centre lies anywhere within half the widest pair of it, its noise that wide. Two lone
+person's legs: the centre lies anywhere within half the widest pair of it, an offset that the filter holds as
+a state while the same leg stands (each detection of it carries the same offset, not a new error). Two lone
 legs standing where the track's legs stood are the person's two legs, measured as the pair they are. A
 confirmed track does not take a detection without motion evidence where the static map saw something stand
 before (``Detection.held``) outside its body's footprint: that is the background beside it, not its body.
@@ -353,11 +354,49 @@ def locate_body(
 
 
 def _combine(track: Track) -> None:
-    """The track's state and covariance from its models' (a mixture's mean and spread)."""
+    """The track's state and covariance from its models' (a mixture's mean and spread); the leg offset
+    (``Track.model_states``' last two) stays inside the models."""
     mu, xs = track.model_probs, track.model_states
-    track.state = mu @ xs
-    d = xs - track.state
-    track.cov = np.einsum("i,ikl->kl", mu, track.model_covs + d[:, :, None] * d[:, None, :])
+    full = mu @ xs
+    d = xs - full
+    cov = np.einsum("i,ikl->kl", mu, track.model_covs + d[:, :, None] * d[:, None, :])
+    track.state, track.cov = full[:4].copy(), cov[:4, :4].copy()
+
+
+def _fresh_offset(track: Track) -> Track:
+    """The track's models with the leg offset forgotten: another leg's, anywhere within a person's reach
+    (``KIND_CHANGE_M``) of the centre and independent of the rest."""
+    xs, ps = track.model_states.copy(), track.model_covs.copy()
+    xs[:, 4:] = 0.0
+    ps[:, 4:, :] = 0.0
+    ps[:, :, 4:] = 0.0
+    ps[:, 4, 4] = ps[:, 5, 5] = KIND_CHANGE_M**2
+    return replace(track, model_states=xs, model_covs=ps)
+
+
+#: a fitted circle seen over less than this arc of it is a flat face's: its centre was inferred from a curvature
+#: (a door leaf's 0.9 m face, the curl of its ends 2-3 cm, fitted 1.3-1.45 m: 24-34 deg), not seen as a round
+#: body's half circle or a box corner's two faces
+FACE_ARC_MAX_RAD = math.pi / 2.0
+
+
+def _turns_as_a_face(det: Detection) -> bool:
+    """A fitted detection, seen whole, whose returns span less than ``FACE_ARC_MAX_RAD`` of its circle (the span's
+    chord from its bearings and the laser's distance to its surface): a flat face, whose fitted centre swings with
+    the face's turn (:func:`_fit_invariant`). Unknown laser position: not judged."""
+    if not det.radius_fitted or det.occluded or not (math.isfinite(det.laser_x_m) and math.isfinite(det.behind_rad)):
+        return False
+    sx = det.x_m - det.radius_m * math.cos(det.behind_rad) - det.laser_x_m
+    sy = det.y_m - det.radius_m * math.sin(det.behind_rad) - det.laser_y_m
+    chord = 2.0 * math.hypot(sx, sy) * math.tan(0.5 * abs(det.bearing_max_rad - det.bearing_min_rad))
+    return 2.0 * math.asin(min(1.0, 0.5 * chord / det.radius_m)) < FACE_ARC_MAX_RAD
+
+
+#: a track's filter state per model: x, y, vx, vy and the offset of the person's lone leg seen last from its
+#: centre (``Tracker._update``)
+_N_STATE = 6
+#: the measurement of a person's lone leg: its centre plus the leg's offset
+_H_LEG = np.hstack([np.eye(2), np.zeros((2, 2)), np.eye(2)])
 
 
 #: durations are compared with differences of scan stamps, which carry rounding: this much is equal
@@ -434,36 +473,61 @@ def _fit_invariant_xy(hist: np.ndarray) -> np.ndarray:
     return _fit_invariant(hist[:, 1:3], hist[:, 7], hist[:, 8])
 
 
-def _fit_invariant(xy: np.ndarray, radius: np.ndarray, behind: np.ndarray) -> np.ndarray:
+def _fit_invariant(xy: np.ndarray, radius: np.ndarray, behind: np.ndarray,
+                   laser_xy: np.ndarray | None = None, face: np.ndarray | None = None) -> np.ndarray:
     """Positions ``xy`` (k x 2) of fitted centres (``radius`` NaN: not a fit) moved along the lines they lie
     behind their visible surfaces on (``behind``, world-frame directions from the surface to the centre) by
-    their radius's difference from the newest fit's."""
+    their radius's difference from the newest fit's. With ``laser_xy`` (k x 2, where each was seen from) the
+    flat faces' fits (``face`` 1.0, :func:`_turns_as_a_face`) are also turned onto the newest fit's direction
+    against the view line: put the newest radius behind their surfaces along the direction that lies as far from
+    the view line to that surface as the newest fit's does from its own (another body's fit, a round body's, a
+    box corner's or a partly hidden one, whose direction turns with the part seen, keeps its own; all do where
+    the newest is not a face's). A flat face's fitted centre lies its radius (1.3-1.45 m for a door leaf) behind
+    the face along its normal and swings with the face's turn, three times as far as the face moves and across
+    its motion; a round body seen whole lies behind its surface along the view line and keeps its centre."""
     xy = xy.copy()
     ok = np.isfinite(radius) & np.isfinite(behind)
-    if ok.any():
-        dr = radius[ok] - radius[ok][-1]
-        xy[ok] -= dr[:, None] * np.stack([np.cos(behind[ok]), np.sin(behind[ok])], axis=1)
+    if not ok.any():
+        return xy
+    r, b = radius[ok], behind[ok]
+    surface = xy[ok] - r[:, None] * np.stack([np.cos(b), np.sin(b)], axis=1)
+    direction = b.copy()
+    if laser_xy is not None:
+        lx = laser_xy[ok]
+        seen = np.all(np.isfinite(lx), axis=1)
+        if face is not None:
+            seen &= face[ok] == 1.0
+        if seen[-1]:
+            view = np.arctan2(surface[:, 1] - lx[:, 1], surface[:, 0] - lx[:, 0])
+            direction[seen] = view[seen] + (b[-1] - view[-1])
+    xy[ok] = surface + r[-1] * np.stack([np.cos(direction), np.sin(direction)], axis=1)
     return xy
 
 
-def _report_rows(recent: list[tuple[float, ...]]) -> np.ndarray:
+def _report_rows(recent: list[tuple[float, ...]], turned: bool = False) -> np.ndarray:
     """A track's report window as (stamp_s, x_m, y_m, kind) rows, each fitted centre moved as in
     :func:`_fit_invariant`: a standing box whose visible part shrinks as the robot comes closer (its fit
     0.36 -> 0.12 m) moves its fitted centre 0.24 m with nothing moving, and a track that stopped was
-    reported again on it. Reporting takes both views: a moving box's fit changes as well."""
+    reported again on it. Reporting takes both views: a moving box's fit changes as well. ``turned``: each
+    flat face's fit also turned onto the newest fit's direction against the view line (for :func:`_fit_moved_less`
+    only, the young window's judgement)."""
     rows = np.array(recent)
     out = rows[:, :4].copy()
-    if rows.shape[1] >= 6:
+    if turned and rows.shape[1] >= 11:
+        out[:, 1:3] = _fit_invariant(rows[:, 1:3], rows[:, 4], rows[:, 5], rows[:, 8:10], rows[:, 10])
+    elif rows.shape[1] >= 6:
         out[:, 1:3] = _fit_invariant(rows[:, 1:3], rows[:, 4], rows[:, 5])
     return out
 
 
 def _fit_moved_less(raw: np.ndarray, fit_invariant: np.ndarray) -> bool:
-    """A young report window (stamp_s, x_m, y_m, kind rows, as placed and as :func:`_report_rows`) whose body
-    moved at least as far as its fits' change of radius moved their centres: from its first detection to its
-    newest, the displacement with each fitted centre moved by its radius's change is no shorter than what that
-    change accounts for. A flat face whose fit grows as the laser passes slides its centre along its normal with
-    the face standing; a body with no fit, or one that keeps its radius, moves as placed."""
+    """A young report window (stamp_s, x_m, y_m, kind rows, as placed and as :func:`_report_rows` with ``turned``)
+    whose body moved at least as far as its fits' change moved their centres: from its first detection to its
+    newest, the displacement with each fitted centre moved by its radius's change and turned onto the newest fit's
+    direction against the view line is no shorter than what that change accounts for. A flat face whose fit grows
+    as the laser passes slides its centre along its normal with the face standing; a door leaf in the last of its
+    swing, turning against the view line, swings its fitted centre 1.3 m behind it three times as far as the face
+    moves; a body with no fit, or a round one that keeps its radius and faces the laser, moves as placed."""
     moved = fit_invariant[-1, 1:3] - fit_invariant[0, 1:3]
     by_radius = (raw[-1, 1:3] - raw[0, 1:3]) - moved
     return bool(np.hypot(*moved) >= np.hypot(*by_radius))
@@ -492,15 +556,17 @@ class Track:
     confirmed: bool = False
     #: the last ``report_window`` detections: (stamp_s, x_m, y_m, kind code, fitted radius or NaN, behind_rad,
     #: 1.0 if the confirmed track's filter stood with it (``Tracker._stands``) else 0.0, its noise about the
-    #: point of the body its kind sees, ``Tracker._point_noise_m``)
+    #: point of the body its kind sees, ``Tracker._point_noise_m``;
+    #: the laser position x, y it was seen from; 1.0 if a flat face's fit, ``_turns_as_a_face``, else 0.0)
     recent: list[tuple[float, ...]] = field(default_factory=list)
     kind: str = "body"
     #: a detection of it was a leg pair: a lone leg is then one of its legs, not its centre
     seen_as_person: bool = False
-    #: the IMM's models: state (n, 4), covariance (n, 4, 4) and probability (n) of each; ``state`` and
-    #: ``cov`` are their combination
-    model_states: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
-    model_covs: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    #: the IMM's models: state (n, 6: x, y, vx, vy and the offset of the person's lone leg seen last from the
+    #: centre, ``Tracker._update``), covariance (n, 6, 6) and probability (n) of each; ``state`` and ``cov`` are
+    #: their combination's first four
+    model_states: np.ndarray = field(default_factory=lambda: np.zeros((0, _N_STATE)))
+    model_covs: np.ndarray = field(default_factory=lambda: np.zeros((0, _N_STATE, _N_STATE)))
     model_probs: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: the confirmed track's filter holds it still (``Tracker._stands``)
     standing: bool = False
@@ -555,16 +621,22 @@ class Tracker:
         np.fill_diagonal(trans, 1.0 - sw)
         prior = trans.T @ mu
         w = trans * mu[:, None] / np.maximum(prior[None, :], 1e-300)  # w[i, j]: from model i into j
-        f = np.eye(4)
+        f = np.eye(_N_STATE)
         f[0, 2] = f[1, 3] = dt
         q1 = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
         for j, sigma in enumerate(self.config.accel_sigmas_mps2):
             x0 = w[:, j] @ xs
             d = xs - x0
             p0 = np.einsum("i,ikl->kl", w[:, j], ps + d[:, :, None] * d[:, None, :])
-            q = np.zeros((4, 4))
+            q = np.zeros((_N_STATE, _N_STATE))
             q[np.ix_([0, 2], [0, 2])] = q1 * sigma**2
             q[np.ix_([1, 3], [1, 3])] = q1 * sigma**2
+            # the lone leg's offset from the centre: held while the body stands on it, forgotten as the body moves
+            # its own reach past it (a Gauss-Markov offset of spread KIND_CHANGE_M and time constant
+            # KIND_CHANGE_M / speed: a walker's stance leg falls behind, a swing leg overtakes)
+            keep = math.exp(-math.hypot(x0[2], x0[3]) * dt / KIND_CHANGE_M)
+            f[4, 4] = f[5, 5] = keep
+            q[4, 4] = q[5, 5] = KIND_CHANGE_M**2 * (1.0 - keep**2)
             track.model_states[j] = f @ x0
             track.model_covs[j] = f @ p0 @ f.T + q
         track.model_probs = prior
@@ -584,15 +656,22 @@ class Tracker:
         predicted the detection, combine."""
         z = np.array([det.x_m, det.y_m])
         r = self._measurement_cov(track, det)
+        h = np.eye(2, _N_STATE)
+        if self._leg_offset_applies(track, det):
+            h = _H_LEG
+            if not self._same_leg(track, det):
+                # another leg than the one seen last, or a leg after another kind: its offset is not known
+                fresh = _fresh_offset(track)
+                track.model_states, track.model_covs = fresh.model_states, fresh.model_covs
         likelihood = np.empty(track.model_probs.shape[0])
         for j in range(likelihood.shape[0]):
             x, p = track.model_states[j], track.model_covs[j]
-            s = p[:2, :2] + r
+            s = h @ p @ h.T + r
             s_inv = np.linalg.inv(s)
-            nu = z - x[:2]
-            k = p[:, :2] @ s_inv
+            nu = z - h @ x
+            k = p @ h.T @ s_inv
             track.model_states[j] = x + k @ nu
-            pj = p - k @ p[:2, :]
+            pj = p - k @ h @ p
             track.model_covs[j] = 0.5 * (pj + pj.T)
             likelihood[j] = math.exp(-0.5 * float(nu @ s_inv @ nu)) / (2.0 * math.pi * math.sqrt(np.linalg.det(s)))
         mu = track.model_probs * likelihood
@@ -608,6 +687,23 @@ class Tracker:
                 track.radius_m = det.radius_m
                 track.radius_known = True
 
+    @staticmethod
+    def _leg_offset_applies(track: Track, det: Detection) -> bool:
+        """A person's lone leg: measured as the centre plus the leg's offset, a state of the filter, not a white
+        error. Consecutive detections of a leg that stands carry the same offset: as white noise their mean
+        pulled the centre onto the leg, a velocity of 0.2 m/s for a person standing still (cross_30 seed 6007).
+        The offset is forgotten (``_fresh_offset``) at another leg or after another kind (``_same_leg``)."""
+        return det.kind == "leg" and track.seen_as_person
+
+    def _same_leg(self, track: Track, det: Detection) -> bool:
+        """The lone leg seen last, standing where it stood (to ``step_noise_m``, how far a static leg's placed
+        centre drifts between detections): its offset from the centre is the one the filter holds."""
+        if not track.history:
+            return False
+        last = track.history[-1]
+        near = math.hypot(det.x_m - last[1], det.y_m - last[2]) <= self.config.step_noise_m
+        return last[4] == _KIND_CODE["leg"] and near
+
     def _measurement_cov(self, track: Track, det: Detection) -> np.ndarray:
         """The detection's position covariance: its own noise (smaller across the track's motion
         where the detection says so and the track moves at least ``anisotropic_min_speed_mps``), plus,
@@ -616,9 +712,11 @@ class Tracker:
         c = self.config
         sigma = DEFAULT_SIGMA_M if det.sigma_m is None else det.sigma_m
         extra = 0.0
-        if det.kind == "leg" and track.seen_as_person:
-            # a person's lone leg: the centre lies anywhere within KIND_CHANGE_M of it
-            extra = KIND_CHANGE_M
+        if self._leg_offset_applies(track, det):
+            # a person's lone leg: the centre lies anywhere within KIND_CHANGE_M of it, an offset of the filter's
+            # state (``_leg_offset_applies``), not a white error; the leg's own centre is placed as well as a
+            # circle's (the detection's noise, a hip's half-width off the centre, is in that offset)
+            extra = 0.0
         elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
             extra = 0.5 * KIND_CHANGE_M
         if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
@@ -660,7 +758,7 @@ class Tracker:
         t.seen_as_person |= det.kind == "person"
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
                          det.radius_m if det.radius_fitted else math.nan, det.behind_rad, float(self._stands(t)),
-                         self._point_noise_m(t, det)))
+                         self._point_noise_m(t, det), det.laser_x_m, det.laser_y_m, float(_turns_as_a_face(det))))
         del t.recent[: -self.config.report_window]
         t.seen_s = t.stamp_s
         t.history.append((t.stamp_s, det.x_m, det.y_m, float(det.evidence), _KIND_CODE.get(det.kind, -1.0),
@@ -825,7 +923,7 @@ class Tracker:
         # the detections must move both as placed and with each fitted centre moved by its radius's change
         views = (raw, _report_rows(t.recent))
         if raw[-1, 0] - raw[0, 0] < 0.5:
-            return _fit_moved_less(*views)
+            return _fit_moved_less(raw, _report_rows(t.recent, turned=True))
         start = self._walk_start(t.recent)
         if start is None:
             return False
@@ -989,7 +1087,12 @@ class Tracker:
                       evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s)
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
-        track.model_states, track.model_covs = np.tile(track.state, (n, 1)), np.tile(track.cov, (n, 1, 1))
+        # the leg offset: not yet seen, anywhere within a person's reach (KIND_CHANGE_M) of its centre
+        full_p = np.zeros((_N_STATE, _N_STATE))
+        full_p[:4, :4] = p
+        full_p[4, 4] = full_p[5, 5] = KIND_CHANGE_M**2
+        track.model_states = np.tile(np.r_[track.state, 0.0, 0.0], (n, 1))
+        track.model_covs = np.tile(full_p, (n, 1, 1))
         track.model_probs = np.full(n, 1.0 / n)
         self._remember(track, d0)
         for t_s, d in chain[1:]:
