@@ -1,10 +1,12 @@
-"""Shared fixtures: the real recorded data in ../shared/data and real-device discovery."""
+"""Shared fixtures: the real recorded data in ../shared/data, real-device discovery, the scripts of tools/."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import pytest
@@ -16,6 +18,20 @@ def shared_data_dir() -> Path:
     """``../shared/data`` beside the repository, or ``$VIPSM_SHARED_DATA``."""
     override = os.environ.get("VIPSM_SHARED_DATA")
     return Path(override) if override else REPO_ROOT.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def load_tool() -> Callable[[str], ModuleType]:
+    """A script of ``tools/`` (no package) imported as a module: ``load_tool("laser_edges")``."""
+
+    def load(name: str) -> ModuleType:
+        spec = importlib.util.spec_from_file_location(name, REPO_ROOT / "tools" / f"{name}.py")
+        assert spec is not None and spec.loader is not None, f"tools/{name}.py cannot be loaded"
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+
+    return load
 
 
 @pytest.fixture(scope="session")
