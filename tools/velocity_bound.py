@@ -17,8 +17,8 @@ recordings, 0.028 m in the world while walking), and filters it with
   them kept (chosen per scene, on the truth: an optimistic bound).
 
 Both see every cycle from the run's start (perfect association, no gap, no occlusion). The error is scored
-on the cycles ``eval`` could score: the person walking (true speed above zero) and in view (at least
-``PERSON_BEAMS_IN_VIEW`` beams on its legs, not inside a wall), from 1 s after it first came into view (a
+on the cycles ``eval`` could score: the person walking (true speed above zero) and in view (enough beams on
+its legs and not inside a wall: ``person_metrics.person_in_view``), from 1 s after it first came into view (a
 track's ``MIN_TRACK_AGE``). The figure is the mean over ``--repeats`` noise draws (seeded, reproducible).
 """
 
@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from app.errors import AppError  # noqa: E402
-from app.evaluation.person_metrics import CYCLE_S, MIN_TRACK_AGE, PERSON_BEAMS_IN_VIEW, _in_a_wall  # noqa: E402
+from app.evaluation.person_metrics import CYCLE_S, MIN_TRACK_AGE, person_in_view, wall_segments  # noqa: E402
 from app.evaluation.scenarios import REALISTIC_SUITE, build_scenarios  # noqa: E402
 from hil_fakes.world import RobotMount, Scenario, World  # noqa: E402
 from vipsm.imm import Imm, ImmConfig  # noqa: E402
@@ -50,7 +50,7 @@ def person_paths(scenario: Scenario) -> dict[int, dict[str, np.ndarray]]:
     velocity (n,) at each cycle of the run."""
     world = World(scenario, mount=RobotMount())
     persons = [i for i, o in enumerate(scenario.obstacles) if getattr(o, "kind", "") == "person"]
-    walls = np.array([[w.x0_m, w.y0_m, w.x1_m, w.y1_m] for w in getattr(scenario, "walls", ())], float).reshape(-1, 4)
+    walls = wall_segments(scenario)
     n = int(math.floor(scenario.duration_s / CYCLE_S + 1e-9)) + 1
     pos = {i: np.zeros((n, 2)) for i in persons}
     vel = {i: np.zeros((n, 2)) for i in persons}
@@ -68,7 +68,7 @@ def person_paths(scenario: Scenario) -> dict[int, dict[str, np.ndarray]]:
         for i in persons:
             o = truth.obstacles[i]
             pos[i][k], vel[i][k] = (o.x_m, o.y_m), (o.vx_mps, o.vy_mps)
-            view[i][k] = int(beams[i]) >= PERSON_BEAMS_IN_VIEW and not _in_a_wall(o, walls)
+            view[i][k] = person_in_view(o, int(beams[i]), walls)
     out = {}
     for i in persons:
         first = int(np.argmax(view[i])) if view[i].any() else n

@@ -363,15 +363,15 @@ def _combine(track: Track) -> None:
     track.state, track.cov = full[:4].copy(), cov[:4, :4].copy()
 
 
-def _fresh_offset(track: Track) -> Track:
-    """The track's models with the leg offset forgotten: another leg's, anywhere within a person's reach
-    (``KIND_CHANGE_M``) of the centre and independent of the rest."""
-    xs, ps = track.model_states.copy(), track.model_covs.copy()
+def _fresh_offset(states: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The models' states and covariances with the leg offset forgotten: another leg's, anywhere within a
+    person's reach (``KIND_CHANGE_M``) of the centre and independent of the rest."""
+    xs, ps = states.copy(), covs.copy()
     xs[:, 4:] = 0.0
     ps[:, 4:, :] = 0.0
     ps[:, :, 4:] = 0.0
     ps[:, 4, 4] = ps[:, 5, 5] = KIND_CHANGE_M**2
-    return replace(track, model_states=xs, model_covs=ps)
+    return xs, ps
 
 
 #: a fitted circle seen over less than this arc of it is a flat face's: its centre was inferred from a curvature
@@ -661,8 +661,7 @@ class Tracker:
             h = _H_LEG
             if not self._same_leg(track, det):
                 # another leg than the one seen last, or a leg after another kind: its offset is not known
-                fresh = _fresh_offset(track)
-                track.model_states, track.model_covs = fresh.model_states, fresh.model_covs
+                track.model_states, track.model_covs = _fresh_offset(track.model_states, track.model_covs)
         likelihood = np.empty(track.model_probs.shape[0])
         for j in range(likelihood.shape[0]):
             x, p = track.model_states[j], track.model_covs[j]

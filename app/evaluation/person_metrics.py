@@ -104,6 +104,18 @@ def _assign(est: list[tuple[float, float]], truth: list[tuple[int, float, float]
     return out
 
 
+def wall_segments(scenario: Scenario) -> np.ndarray:
+    """The scenario's walls as (k, 4) rows x0, y0, x1, y1 (metres)."""
+    walls = getattr(scenario, "walls", ())
+    return np.array([[w.x0_m, w.y0_m, w.x1_m, w.y1_m] for w in walls], float).reshape(-1, 4)
+
+
+def person_in_view(body: Any, beams: int, walls: np.ndarray) -> bool:
+    """A person is in view (the module's definition): at least ``PERSON_BEAMS_IN_VIEW`` of the sweep's
+    ``beams`` hit its legs and its centre is not inside one of ``walls`` (:func:`wall_segments`)."""
+    return beams >= PERSON_BEAMS_IN_VIEW and not _in_a_wall(body, walls)
+
+
 def _in_a_wall(body: Any, walls: np.ndarray) -> bool:
     """The body's centre lies nearer to one of ``walls`` ((k, 4): x0, y0, x1, y1) than its radius."""
     if not walls.size:
@@ -122,13 +134,11 @@ class PeopleScore:
             i: PersonLog(i, list(o.walk_starts_s()))
             for i, o in enumerate(scenario.obstacles) if getattr(o, "kind", "") == "person"
         }
-        walls = getattr(scenario, "walls", ())
-        self.walls = np.array([[w.x0_m, w.y0_m, w.x1_m, w.y1_m] for w in walls], float).reshape(-1, 4)
+        self.walls = wall_segments(scenario)
 
     def update(self, t_s: float, estimate: Any, truth: Truth, hits: np.ndarray) -> None:
         """One cycle: ``truth`` at the estimate's stamp, ``hits`` the beams per true body."""
-        view = {i: int(hits[i]) >= PERSON_BEAMS_IN_VIEW and not _in_a_wall(truth.obstacles[i], self.walls)
-                for i in self.persons}
+        view = {i: person_in_view(truth.obstacles[i], int(hits[i]), self.walls) for i in self.persons}
         for i, p in self.persons.items():
             if truth.obstacles[i].moving:
                 p.standing_since_s = math.inf
