@@ -919,10 +919,10 @@ class Tracker:
         raw = rows[:, :4]
         if not self._steady(raw, raw[:, 3], t.seen_as_person):
             return False
-        # the detections must move both as placed and with each fitted centre moved by its radius's change
-        views = (raw, _report_rows(t.recent))
         if raw[-1, 0] - raw[0, 0] < 0.5:
             return _fit_moved_less(raw, _report_rows(t.recent, turned=True))
+        # the detections must move both as placed and with each fitted centre moved by its radius's change
+        views = (raw, _report_rows(t.recent))
         start = self._walk_start(t.recent)
         if start is None:
             return False
@@ -1086,12 +1086,9 @@ class Tracker:
                       evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s)
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
-        # the leg offset: not yet seen, anywhere within a person's reach (KIND_CHANGE_M) of its centre
-        full_p = np.zeros((_N_STATE, _N_STATE))
-        full_p[:4, :4] = p
-        full_p[4, 4] = full_p[5, 5] = KIND_CHANGE_M**2
-        track.model_states = np.tile(np.r_[track.state, 0.0, 0.0], (n, 1))
-        track.model_covs = np.tile(full_p, (n, 1, 1))
+        # the leg offset: not yet seen (``_fresh_offset``)
+        track.model_states, track.model_covs = _fresh_offset(np.tile(np.r_[track.state, 0.0, 0.0], (n, 1)),
+                                                             np.tile(np.pad(p, (0, _N_STATE - 4)), (n, 1, 1)))
         track.model_probs = np.full(n, 1.0 / n)
         self._remember(track, d0)
         for t_s, d in chain[1:]:
