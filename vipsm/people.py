@@ -243,7 +243,19 @@ def detect_legs(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D, m
         lx, ly = cx + cfg.leg_radius_m * cx / d, cy + cfg.leg_radius_m * cy / d
         legs.append(LegDetection(laser.x_m + c * lx - s * ly, laser.y_m + s * lx + c * ly, float(q), a, z,
                                  occluded=bool(near.any()), weak=bool(q < thr)))
-    return legs
+    return _apart(legs, 2.0 * cfg.leg_radius_m)
+
+
+def _apart(legs: list[LegDetection], diameter_m: float) -> list[LegDetection]:
+    """Two legs cannot stand closer than a leg's diameter (centre to centre): of two candidates closer than
+    that, at most one is a leg, the other a piece of the same thing (a leg's segment split at one noisy
+    return). The likelier leg stays; the piece would otherwise continue another leg track, a hidden leg's,
+    that then stands beside its partner."""
+    kept: list[LegDetection] = []
+    for d in sorted(legs, key=lambda d: -d.p_leg):
+        if all(math.hypot(d.x_m - k.x_m, d.y_m - k.y_m) >= diameter_m for k in kept):
+            kept.append(d)
+    return sorted(kept, key=lambda d: d.scan_index_start)
 
 
 def weak_floor(cfg: PeopleConfig) -> float:

@@ -788,3 +788,27 @@ def test_two_legs_of_one_person_leaving_their_footprints_together_are_no_gait() 
         assert all(tr.legs[i].travelled == place_left_seen_empty for i in person.leg_ids)
         pw.append(person.filt.p_moving)
     assert pw[0] == pytest.approx(pw[1])
+
+
+def test_a_leg_split_by_one_noisy_return_is_one_leg() -> None:
+    """Two legs cannot stand closer than a leg's diameter: a leg's segment split in two by one noisy return
+    gives one leg (the likelier piece), not two legs 5 cm apart, one of which could continue a hidden leg's
+    track beside its partner; two legs side by side stay two."""
+    b = np.linspace(-math.pi / 2, math.pi / 2, 721)
+    model, cfg = default_leg_model(), PeopleConfig(LegConfig(threshold=0.05))
+
+    def scan(centres_y: tuple[float, ...], split: bool) -> np.ndarray:
+        r = np.full(b.size, 6.0)
+        for cy in centres_y:
+            near = np.flatnonzero(np.abs(b - math.atan2(cy, 1.0)) < math.atan2(0.055, 1.0))
+            r[near] = 1.0 + 0.055 - np.sqrt(np.maximum(0.055**2 - (np.tan(b[near]) - cy) ** 2, 0.0))
+            if split:
+                r[near[near.size // 2]] = 1.4  # one return far behind: the segment splits there
+        return r
+
+    whole = detect_legs(scan((0.0,), False), b, Pose2D(0.0, 0.0, 0.0), model, cfg, BodiesConfig())
+    pieces = detect_legs(scan((0.0,), True), b, Pose2D(0.0, 0.0, 0.0), model, cfg, BodiesConfig())
+    assert len(whole) == 1 and len(pieces) == 1
+    assert math.hypot(pieces[0].x_m - 1.06, pieces[0].y_m) < 0.06
+    pair = detect_legs(scan((-0.08, 0.08), True), b, Pose2D(0.0, 0.0, 0.0), model, cfg, BodiesConfig())
+    assert len(pair) == 2
