@@ -6,7 +6,8 @@ is a pair of leg tracks):
 1. **legs** (:mod:`vipsm.legs`): every leg-sized segment of the pre-filtered scan gets a leg probability
    from the learned detector; those at or above its operating point are legs, placed at their returns'
    centroid pushed back by a leg's radius along the viewing ray; those below it (down to
-   :func:`weak_floor`) are *weak* candidates (``weak_legs``);
+   :func:`weak_floor`) are *weak* candidates (``weak_legs``); of two closer than a leg's diameter only the
+   likelier is kept (:func:`_apart`: two legs cannot overlap);
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
    ``leg_max_speed_mps`` per second), then of the weak candidates to the person's leg tracks no leg
@@ -18,12 +19,12 @@ is a pair of leg tracks):
    track that took a detection where something else already stood (the laser returned there when it last
    saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
 3. **people from leg tracks**: a person keeps its leg tracks (at most two) for as long as they live.
-   Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg was
-   last seen while the person stands, the visible leg alone with a hip's half-width of noise while it
-   walks). A person short of a leg adopts the nearest free leg within ``leg_pair_max_m`` of its own; a
-   person with none takes a free pair or leg in its gate; the other free legs pair greedily into new
-   people. A measurement outside the person's gate frees the legs instead of moving the person (two
-   legs that drifted apart are not one body);
+   Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg's track
+   predicts it, at its own velocity for up to ``leg_memory_s``, with noise growing with how far it may have
+   gone since, up to a lone leg's hip's half-width). A person short of a leg adopts the nearest free leg
+   within ``leg_pair_max_m`` of its own; a person with none takes a free pair or leg in its gate; the other
+   free legs pair greedily into new people. A measurement outside the person's gate frees the legs instead
+   of moving the person (two legs that drifted apart are not one body);
 4. **motion state** (:mod:`vipsm.imm`): per person an IMM of a standing and a walking model gives the
    velocity and P(walking); P(moving) is that times P(a body that moves), the posterior of a person
    against a static thing taken for legs, from the motion evidence of its legs (a return where the
