@@ -424,10 +424,11 @@ def _kind_fit(t: np.ndarray, xy: np.ndarray, kinds: np.ndarray, w: np.ndarray) -
     offset per kind (``kinds``), and its information (weight times squared time spread: one over the speed's
     variance for weights one over each row's variance); zero velocity and information without a spread."""
     tc, xyc = np.empty_like(t), np.empty_like(xy)
-    for k in np.unique(kinds):
+    for k in set(kinds.tolist()):  # per kind: its weighted means (as np.average computes them, without its checks)
         m = kinds == k
-        tc[m] = t[m] - np.average(t[m], weights=w[m])
-        xyc[m] = xy[m] - np.average(xy[m], axis=0, weights=w[m])
+        wm = w[m]
+        tc[m] = t[m] - np.multiply(t[m], wm).sum() / wm.sum()
+        xyc[m] = xy[m] - np.multiply(xy[m], wm[:, None]).sum(axis=0) / wm.sum()
     info = float(w @ tc**2)
     return ((w * tc) @ xyc / info if info > 0.0 else np.zeros(2)), info
 
@@ -594,6 +595,9 @@ class Tracker:
         #: the detections of the cycles of the last ``retro_s`` that no confirmed track took and that started
         #: no track: (stamp_s, [(detection, id of the unconfirmed track that took it or None)])
         self._past: deque[tuple[float, list[tuple[Detection, int | None]]]] = deque()
+        #: :meth:`reported` per track id since the last :meth:`step` (only ``step`` changes a track; the estimator
+        #: asks twice a cycle, and the 40 Hz loop at every scan in between)
+        self._reported: dict[int, bool] = {}
 
     @staticmethod
     def unseen_s(track: Track) -> float:
@@ -907,6 +911,12 @@ class Tracker:
         return t.standing
 
     def reported(self, t: Track) -> bool:
+        """:meth:`_judged_reported`, judged once per track between two :meth:`step` calls."""
+        if t.track_id not in self._reported:
+            self._reported[t.track_id] = self._judged_reported(t)
+        return self._reported[t.track_id]
+
+    def _judged_reported(self, t: Track) -> bool:
         """A confirmed track that still moves (or just lost its detection for a cycle or two): its filter has not
         stood since (``_stands``: with hysteresis), or it walked ``ONSET_STEPS`` steps from where it stood, and its
         report window goes somewhere at a walker's speed (the speed from its last stand on), both as placed and with
@@ -1103,6 +1113,7 @@ class Tracker:
     def step(self, stamp_s: float, detections: list[Detection]) -> list[tuple[Track, Detection | None]]:
         """Advance all tracks to ``stamp_s`` and fold in the detections. Returns the live tracks with
         the detection each received (None when coasting)."""
+        self._reported.clear()
         while self._past and stamp_s - self._past[0][0] > self.config.retro_s + _STAMP_TOL_S:
             self._past.popleft()
         for t in self.tracks:

@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from vipsm.seen_through import ScanMemory, SeenThroughConfig
-from vipsm.tracker import CONFIRM_HITS, Detection, Tracker, TrackerConfig, fit_circle, kind_aligned, locate_body
+from vipsm.tracker import (
+    CONFIRM_HITS,
+    Detection,
+    Tracker,
+    TrackerConfig,
+    _kind_fit,
+    fit_circle,
+    kind_aligned,
+    locate_body,
+)
 
 
 def _front_points(cx: float, cy: float, r: float, sensor=(0.0, 0.0), n: int = 60, noise: float = 0.0, seed: int = 0):
@@ -198,6 +207,25 @@ def test_kind_aligned_recovers_the_common_velocity_and_removes_the_offset_betwee
     np.testing.assert_allclose(xy[:, 0], 0.8 * t, atol=1e-9)
     np.testing.assert_allclose(xy[:, 1], y, atol=1e-9)
 
+
+
+def test_the_weighted_kind_fit_is_the_least_squares_velocity_with_an_offset_per_kind() -> None:
+    """``_kind_fit`` against an independent weighted least squares: one velocity, one offset per kind."""
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        n = int(rng.integers(4, 12))
+        t = np.sort(rng.uniform(0.0, 1.0, n))
+        kinds = rng.integers(0, 3, n).astype(float)
+        xy = rng.normal(0.0, 1.0, (n, 2))
+        w = rng.uniform(0.1, 10.0, n)
+        present = sorted(set(kinds.tolist()))
+        a = np.column_stack([t] + [(kinds == k).astype(float) for k in present])
+        sw = np.sqrt(w)[:, None]
+        coef, *_ = np.linalg.lstsq(a * sw, xy * sw, rcond=None)
+        v, info = _kind_fit(t, xy, kinds, w)
+        np.testing.assert_allclose(v, coef[0], atol=1e-9)
+        tc = t - np.array([np.average(t[kinds == k], weights=w[kinds == k]) for k in kinds])
+        assert info == pytest.approx(float(w @ tc**2))
 
 def test_a_walker_is_confirmed_quickly_with_converging_velocity_despite_gait_jitter() -> None:
     tr = Tracker(TrackerConfig())
