@@ -427,8 +427,9 @@ def _kind_fit(t: np.ndarray, xy: np.ndarray, kinds: np.ndarray, w: np.ndarray) -
     for k in set(kinds.tolist()):  # per kind: its weighted means (as np.average computes them, without its checks)
         m = kinds == k
         wm = w[m]
-        tc[m] = t[m] - np.multiply(t[m], wm).sum() / wm.sum()
-        xyc[m] = xy[m] - np.multiply(xy[m], wm[:, None]).sum(axis=0) / wm.sum()
+        sw = wm.sum()
+        tc[m] = t[m] - np.multiply(t[m], wm).sum() / sw
+        xyc[m] = xy[m] - np.multiply(xy[m], wm[:, None]).sum(axis=0) / sw
     info = float(w @ tc**2)
     return ((w * tc) @ xyc / info if info > 0.0 else np.zeros(2)), info
 
@@ -694,7 +695,8 @@ class Tracker:
     def _leg_offset_applies(track: Track, det: Detection) -> bool:
         """A person's lone leg: measured as the centre plus the leg's offset, a state of the filter, not a white
         error. Consecutive detections of a leg that stands carry the same offset: as white noise their mean
-        pulled the centre onto the leg, a velocity of 0.2 m/s for a person standing still (cross_30 seed 6007).
+        pulled the centre onto the leg: a person standing still, its far leg hidden, drifted onto its near leg at
+        0.2 m/s.
         The offset is forgotten (``_fresh_offset``) at another leg or after another kind (``_same_leg``)."""
         return det.kind == "leg" and track.seen_as_person
 
