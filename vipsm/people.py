@@ -322,6 +322,7 @@ class PeopleTracker:
         self._track_legs(stamp_s, detections)
         self._split()
         self._beyond_stride()
+        self._two_pairs()
         self._adopt(stamp_s)
         seen: set[int] = set()
         self._visible = visible
@@ -458,6 +459,54 @@ class PeopleTracker:
             if math.hypot(legs[0].x_m - legs[1].x_m, legs[0].y_m - legs[1].y_m) <= self.config.leg_pair_max_m:
                 continue
             _keep_nearer(t, legs)
+
+    def _two_pairs(self) -> None:
+        """Two walkers side by side are four legs in a row across their line of walking, a hip's width
+        apart: the two middle legs (one of each walker's) are as close as one person's. A walking person
+        holding both middle legs, flanked by two people each holding one seen leg (an outer one), explains
+        the four seen legs with three people, two of whom have a leg hidden while every leg is seen; two
+        people with two legs each explain them with none hidden. So each flanking person takes the middle
+        leg on its side where both new pairs can be one body's (:meth:`_one_body` at its velocity, the new
+        midpoint in its gate), and the person in the middle, built from two people's legs, ends."""
+        taken: set[int] = set()  # people changed this cycle
+        for t in self.tracks:
+            legs = [self.legs[k] for k in t.leg_ids]
+            if t.track_id in taken or len(legs) != 2 or any(lt.det is None for lt in legs) \
+                    or _line_of_walking(t) is None:
+                continue
+            flanks = self._flanks(t, legs, taken)
+            if flanks is None:
+                continue
+            for flank, leg in flanks:
+                flank.leg_ids.append(leg.leg_id)
+                taken.add(flank.track_id)
+            t.leg_ids = []
+            taken.add(t.track_id)
+        self.tracks = [t for t in self.tracks if t.leg_ids or t.track_id not in taken]
+
+    def _flanks(self, t: PersonTrack, legs: list[LegTrack], taken: set[int]
+                ) -> tuple[tuple[PersonTrack, LegTrack], tuple[PersonTrack, LegTrack]] | None:
+        """For the walking person ``t`` holding ``legs``: two other people, each with one leg track, seen
+        this cycle, that each pair with a different one of ``legs`` (the nearer to its own leg first) into
+        one body's legs; None where there are no such two."""
+        c = self.config
+        singles = [o for o in self.tracks if o is not t and o.track_id not in taken and len(o.leg_ids) == 1
+                   and self.legs[o.leg_ids[0]].det is not None]
+        fits: list[list[PersonTrack]] = [[], []]
+        for o in singles:
+            own = self.legs[o.leg_ids[0]]
+            v = (float(o.filt.mean[2]), float(o.filt.mean[3]))
+            for i, lt in enumerate(legs):
+                if self._one_body((own.x_m, own.y_m), (lt.x_m, lt.y_m), v) and self._in_gate(
+                        o, 0.5 * (own.x_m + lt.x_m), 0.5 * (own.y_m + lt.y_m), c.pair_sigma_m):
+                    fits[i].append(o)
+        options = [(a, b) for a in fits[0] for b in fits[1] if a is not b]
+        if not options:
+            return None
+        a, b = min(options, key=lambda ab: sum(math.hypot(self.legs[o.leg_ids[0]].x_m - lt.x_m,
+                                                           self.legs[o.leg_ids[0]].y_m - lt.y_m)
+                                                for o, lt in zip(ab, legs, strict=True)))
+        return (a, legs[0]), (b, legs[1])
 
     def _across_ok(self, t: PersonTrack, dx: float, dy: float) -> bool:
         """Two legs ``(dx, dy)`` apart can be the walking person ``t``'s: not walking (slower than

@@ -445,6 +445,29 @@ def test_two_walkers_side_by_side_each_seen_by_one_leg_are_two_people() -> None:
         assert math.hypot(p.x_m - x, p.y_m - (2.0 - 2.4)) < 0.1 and p.moving
 
 
+def test_two_walkers_side_by_side_first_seen_by_their_middle_legs_are_two_people_once_all_four_show() -> None:
+    """Two people walking side by side 0.4 m apart (centres x = 2.9 and 3.3, legs a hip's width apart:
+    2.8 3.0 | 3.2 3.4), seen for a second by the two middle legs only: those are as close as one
+    person's, so they are paired as one walker. Once the outer legs show too, three people (one of them
+    in the middle, two with a leg hidden while all four legs are seen) explain the four legs worse than
+    two people with two legs each: two people, each where it walks, and none between them. (Before, the
+    person in the middle kept both middle legs, and the outer legs were two one-legged people beside it.)"""
+    rng = np.random.default_rng(RNG_SEED)
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(30):
+        t = 0.1 * k
+        y = 2.0 - 1.0 * t
+        xs = (3.0, 3.2) if t < 1.0 else (2.8, 3.0, 3.2, 3.4)
+        legs = [LegDetection(x + rng.normal(0, 0.02), y + rng.normal(0, 0.02), 0.9, 2 * i, 2 * i + 1,
+                             evidence=k % 2 == 0) for i, x in enumerate(xs)]
+        tr.step(t, legs)
+    people = tr.people(2.9)
+    assert len(people) == 2
+    for x in (2.9, 3.3):
+        p = min(people, key=lambda p: abs(p.x_m - x))
+        assert math.hypot(p.x_m - x, p.y_m - (2.0 - 2.9)) < 0.1 and len(p.legs) == 2
+
+
 def test_a_walkers_legs_a_stride_apart_along_its_path_stay_one_person() -> None:
     """One walker's legs, 0.2 m apart across its path and up to half a metre apart along it, the front
     leg alternating: one person, moving with the walker."""
