@@ -228,26 +228,29 @@ def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig, dropped: np.ndarra
 
 def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool, list[int]]:
     """The segment stands in front of what lies beside it. Each side's neighbour is the nearest return
-    within ``neighbour_beams`` (a dropped mixed pixel does not hide the surface next to it): a side on
-    the same surface (within ``foreground_m``) means the segment is part of something larger; nearer
-    neighbours on both sides mean it is background seen between two occluders (a wall between a
-    person's legs); one nearer side is a body partly hidden by another, which is kept. Returns
-    (foreground, the beams of the nearer neighbours: its occluders). The edge of the scanner's field
-    of view hides like a nearer neighbour (its beam index is -1 or the scan's size): a body leaving the
-    field of view shows a shrinking part whose centre moves with the edge, not with the body."""
-    near = float(np.nanmin(r[a:z]))
+    within ``neighbour_beams`` (a dropped mixed pixel does not hide the surface next to it), judged
+    against the segment's own return at that end: a side on the same surface (within ``foreground_m``)
+    means the segment is part of something larger; nearer neighbours on both sides mean it is
+    background seen between two occluders (a wall between a person's legs); one nearer side is a body
+    partly hidden by another, which is kept. (Judged against the segment's nearest return instead, a
+    box seen by its corner, 0.4 m deeper at its ends, was "the same surface" as a leg beside an end
+    that hid it: no body while its pusher's leg stood there.) Returns (foreground, the beams of the
+    nearer neighbours: its occluders). The edge of the scanner's field of view hides like a nearer
+    neighbour (its beam index is -1 or the scan's size): a body leaving the field of view shows a
+    shrinking part whose centre moves with the edge, not with the body."""
     occluders: list[int] = []  # the beam of each nearer neighbour
     nb = cfg.neighbour_beams
     sides = (np.arange(a - 1, max(a - nb, 0) - 1, -1), np.arange(z, min(z + nb, r.size)))
-    for idx, edge in zip(sides, (-1, r.size), strict=True):
+    own = r[a:z][np.isfinite(r[a:z])]  # a segment starts and ends with a return
+    for idx, edge, end_m in zip(sides, (-1, r.size), (float(own[0]), float(own[-1])), strict=True):
         finite = idx[np.isfinite(r[idx])]
         if not finite.size:
             if idx.size < nb:  # the scan's first or last beam is beside it: the field of view's edge
                 occluders.append(edge)
             continue
-        if r[finite[0]] >= near + cfg.foreground_m:
+        if r[finite[0]] >= end_m + cfg.foreground_m:
             continue
-        if r[finite[0]] > near - cfg.foreground_m:
+        if r[finite[0]] > end_m - cfg.foreground_m:
             return False, []
         occluders.append(int(finite[0]))
     return sum(0 <= k < r.size for k in occluders) < 2, occluders
