@@ -69,7 +69,9 @@ DEFAULT_RADIUS_M = 0.30
 MIN_FIT_RADIUS_M, MAX_FIT_RADIUS_M = 0.05, 1.50
 #: ... the arc (seen from the fitted centre) the points must span to define a circle rather than a line ...
 MIN_FIT_EXTENT_RAD = math.radians(25.0)
-#: ... and the weight of a new fit in a track's smoothed radius (a rigid body's fits average over ~5)
+#: ... and the weight of a new fit in a track's radius: a rigid body's radius is a constant, so its estimate is
+#: the mean of its fits, over about the last 1 / this of them (the first fit alone, often a partial view, does
+#: not hold it)
 RADIUS_SMOOTHING = 0.2
 
 #: a circle fit whose radius differs from the track's by more than this share is no displacement evidence (a
@@ -572,6 +574,8 @@ class Track:
     model_probs: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: the confirmed track's filter holds it still (``Tracker._stands``)
     standing: bool = False
+    #: how many fitted radii it has had
+    fits: int = 0
 
     @property
     def speed_mps(self) -> float:
@@ -684,12 +688,10 @@ class Tracker:
             track.model_probs = mu / total
         _combine(track)
         if det.radius_fitted:
-            if track.radius_known:
-                a = RADIUS_SMOOTHING
-                track.radius_m = (1.0 - a) * track.radius_m + a * det.radius_m
-            else:
-                track.radius_m = det.radius_m
-                track.radius_known = True
+            track.fits += 1
+            a = max(1.0 / track.fits, RADIUS_SMOOTHING)
+            track.radius_m = (1.0 - a) * track.radius_m + a * det.radius_m
+            track.radius_known = True
 
     @staticmethod
     def _leg_offset_applies(track: Track, det: Detection) -> bool:
@@ -1095,7 +1097,7 @@ class Tracker:
         sigma = DEFAULT_SIGMA_M if d0.sigma_m is None else d0.sigma_m
         p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
         track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
-                      evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s)
+                      evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s, fits=int(d0.radius_fitted))
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
         # the leg offset: not yet seen (``_fresh_offset``)
