@@ -543,7 +543,6 @@ class Track:
     state: np.ndarray  # x, y, vx, vy
     cov: np.ndarray  # 4x4
     radius_m: float
-    radius_known: bool
     stamp_s: float
     hits: int = 1
     missed: int = 0  # cycles since its last detection
@@ -574,8 +573,12 @@ class Track:
     model_probs: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: the confirmed track's filter holds it still (``Tracker._stands``)
     standing: bool = False
-    #: how many fitted radii it has had
+    #: how many fitted radii it has had (``radius_m`` is their mean, ``Tracker._update``)
     fits: int = 0
+
+    @property
+    def radius_known(self) -> bool:
+        return self.fits > 0
 
     @property
     def speed_mps(self) -> float:
@@ -691,7 +694,6 @@ class Tracker:
             track.fits += 1
             a = max(1.0 / track.fits, RADIUS_SMOOTHING)
             track.radius_m = (1.0 - a) * track.radius_m + a * det.radius_m
-            track.radius_known = True
 
     @staticmethod
     def _leg_offset_applies(track: Track, det: Detection) -> bool:
@@ -1096,7 +1098,7 @@ class Tracker:
         t0_s, d0 = chain[0]
         sigma = DEFAULT_SIGMA_M if d0.sigma_m is None else d0.sigma_m
         p = np.diag([sigma**2] * 2 + [self.config.init_speed_sigma_mps**2] * 2)
-        track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, d0.radius_fitted, t0_s,
+        track = Track(self._next_id, np.array([d0.x_m, d0.y_m, 0.0, 0.0]), p, d0.radius_m, t0_s,
                       evidence=int(d0.evidence), kind=d0.kind, born_s=t0_s, seen_s=t0_s, fits=int(d0.radius_fitted))
         self._next_id += 1
         n = len(self.config.accel_sigmas_mps2)
