@@ -487,25 +487,23 @@ class PeopleTracker:
     def _flanks(self, t: PersonTrack, legs: list[LegTrack], taken: set[int]
                 ) -> tuple[tuple[PersonTrack, LegTrack], tuple[PersonTrack, LegTrack]] | None:
         """For the walking person ``t`` holding ``legs``: two other people, each with one leg track, seen
-        this cycle, that each pair with a different one of ``legs`` (the nearer to its own leg first) into
-        one body's legs; None where there are no such two."""
+        this cycle, that each pair with a different one of ``legs`` into one body's legs (of several such, the two
+        whose own legs lie nearest); None where there are no such two."""
         c = self.config
         singles = [o for o in self.tracks if o is not t and o.track_id not in taken and len(o.leg_ids) == 1
                    and self.legs[o.leg_ids[0]].det is not None]
-        fits: list[list[PersonTrack]] = [[], []]
+        fits: list[list[tuple[float, PersonTrack]]] = [[], []]  # per leg: (distance to its own leg, person)
         for o in singles:
             own = self.legs[o.leg_ids[0]]
             v = (float(o.filt.mean[2]), float(o.filt.mean[3]))
             for i, lt in enumerate(legs):
                 if self._one_body((own.x_m, own.y_m), (lt.x_m, lt.y_m), v) and self._in_gate(
                         o, 0.5 * (own.x_m + lt.x_m), 0.5 * (own.y_m + lt.y_m), c.pair_sigma_m):
-                    fits[i].append(o)
-        options = [(a, b) for a in fits[0] for b in fits[1] if a is not b]
+                    fits[i].append((math.hypot(own.x_m - lt.x_m, own.y_m - lt.y_m), o))
+        options = [(da + db, a, b) for da, a in fits[0] for db, b in fits[1] if a is not b]
         if not options:
             return None
-        a, b = min(options, key=lambda ab: sum(math.hypot(self.legs[o.leg_ids[0]].x_m - lt.x_m,
-                                                           self.legs[o.leg_ids[0]].y_m - lt.y_m)
-                                                for o, lt in zip(ab, legs, strict=True)))
+        _, a, b = min(options, key=lambda option: option[0])
         return (a, legs[0]), (b, legs[1])
 
     def _across_ok(self, t: PersonTrack, dx: float, dy: float) -> bool:
