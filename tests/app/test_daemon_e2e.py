@@ -490,12 +490,16 @@ def test_the_first_run_on_a_slow_machine_still_locates_the_scenarios_obstacle(tm
     """Issue 31: with an empty kernel cache (numba compiles every kernel) and the daemon's start
     delayed further (the test hook VIPSM_TEST_SLOW_START_S, a slow or busy machine simulated), the
     scenario waits for the daemon: its obstacle crosses while the daemon runs, not while it compiled.
-    (Before the fix the world's clock ran from the child's start: with 20 s more than the compile,
+    (Before the fix the world's clock ran from the child's start: with the run's length more than the compile,
     the cylinder had crossed before the first cycle and both obstacle figures were n/a.)"""
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty-kernel-cache"), "VIPSM_TEST_SLOW_START_S": "20"}
+    # the cylinder enters the camera's view about 5 s into the scenario: 9 s leave it in view for 4 s; a start
+    # delayed by the run's length more than the compile has the whole scenario over before the first cycle
+    # when the world's clock runs from the child's start
+    duration_s = 9
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty-kernel-cache"),
+           "VIPSM_TEST_SLOW_START_S": str(duration_s)}
     log = tmp_path / "first.mcap"
-    # the cylinder enters the camera's view about 5 s into the scenario: 15 s leave it in view for 10 s
-    proc = subprocess.run([sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", "15", "--json",
+    proc = subprocess.run([sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", str(duration_s), "--json",
                            "--no-progress", "--log", str(log)], capture_output=True, text=True, timeout=1800, env=env)
     assert proc.returncode == 0, proc.stderr
     assert any((tmp_path / "empty-kernel-cache").rglob("*.nbi"))  # the kernels were compiled, not loaded

@@ -194,6 +194,7 @@ def _junk(port: int, i: int) -> None:
     try:
         with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
             s.sendall(junk[i % len(junk)])
+            s.shutdown(socket.SHUT_WR)  # end of input: the server answers or closes at once, not after a wait
             s.settimeout(0.05)
             try:
                 s.recv(64)
