@@ -499,8 +499,9 @@ def test_the_first_run_on_a_slow_machine_still_locates_the_scenarios_obstacle(tm
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty-kernel-cache"),
            "VIPSM_TEST_SLOW_START_S": str(duration_s)}
     log = tmp_path / "first.mcap"
-    proc = subprocess.run([sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", str(duration_s), "--json",
-                           "--no-progress", "--log", str(log)], capture_output=True, text=True, timeout=1800, env=env)
+    proc = subprocess.run([sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", str(duration_s),
+                           "--json", "--no-progress", "--log", str(log)], capture_output=True, text=True, timeout=1800,
+                          env=env)
     assert proc.returncode == 0, proc.stderr
     assert any((tmp_path / "empty-kernel-cache").rglob("*.nbi"))  # the kernels were compiled, not loaded
     s = json.loads(proc.stdout)
