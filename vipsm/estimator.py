@@ -285,7 +285,9 @@ class Estimator:
             self._people.step(scan.stamp_s, legs, _visibility(scan, laser), _seen_through(scan, laser),
                               _returned_before(self._static, laser, self.config.people.leg_radius_m),
                               _returns_near(scan.bearings_rad, np.where(dropped, np.nan, scan.ranges_m), laser,
-                                            self.config.people.person_radius_m))
+                                            self.config.people.person_radius_m),
+                              _seen_before(self._memory, laser, self.config.people.leg_radius_m,
+                                           scan.stamp_s - self.config.people.leg_memory_s))
         self._update_static(scan, lone_m, laser, bodies)
         return bodies, tracked
 
@@ -445,7 +447,7 @@ class Estimator:
         ranges = np.where(np.isfinite(lone_m), lone_m, scan.ranges_m)
         self._static.integrate(scan.stamp_s, (laser.x_m, laser.y_m), laser.theta_rad, ranges,
                                scan.bearings_rad, skip)
-        self._memory.push(laser, ranges, scan.bearings_rad, self._heading_sigma_rad)
+        self._memory.push(laser, ranges, scan.bearings_rad, self._heading_sigma_rad, scan.stamp_s)
         if any(t.missed for t in self._tracker.tracks):  # only a coasting track can be dropped
             self._tracker.drop_seen_free(self._static.seen_free_now, scan_points(laser, ranges, scan.bearings_rad))
 
@@ -662,6 +664,21 @@ def _returned_before(grid: FreeSpaceGrid, laser: Pose2D, leg_radius_m: float):
         return bool(grid.held(np.array([[x - k * dx, y - k * dy]]))[0])
 
     return stood_before
+
+
+def _seen_before(memory: ScanMemory, laser: Pose2D, leg_radius_m: float, since_s: float):
+    """``seen_before(x, y)``: a scan since ``since_s`` (before this one, :meth:`ScanMemory.seen_through`) saw
+    through the front of a leg centred at that world point (the point ``leg_radius_m`` nearer the laser, where
+    a leg's returns lie): the leg stands where nothing stood a moment ago. Only the last ``since_s`` are asked:
+    a place seen through from a far other viewpoint seconds before may hold a thing that returns no echo
+    from there (a dark surface) or a surface met at grazing incidence."""
+
+    def seen_before(x: float, y: float) -> bool:
+        dx, dy = x - laser.x_m, y - laser.y_m
+        k = leg_radius_m / max(math.hypot(dx, dy), 1e-6)
+        return bool(memory.seen_through(np.array([[x - k * dx, y - k * dy]]), since_s)[0])
+
+    return seen_before
 
 
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:

@@ -292,13 +292,14 @@ class PeopleTracker:
         self._next_leg = 0
         self._gate = -2.0 * math.log(1.0 - self.config.gate_p)  # chi-square, 2 dof
         self._seen_free: PointTest | None = None
+        self._seen_before: PointTest | None = None
         self._visible: PointTest | None = None
         self._stood_before: PointTest | None = None
 
     # ------------------------------------------------------------------ one cycle
     def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
              seen_free: PointTest | None = None, stood_before: PointTest | None = None,
-             occupied: PointTest | None = None) -> None:
+             occupied: PointTest | None = None, seen_before: PointTest | None = None) -> None:
         """Predict every person to ``stamp_s``, track the legs ``detections``, measure each person from
         its legs, start people from free legs, update existence and motion state. ``visible(x, y) ->
         bool`` (optional): whether the scan could have seen a person there (a miss elsewhere, e.g.
@@ -308,9 +309,13 @@ class PeopleTracker:
         ``stood_before(x, y) -> bool`` (optional): something stood at that leg position when the laser
         last saw it before this scan: a leg track that arrived where something else already stood
         re-locked onto it and did not travel (:meth:`_judge_arrival`). ``occupied(x, y) -> bool`` (optional): the
-        scan returned from within a person's radius of that point (:meth:`_missed`)."""
+        scan returned from within a person's radius of that point (:meth:`_missed`). ``seen_before(x, y) ->
+        bool`` (optional): a scan of the last ``leg_memory_s`` before this one saw through the front of a leg
+        centred there: a leg that travelled counts as motion evidence also when it came to such a place
+        (:meth:`_travelled`)."""
         c = self.config
         self._seen_free = seen_free
+        self._seen_before = seen_before
         self._stood_before = stood_before
         for t in self.tracks:
             dt = stamp_s - t.stamp_s
@@ -661,10 +666,14 @@ class PeopleTracker:
 
     def _travelled(self, lt: LegTrack) -> bool:
         """The leg, seen in full, is ``leg_travel_m`` from where it was within ``leg_memory_s``, that place
-        is seen empty now, and it arrived where nothing stood before (:meth:`_arrived`)."""
+        is seen empty now or the place it came to was seen through by a recent scan (a leg walking towards
+        the laser hides the place it left in its own shadow; the place it came to, in front, the laser saw
+        through a moment ago), and it arrived where nothing stood before (:meth:`_arrived`)."""
         if lt.travel_m < self.config.leg_travel_m or lt.det is None or lt.det.occluded:
             return False
-        return (self._seen_free is None or bool(self._seen_free(*lt.left_xy))) and self._arrived(lt)
+        left = self._seen_free is None or bool(self._seen_free(*lt.left_xy))
+        came = self._seen_before is not None and bool(self._seen_before(lt.x_m, lt.y_m))
+        return (left or came) and self._arrived(lt)
 
     def _arrived(self, lt: LegTrack) -> bool:
         """A leg that travelled arrived at a place that was free or unseen before it came; a leg track that

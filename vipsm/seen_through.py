@@ -83,7 +83,7 @@ class ScanMemory:
                 or not (c.step_angle_rad > 0.0 and c.step_dist_m > 0.0) or not 0.0 <= c.pose_tol_m <= c.lateral_tol_m):
             raise ValueError("SeenThroughConfig: need heading_sigma_rad, translation_sigma_m and sigma_gate >= 0, "
                              "step_angle_rad > 0, step_dist_m > 0 and 0 <= pose_tol_m <= lateral_tol_m")
-        self._scans: deque[tuple[Pose2D, np.ndarray, np.ndarray, float]] = deque(maxlen=c.scans)
+        self._scans: deque[tuple[Pose2D, np.ndarray, np.ndarray, float, float]] = deque(maxlen=c.scans)
         #: the pose the asked points are placed with and its own heading sigma (None: no pose uncertainty is
         #: accounted for, the plain lateral window)
         self._observer: tuple[Pose2D, float] | None = None
@@ -115,26 +115,29 @@ class ScanMemory:
         steps = turn / c.step_angle_rad + math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) / c.step_dist_m
         return c.translation_sigma_m * math.sqrt(steps)
 
-    def push(self, laser: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray, sigma_rad: float | None = None
-             ) -> None:
-        """Keep a scan (copied, in bearing order) taken from ``laser`` (world frame) whose own heading error is
-        ``sigma_rad`` (None: ``heading_sigma_rad``); the oldest falls out. A scan without beams is kept too (it
-        saw nothing through)."""
+    def push(self, laser: Pose2D, ranges_m: np.ndarray, bearings_rad: np.ndarray, sigma_rad: float | None = None,
+             stamp_s: float = -math.inf) -> None:
+        """Keep a scan (copied, in bearing order) taken from ``laser`` (world frame) at ``stamp_s`` whose own
+        heading error is ``sigma_rad`` (None: ``heading_sigma_rad``); the oldest falls out. A scan without
+        beams is kept too (it saw nothing through)."""
         r = np.array(ranges_m, dtype=np.float64)
         b = np.array(bearings_rad, dtype=np.float64)
         if r.shape != b.shape or r.ndim != 1:
             raise ValueError("ranges and bearings must be 1-D arrays of one length")
         order = np.argsort(b, kind="stable")
         sigma = self.config.heading_sigma_rad if sigma_rad is None else float(sigma_rad)
-        self._scans.append((laser, r[order], b[order], sigma))
+        self._scans.append((laser, r[order], b[order], sigma, float(stamp_s)))
 
-    def seen_through(self, points_xy: np.ndarray) -> np.ndarray:
+    def seen_through(self, points_xy: np.ndarray, since_s: float = -math.inf) -> np.ndarray:
         """Per point (world frame, k x 2): some kept scan's beams all passed beyond it (within the lateral
-        window the heading uncertainty between that scan and the observer's pose widens)."""
+        window the heading uncertainty between that scan and the observer's pose widens). Only the scans
+        stamped at or after ``since_s`` are asked."""
         pts = np.ascontiguousarray(np.asarray(points_xy, dtype=np.float64).reshape(-1, 2))
         out = np.zeros(pts.shape[0], bool)
         c = self.config
-        for laser, r, b, sigma in self._scans:
+        for laser, r, b, sigma, stamp_s in self._scans:
+            if stamp_s < since_s:
+                continue
             todo = ~out
             if not todo.any():
                 break

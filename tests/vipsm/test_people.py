@@ -777,6 +777,23 @@ def test_a_legs_step_is_the_early_cue_of_a_walk_and_counts_once() -> None:
     assert ratio[1] < 1.5 * ratio[0]  # weighed again, it would be about the ratio's square
 
 
+def test_a_leg_stepping_towards_the_laser_travels_where_a_recent_scan_saw_through_the_place_it_came_to() -> None:
+    """A person at 2 m from the laser steps towards it: the place the swing leg left lies behind it, in its own
+    shadow, never seen empty while the leg stands in front. The place it came to, 0.25 m nearer, the laser saw
+    through a moment before (``seen_before``): the same step. Where no recent scan saw through it (a static
+    thing the leg track hopped to) it is none."""
+    for came_where_seen_through in (True, False):
+        tr = PeopleTracker(PeopleConfig(), default_leg_model())
+        for k in range(10):
+            tr.step(0.1 * k, _pair(2.0, 0.0), seen_free=lambda x, y: False,
+                    seen_before=lambda x, y, s=came_where_seen_through: s)
+        tr.step(1.0, [LegDetection(1.75, -0.05, 0.9, 0, 1), _pair(2.0, 0.0)[1]], seen_free=lambda x, y: False,
+                seen_before=lambda x, y, s=came_where_seen_through: s and x < 1.9)
+        (person,) = tr.tracks
+        swing = min((tr.legs[i] for i in person.leg_ids), key=lambda lt: lt.x_m)
+        assert swing.travelled == came_where_seen_through
+
+
 def test_a_person_never_keeps_two_legs_further_apart_than_a_stride() -> None:
     """Two walkers side by side (the crowd): a leg track unseen for 0.4 s reaches 1.3 m and took the
     neighbour's leg 0.7 m from its partner while the person's gate, wide as its walking models were unsure of

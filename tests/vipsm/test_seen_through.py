@@ -76,6 +76,19 @@ def test_any_kept_scan_counts_and_the_memory_is_bounded() -> None:
     assert len(memory) == 3 and not memory.seen_through(np.array([[2.9, 0.0]]))[0]
 
 
+def test_only_the_scans_since_the_given_stamp_are_asked() -> None:
+    world = box_room(8.0, 6.0, pillars=False)
+    memory = ScanMemory()
+    empty = world.scan(A)
+    memory.push(A, empty.ranges_m, empty.bearings_rad, stamp_s=0.0)  # the space was free ...
+    world.circles = [Circle(3.0, 0.0, 0.2)]
+    scan = world.scan(A)
+    memory.push(A, scan.ranges_m, scan.bearings_rad, stamp_s=1.0)  # ... then a body stood there
+    point = np.array([[2.9, 0.0]])
+    assert memory.seen_through(point)[0] and memory.seen_through(point, since_s=0.0)[0]
+    assert not memory.seen_through(point, since_s=0.5)[0]
+
+
 def test_a_moved_laser_is_taken_into_account() -> None:
     world = box_room(8.0, 6.0, pillars=False)
     pose = Pose2D(1.0, 1.0, math.radians(30.0))
