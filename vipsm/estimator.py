@@ -659,26 +659,30 @@ def _returned_before(grid: FreeSpaceGrid, laser: Pose2D, leg_radius_m: float):
     this scan (:meth:`FreeSpaceGrid.held`, asked before this scan is integrated)."""
 
     def stood_before(x: float, y: float) -> bool:
-        dx, dy = x - laser.x_m, y - laser.y_m
-        k = leg_radius_m / max(math.hypot(dx, dy), 1e-6)
-        return bool(grid.held(np.array([[x - k * dx, y - k * dy]]))[0])
+        return bool(grid.held(_leg_front(laser, x, y, leg_radius_m))[0])
 
     return stood_before
 
 
 def _seen_before(memory: ScanMemory, laser: Pose2D, leg_radius_m: float, since_s: float):
-    """``seen_before(x, y)``: a scan since ``since_s`` (before this one, :meth:`ScanMemory.seen_through`) saw
-    through the front of a leg centred at that world point (the point ``leg_radius_m`` nearer the laser, where
-    a leg's returns lie): the leg stands where nothing stood a moment ago. Only the last ``since_s`` are asked:
-    a place seen through from a far other viewpoint seconds before may hold a thing that returns no echo
-    from there (a dark surface) or a surface met at grazing incidence."""
+    """``seen_before(x, y)``: a scan stamped at or after ``since_s`` (before this one,
+    :meth:`ScanMemory.seen_through`) saw through the front of a leg centred at that world point
+    (:func:`_leg_front`): the leg stands where nothing stood a moment ago. Only recent scans are asked: a place
+    seen through from a far other viewpoint seconds before may hold a thing that returns no echo from there
+    (a dark surface) or a surface met at grazing incidence."""
 
     def seen_before(x: float, y: float) -> bool:
-        dx, dy = x - laser.x_m, y - laser.y_m
-        k = leg_radius_m / max(math.hypot(dx, dy), 1e-6)
-        return bool(memory.seen_through(np.array([[x - k * dx, y - k * dy]]), since_s)[0])
+        return bool(memory.seen_through(_leg_front(laser, x, y, leg_radius_m), since_s)[0])
 
     return seen_before
+
+
+def _leg_front(laser: Pose2D, x: float, y: float, leg_radius_m: float) -> np.ndarray:
+    """(1, 2): the front of a leg centred at the world point (x, y) as the laser sees it, ``leg_radius_m``
+    nearer the laser, where the leg's returns lie."""
+    dx, dy = x - laser.x_m, y - laser.y_m
+    k = leg_radius_m / max(math.hypot(dx, dy), 1e-6)
+    return np.array([[x - k * dx, y - k * dy]])
 
 
 def _rest_flags(rest: Restoration, plain_psm: bool) -> EstimateFlag:

@@ -671,9 +671,11 @@ class PeopleTracker:
         through a moment ago), and it arrived where nothing stood before (:meth:`_arrived`)."""
         if lt.travel_m < self.config.leg_travel_m or lt.det is None or lt.det.occluded:
             return False
-        left = self._seen_free is None or bool(self._seen_free(*lt.left_xy))
-        came = self._seen_before is not None and bool(self._seen_before(lt.x_m, lt.y_m))
-        return (left or came) and self._arrived(lt)
+        if not self._arrived(lt):
+            return False
+        if self._seen_free is None or self._seen_free(*lt.left_xy):
+            return True
+        return self._seen_before is not None and bool(self._seen_before(lt.x_m, lt.y_m))
 
     def _arrived(self, lt: LegTrack) -> bool:
         """A leg that travelled arrived at a place that was free or unseen before it came; a leg track that
