@@ -672,7 +672,7 @@ def _seen_before(memory: ScanMemory, laser: Pose2D, leg_radius_m: float, since_s
     (a dark surface) or a surface met at grazing incidence."""
 
     def seen_before(x: float, y: float) -> bool:
-        return bool(memory.seen_through(_leg_front(laser, x, y, leg_radius_m), since_s)[0])
+        return bool(memory.seen_through(_leg_front(laser, x, y, leg_radius_m), since_s, True)[0])
 
     return seen_before
 

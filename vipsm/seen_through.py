@@ -128,10 +128,15 @@ class ScanMemory:
         sigma = self.config.heading_sigma_rad if sigma_rad is None else float(sigma_rad)
         self._scans.append((laser, r[order], b[order], sigma, float(stamp_s)))
 
-    def seen_through(self, points_xy: np.ndarray, since_s: float = -math.inf) -> np.ndarray:
+    def seen_through(self, points_xy: np.ndarray, since_s: float = -math.inf, same_view_echoless: bool = False
+                     ) -> np.ndarray:
         """Per point (world frame, k x 2): some kept scan's beams all passed beyond it (within the lateral
         window the heading uncertainty between that scan and the observer's pose widens). Only the scans
-        stamped at or after ``since_s`` are asked."""
+        stamped at or after ``since_s`` are asked. ``same_view_echoless``: a beam without an echo counts as
+        passing beyond the point where the kept scan saw it from the observer's viewpoint (the pose between
+        them no more uncertain than the matched pose's own, ``pose_tol_m``: a still laser): whether a
+        surface echoes depends on the angle it is seen at, so a thing that stood there then, seen from the
+        same place, would have sent none now either."""
         pts = np.ascontiguousarray(np.asarray(points_xy, dtype=np.float64).reshape(-1, 2))
         out = np.zeros(pts.shape[0], bool)
         c = self.config
@@ -147,23 +152,27 @@ class ScanMemory:
                 per_m = c.sigma_gate * self.relative_heading_sigma_rad(pose, own, laser, sigma)
                 shift_m = c.sigma_gate * self.relative_position_sigma_m(pose, laser)
             out[todo] = _passed_beyond(pts[todo, 0], pts[todo, 1], laser.x_m, laser.y_m, laser.theta_rad, r, b,
-                                       c.lateral_tol_m, c.range_margin_m, per_m, shift_m, c.pose_tol_m)
+                                       c.lateral_tol_m, c.range_margin_m, per_m, shift_m, c.pose_tol_m,
+                                       same_view_echoless)
         return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m, shift_m, pose_tol_m
-                   ):  # pragma: no cover - compiled
+def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m, shift_m, pose_tol_m,
+                   same_view_echoless):  # pragma: no cover - compiled
     """Per point: every beam of the scan (bearings ``b`` ascending) whose ray passes within
     ``lateral_m + max(hypot(lateral_per_m * range, shift_m) - pose_tol_m, 0)`` of the point returned at
-    least ``margin_m`` beyond it (and there is such a beam)."""
+    least ``margin_m`` beyond it (and there is such a beam); with ``same_view_echoless`` a beam without a return
+    counts as beyond where the window is not widened (the same viewpoint)."""
     out = np.zeros(px.size, np.bool_)
     ct, st = math.cos(lth), math.sin(lth)
     for k in range(px.size):
         dx, dy = px[k] - lx, py[k] - ly
         xl, yl = ct * dx + st * dy, -st * dx + ct * dy
         dist = math.hypot(xl, yl)
-        lateral = lateral_m + max(math.hypot(lateral_per_m * dist, shift_m) - pose_tol_m, 0.0)
+        widened = math.hypot(lateral_per_m * dist, shift_m) - pose_tol_m
+        lateral = lateral_m + max(widened, 0.0)
+        echoless_ok = same_view_echoless and widened <= 0.0
         if dist <= lateral:
             continue  # the point is at the laser (or the heading is unknown): nothing to say
         bearing = math.atan2(yl, xl)
@@ -174,7 +183,7 @@ def _passed_beyond(px, py, lx, ly, lth, r, b, lateral_m, margin_m, lateral_per_m
             continue  # outside the scan's field of view, or between two beams: unknown
         ok = True
         for j in range(lo, hi):
-            if not (math.isfinite(r[j]) and r[j] >= dist + margin_m):
+            if not (r[j] >= dist + margin_m if math.isfinite(r[j]) else echoless_ok):
                 ok = False
                 break
         out[k] = ok

@@ -61,6 +61,26 @@ def test_a_beam_without_return_is_no_evidence_of_free_space() -> None:
     assert memory.seen_through(np.array([[3.0, 0.5]]))[0]
 
 
+def test_a_beam_without_return_counts_as_beyond_only_when_seen_from_the_same_place() -> None:
+    """Open space beyond the range returns nothing: a point in front of it was seen through when the laser
+    looked from where it looks now (a thing standing there then, seen from the same place, would have echoed
+    as it does now, or not at all), but not from another viewpoint, where a dark thing may send no echo back
+    and still stand there."""
+    world = box_room(8.0, 6.0, pillars=False)
+    scan = world.scan(A)
+    r = scan.ranges_m.copy()
+    k = int(np.argmin(np.abs(scan.bearings_rad)))
+    r[k - 12 : k + 13] = np.nan  # nothing echoed around the point's bearing
+    point = np.array([[3.0, 0.0]])
+    for observer, seen in ((A, True), (Pose2D(0.0, 0.0, math.radians(30.0)), False),
+                           (Pose2D(0.6, 0.0, 0.0), False)):
+        memory = ScanMemory()
+        memory.push(A, r, scan.bearings_rad, sigma_rad=0.0)
+        memory.observe(observer, 0.0)
+        assert not memory.seen_through(point)[0]  # by default a missing echo is no evidence
+        assert memory.seen_through(point, same_view_echoless=True)[0] == seen
+
+
 def test_any_kept_scan_counts_and_the_memory_is_bounded() -> None:
     world = box_room(8.0, 6.0, pillars=False)
     memory = ScanMemory(SeenThroughConfig(scans=3))
