@@ -667,12 +667,14 @@ def _returned_before(grid: FreeSpaceGrid, laser: Pose2D, leg_radius_m: float):
 def _seen_before(memory: ScanMemory, laser: Pose2D, leg_radius_m: float, since_s: float):
     """``seen_before(x, y)``: a scan stamped at or after ``since_s`` (before this one,
     :meth:`ScanMemory.seen_through`) saw through the front of a leg centred at that world point
-    (:func:`_leg_front`): the leg stands where nothing stood a moment ago. Only recent scans are asked: a place
-    seen through from a far other viewpoint seconds before may hold a thing that returns no echo from there
-    (a dark surface) or a surface met at grazing incidence."""
+    (:func:`_leg_front`): the leg stands where nothing stood a moment ago. Only recent scans are asked, and a
+    beam without an echo counts as passing beyond only where the laser looked from the same place
+    (``same_view_echoless``): a place seen through from a far other viewpoint seconds before may hold a thing
+    that returns no echo from there (a dark surface) or a surface met at grazing incidence."""
 
     def seen_before(x: float, y: float) -> bool:
-        return bool(memory.seen_through(_leg_front(laser, x, y, leg_radius_m), since_s, True)[0])
+        front = _leg_front(laser, x, y, leg_radius_m)
+        return bool(memory.seen_through(front, since_s, same_view_echoless=True)[0])
 
     return seen_before
 
