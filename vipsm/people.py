@@ -21,7 +21,8 @@ is a pair of leg tracks):
 3. **people from leg tracks**: a person keeps its leg tracks (at most two) for as long as they live.
    Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg's track
    predicts it, at its own velocity for up to ``leg_memory_s``, with noise growing with how far it may have
-   gone since, up to a lone leg's hip's half-width). A person short of a leg adopts the nearest free leg
+   gone since, up to a lone leg's hip's half-width; a partly hidden leg, its centre up to a leg's radius
+   off, adds half that). A person short of a leg adopts the nearest free leg
    within ``leg_pair_max_m`` of its own; a person with none takes a free pair or leg in its gate; the other
    free legs pair greedily into new people. A measurement outside the person's gate frees the legs instead
    of moving the person (two legs that drifted apart are not one body);
@@ -551,8 +552,8 @@ class PeopleTracker:
     def _measurement(self, t: PersonTrack) -> tuple[float, float, float, list[LegTrack]] | None:
         """(x, y, sigma, the legs seen) from the person's legs this cycle; None when none was seen. A
         hidden leg of the pair is where its track predicts it (a standing leg where it was seen; its
-        noise grows with how far it may have gone since); a person of one leg is that leg, known to a
-        hip's half-width, and so is a partly hidden leg."""
+        noise grows with how far it may have gone since); a partly hidden leg adds half a leg's radius
+        (:meth:`_midpoint_sigma`); a person of one leg is that leg, known to a hip's half-width."""
         c = self.config
         legs = [self.legs[k] for k in t.leg_ids]
         seen = [lt for lt in legs if lt.det is not None]
@@ -570,9 +571,14 @@ class PeopleTracker:
         else:
             bx, by = seen[1].x_m, seen[1].y_m
             sigma = c.pair_sigma_m
-        if any(lt.det.occluded for lt in seen):
-            sigma = c.leg_sigma_m
-        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
+        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), self._midpoint_sigma(sigma, seen), seen
+
+    def _midpoint_sigma(self, sigma_m: float, seen: list[LegTrack]) -> float:
+        """The noise of a two legs' midpoint of noise ``sigma_m`` when the legs ``seen`` are in full, with those
+        seen only in part: a partly hidden leg's centre lies up to a leg's radius off (where its hidden part
+        is), half that in the midpoint."""
+        occluded = sum(lt.det.occluded for lt in seen)
+        return math.hypot(sigma_m, 0.5 * self.config.leg_radius_m * math.sqrt(occluded))
 
     def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None,
                  likelier: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
@@ -606,9 +612,10 @@ class PeopleTracker:
             # a midpoint with one jumps: it tells nothing of whether the body moves
             ev = any(lt.det.evidence or lt.travelled for lt in legs)
             e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
-            # the kinematics as evidence too; motion evidence measures the same displacement: counted once
-            kin_dyn, kin_static = (1.0, 1.0) if ev or len(legs) < len(seen) else \
-                self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
+            # the kinematics as evidence too; motion evidence measures the same displacement: counted once. A
+            # partly hidden leg's centre moves with the edge of what hides it: its drift is no such evidence
+            drifts = len(legs) < len(seen) or any(lt.det.occluded for lt in seen)
+            kin_dyn, kin_static = (1.0, 1.0) if ev or drifts else self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
             t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
                                  (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
             # a gait steps one leg at a time, the other standing: two legs of one "person" leaving their
@@ -721,7 +728,7 @@ class PeopleTracker:
                 groups.append([free[i], free[j]])
         groups += [[lt] for i, lt in enumerate(free) if i not in used]
         dets = [(float(np.mean([lt.x_m for lt in g])), float(np.mean([lt.y_m for lt in g])),
-                 c.pair_sigma_m if len(g) == 2 and not any(lt.det.occluded for lt in g) else c.leg_sigma_m, g)
+                 self._midpoint_sigma(c.pair_sigma_m, g) if len(g) == 2 else c.leg_sigma_m, g)
                 for g in groups]
         empty = [t for t in self.tracks if not t.leg_ids]
         got: dict[int, int] = {}

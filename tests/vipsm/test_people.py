@@ -515,7 +515,7 @@ def test_a_track_unseen_for_a_while_takes_no_detection_half_a_metre_away() -> No
     assert not any(p.moving for p in tr.people(3.9))
 
 
-def test_a_partly_hidden_leg_is_known_only_to_a_hips_width() -> None:
+def test_a_leg_beside_a_nearer_return_is_marked_partly_hidden() -> None:
     """A leg beside a nearer return is marked occluded by :func:`detect_legs`, and one with nearer
     returns on both sides (background seen between two things) is no leg."""
     b = np.linspace(-math.pi / 2, math.pi / 2, 721)
