@@ -553,7 +553,9 @@ class PeopleTracker:
         """(x, y, sigma, the legs seen) from the person's legs this cycle; None when none was seen. A
         hidden leg of the pair is where its track predicts it (a standing leg where it was seen; its
         noise grows with how far it may have gone since); a partly hidden leg adds half a leg's radius
-        (:meth:`_midpoint_sigma`); a person of one leg is that leg, known to a hip's half-width."""
+        (:meth:`_midpoint_sigma`); a person of one leg is that leg, known to a hip's half-width, and so is a
+        pair with a leg that may have re-locked onto another thing (``LegTrack.arrived_held``) and is not
+        seen in full as a leg."""
         c = self.config
         legs = [self.legs[k] for k in t.leg_ids]
         seen = [lt for lt in legs if lt.det is not None]
@@ -571,7 +573,13 @@ class PeopleTracker:
         else:
             bx, by = seen[1].x_m, seen[1].y_m
             sigma = c.pair_sigma_m
-        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), self._midpoint_sigma(sigma, seen), seen
+        sigma = self._midpoint_sigma(sigma, seen)
+        # a leg track that arrived where something already stood may have re-locked onto that thing
+        # (:meth:`_judge_arrival`); unless its detection vouches for a leg (seen in full, at the operating
+        # point), it places the person no better than a lone leg does
+        if any(lt.arrived_held and (lt.det is None or lt.det.weak or lt.det.occluded) for lt in legs):
+            sigma = max(sigma, c.leg_sigma_m)
+        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
 
     def _midpoint_sigma(self, sigma_m: float, seen: list[LegTrack]) -> float:
         """The noise of a two legs' midpoint of noise ``sigma_m`` when the legs ``seen`` are in full, with those
