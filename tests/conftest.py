@@ -61,6 +61,14 @@ def hardware_url(device: str) -> str:
     pytest.skip(f"no real {device} attached (set {env} or plug one in as {udev_name})")
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests on real devices share the devices: on several workers (``-n 2 --dist loadgroup``, the README's
+    command) they all run on one worker, one after another."""
+    for item in items:
+        if item.get_closest_marker("hardware") is not None:
+            item.add_marker(pytest.mark.xdist_group("hardware"))
+
+
 @pytest.fixture(autouse=True)
 def _no_files_left_in_the_working_folder() -> object:
     """A test that runs the CLI must send its logs and figures to a temporary folder, never into the

@@ -1,5 +1,6 @@
 """tests/conftest.py's end-of-run note: a fresh clone (no ../shared/data) is told once, at the end,
-how many tests skipped for the recorded data and how to point to it (issue 31)."""
+how many tests skipped for the recorded data and how to point to it (issue 31); and the tests on real
+devices kept on one worker when the suite runs on several."""
 
 from __future__ import annotations
 
@@ -24,3 +25,21 @@ def test_the_run_ends_saying_how_many_tests_skipped_for_the_absent_data() -> Non
                                       "/nonexistent/vipsm-shared-data")
     assert "VIPSM_SHARED_DATA" in lines[notes[0]]
     assert notes[0] == len(lines) - 2  # at the end: only pytest's count line after it
+
+
+
+def _collected(marks: str) -> int:
+    files = ["tests/drivers/p2os/test_hardware.py", "tests/drivers/hokuyo_scip/test_hardware.py",
+             "tests/drivers/p2os/test_codec.py"]
+    cmd = [sys.executable, "-m", "pytest", "-q", "--collect-only", "-p", "no:cacheprovider", "-m", marks, *files]
+    proc = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode in (0, 5), proc.stdout + proc.stderr  # 5: none selected
+    return sum(1 for ln in proc.stdout.splitlines() if "::" in ln)
+
+
+def test_the_tests_on_real_devices_run_on_one_worker() -> None:
+    """Every test marked ``hardware`` is in the xdist group "hardware" (``--dist loadgroup`` sends a group to one
+    worker: two workers never open one serial device at once), and no other test is."""
+    assert _collected("hardware") > 0
+    assert _collected("hardware and not xdist_group") == 0
+    assert _collected("xdist_group and not hardware") == 0
