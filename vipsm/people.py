@@ -573,20 +573,19 @@ class PeopleTracker:
         else:
             bx, by = seen[1].x_m, seen[1].y_m
             sigma = c.pair_sigma_m
-        sigma = self._midpoint_sigma(sigma, seen)
-        # a leg track that arrived where something already stood may have re-locked onto that thing
-        # (:meth:`_judge_arrival`); unless its detection vouches for a leg (seen in full, at the operating
-        # point), it places the person no better than a lone leg does
-        if any(lt.arrived_held and (lt.det is None or lt.det.weak or lt.det.occluded) for lt in legs):
-            sigma = max(sigma, c.leg_sigma_m)
-        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), sigma, seen
+        return 0.5 * (a.x_m + bx), 0.5 * (a.y_m + by), self._midpoint_sigma(sigma, legs), seen
 
-    def _midpoint_sigma(self, sigma_m: float, seen: list[LegTrack]) -> float:
-        """The noise of a two legs' midpoint of noise ``sigma_m`` when the legs ``seen`` are in full, with those
-        seen only in part: a partly hidden leg's centre lies up to a leg's radius off (where its hidden part
-        is), half that in the midpoint."""
-        occluded = sum(lt.det.occluded for lt in seen)
-        return math.hypot(sigma_m, 0.5 * self.config.leg_radius_m * math.sqrt(occluded))
+    def _midpoint_sigma(self, sigma_m: float, legs: list[LegTrack]) -> float:
+        """The noise of the midpoint of a pair's ``legs`` (seen this cycle or predicted), ``sigma_m`` with both
+        seen in full: a partly hidden leg's centre lies up to a leg's radius off (where its hidden part is),
+        half that in the midpoint; and a leg track that arrived where something already stood may have
+        re-locked onto that thing (:meth:`_judge_arrival`): unless its detection vouches for a leg (seen in
+        full, at the operating point), the pair places the person no better than a lone leg does."""
+        c = self.config
+        if any(lt.arrived_held and (lt.det is None or lt.det.weak or lt.det.occluded) for lt in legs):
+            return max(sigma_m, c.leg_sigma_m)
+        occluded = sum(lt.det is not None and lt.det.occluded for lt in legs)
+        return math.hypot(sigma_m, 0.5 * c.leg_radius_m * math.sqrt(occluded))
 
     def _in_gate(self, t: PersonTrack, x: float, y: float, sigma_m: float | None = None,
                  likelier: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
