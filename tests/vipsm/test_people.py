@@ -359,9 +359,9 @@ def _walk_stand_relock(stood_before) -> list[bool]:
 
 
 def test_a_standing_persons_leg_track_relocked_onto_a_thing_beside_it_does_not_walk_it() -> None:
-    """cross_60 at seed 77777: a person who had walked stood; its hidden leg's track took a weak, partly hidden
-    candidate on clutter 0.39 m off, and the legs' midpoint moved 0.2-0.3 m with it, a walk to the IMM
-    (reported moving 6 cycles while standing). The track arrived where something already stood: it may have
+    """A person who had walked stands; its hidden leg's track takes a weak, partly hidden candidate on clutter
+    within a leg's reach, and the legs' midpoint moves with it, a walk to the IMM (reported moving while
+    standing). The track arrived where something already stood: it may have
     re-locked onto that thing, and a detection that does not itself vouch for a leg (weak, partly hidden, or
     the leg unseen and predicted) then places the person only to a lone leg's noise. The same candidate on
     a place nothing stood before moves it as before."""
