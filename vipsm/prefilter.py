@@ -31,11 +31,10 @@ Two rules, per short run of the scan; a beam either rule marks is a mixed pixel:
 A thin real object at long range can be lost too; it is never a body the tracker could follow anyway.
 
 Where each rule applies (``Estimator``): the island rule to the whole scan (matching, bodies, static map);
-the ramp rule to the leg detector's view only (``ramp_masks``, after the island rule). Measured with the
-ramp rule on the whole scan too: the realistic suite's cart was detected in 0.39 of its cycles instead of
-0.55 (a stage-5 body split where a ramp was dropped), two walkers were reported moving while standing 3-7
-cycles (0 before), and on the drive through empty rooms (laser only, the pose from matching) a phantom in
-a turn was reported 8 cycles instead of 4 (``vipsm-robot eval --data real --only negative_2``, rear laser).
+the ramp rule to the leg detector's view only (``ramp_masks``, after the island rule). A ramp is also the
+mixed pixels along a real body's own edge: dropped from the scan the body stage sees, it splits that body in
+two, and the tracker then follows halves (the measurement, with the ramp rule on the whole scan: docs/estimator.md
+stage 1).
 """
 
 from __future__ import annotations

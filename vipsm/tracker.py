@@ -93,9 +93,9 @@ CONFIRM_ADVANCING = 0.7
 #: that sits still and jumps once does not advance twice in a row)
 ONSET_STEPS = 2
 #: how far a detection of another kind may lie from the body's centre: a lone leg's centre lies up to half the
-#: widest leg pair (``PeopleConfig.leg_pair_max_m``, 0.65 m) from the pair's midpoint. Kept at its measured
-#: 0.33 m, not derived from that key: half of it, 0.325 m, raised positive_3's moving people reported on the
-#: background from 0 to 5.2 a minute (``eval --data real``; every other figure within 0.01)
+#: widest leg pair (``PeopleConfig.leg_pair_max_m``, 0.65 m) from the pair's midpoint. A constant at its
+#: measured 0.33 m rather than derived from that key: the derived 0.325 m let a real recording's background
+#: be reported as moving (``eval --data real``; docs/estimator.md stage 6)
 KIND_CHANGE_M = 0.33
 #: reporting: over the report window (and its newer half) the detections go somewhere, net displacement at
 #: least this share of the path (a standing person's detections jump back and forth by 0.1-0.3 m)
@@ -1214,8 +1214,8 @@ class Tracker:
         lone leg, or the partner of ``leg`` in a leg pair the track took (the pair's midpoint is then the two
         legs' midpoint); and their midpoint lies within ``gate_m`` of the prediction. A person seen by both
         legs is where their midpoint is: the two lone legs of a wide stance or a static pair (a chair's)
-        taken one at a time read as a stride (a track on positive_3 took the one, then the other 0.64 m away,
-        and was reported). A static leg beside a walker's path stood where none of the walker's legs did."""
+        taken one at a time read as a stride (a track that takes the one, then the other 0.64 m away, has
+        moved by a stride). A static leg beside a walker's path stood where none of the walker's legs did."""
         c = self.config
         h = np.array(t.history)
         if not t.seen_as_person or h.size == 0:
