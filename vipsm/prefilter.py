@@ -33,8 +33,8 @@ A thin real object at long range can be lost too; it is never a body the tracker
 Where each rule applies (``Estimator``): the island rule to the whole scan (matching, bodies, static map);
 the ramp rule to the leg detector's view only (``ramp_masks``, after the island rule). A ramp is also the
 mixed pixels along a real body's own edge: dropped from the scan the body stage sees, it splits that body in
-two, and the tracker then follows halves (the measurement, with the ramp rule on the whole scan: docs/estimator.md
-stage 1).
+two (measured with the ramp rule on the whole scan: a cart detected in fewer cycles, walkers reported moving
+while standing; docs/estimator_evidence.md, stage 1).
 """
 
 from __future__ import annotations
