@@ -200,7 +200,7 @@ class PersonTrack:
     moving: bool = False
     confirmed: bool = False
     #: probability that it is a body that moves at all (a person), not a static thing taken for legs; a new
-    #: track's is even (nothing known)
+    #: track's from the legs it is born of (:func:`_born_dynamic`)
     p_dynamic: float = 0.5
     #: obstacle cycles the track has lived (``Obstacle.age_cycles`` of a moving person)
     age_cycles: int = 1
@@ -759,7 +759,8 @@ class PeopleTracker:
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
             t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
-                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), leg_seen=True)
+                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), leg_seen=True,
+                            p_dynamic=_born_dynamic(g))
             self._next_id += 1
             self.tracks.append(t)
             out.append(t)
@@ -896,6 +897,19 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _born_dynamic(legs: list[LegTrack]) -> float:
+    """P(a body that moves) of a person born of ``legs`` (seen this cycle). The detector's probability is
+    that of one segment being a person's leg, against the leg-like things of rooms without people (it is
+    trained on both, with balanced classes). Two legs, each at its operating point, are a person's with the
+    probability the less likely of them is a leg: the person's shape, both legs of it. One leg, or a pair
+    with a weak candidate, is only a leg-like segment, what a table leg, a post or a bag gives as well:
+    even odds, nothing known. What the person's standing, walking and motion evidence then say is weighed
+    from there (:meth:`PeopleTracker._update`)."""
+    if len(legs) == 2 and not any(lt.det is None or lt.det.weak for lt in legs):
+        return min(lt.det.p_leg for lt in legs if lt.det is not None)
+    return 0.5
 
 
 def _keep_nearer(t: PersonTrack, legs: list[LegTrack]) -> None:

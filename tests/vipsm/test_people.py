@@ -17,6 +17,8 @@ from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_f
 from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, detect_legs
 from vipsm.types import Obstacle, Pose2D
 
+from .evidence import bayes_factor
+
 RNG_SEED = 29
 #: a walker's acceleration when it starts (about 1 m/s in 0.6 s)
 WALK_ACCEL_MPS2 = 1.8
@@ -333,7 +335,7 @@ def test_a_leg_track_that_hops_onto_a_thing_already_standing_there_earns_no_trav
     held_before, held_after = _hop(lambda x, y: math.hypot(x - other_thing[0], y - other_thing[1]) < 0.1)
     free_before, free_after = _hop(lambda x, y: False)
     assert held_after <= held_before
-    assert free_after > free_before + 0.1
+    assert bayes_factor(free_before, free_after) > 1.5
 
 
 def _walk_stand_relock(stood_before) -> list[bool]:
@@ -381,7 +383,7 @@ def test_a_leg_stepping_over_its_own_returns_still_travels() -> None:
     for k in range(4, 7):  # one leg steps 0.1 m a scan, its partner stands
         swing = LegDetection(2.0 + 0.1 * (k - 3), -0.1, 0.9, 0, 1)
         tr.step(0.1 * k, [swing, _pair(2.0, 0.0)[1]], seen_free=lambda x, y: True, stood_before=lambda x, y: True)
-    assert tr.tracks[0].p_dynamic > before + 0.2
+    assert bayes_factor(before, tr.tracks[0].p_dynamic) > 2.0
 
 
 def test_a_swing_leg_landing_a_short_stride_beside_its_partner_still_travels() -> None:
@@ -401,7 +403,7 @@ def test_a_swing_leg_landing_a_short_stride_beside_its_partner_still_travels() -
     tr.step(0.4, [LegDetection(2.12, 0.05, 0.9, 0, 1), stand], seen_free=lambda x, y: x < 1.9,
             stood_before=near_partner)
     assert tr.tracks == [person] and len(person.leg_ids) == 2
-    assert person.p_dynamic > before + 0.1
+    assert bayes_factor(before, person.p_dynamic) > 1.5
 
 
 def _walk_stand_walk(stand_s: float, seed: int = RNG_SEED) -> tuple[PeopleTracker, list[bool], float]:

@@ -10,6 +10,8 @@ from app.legmodel import default_leg_model
 from vipsm.imm import STANDING, Imm, ImmConfig
 from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
 
+from .evidence import bayes_factor
+
 RNG_SEED = 29
 
 
@@ -51,12 +53,14 @@ def test_a_walker_without_motion_evidence_is_a_body_that_moves_by_its_kinematics
     """A pair of legs seen in full walking at 0.5 m/s for 2 s, no return where the laser saw free space and
     no place it left seen empty: its detections keep landing where the walking models predict them, which
     a static thing's (where the standing model predicts them, or another thing's anywhere in the gate)
-    do not, so P(a body that moves) rises (before: each detection without evidence counted against it,
-    0.5 -> 0.05). A slow drift at a standing person's sway (0.05 m/s) gives no such evidence."""
+    do not, so P(a body that moves) rises from what the person was born with, the legs' leg probability
+    (before: each detection without evidence counted against it, 0.5 -> 0.05). A slow drift at a standing
+    person's sway (0.05 m/s) gives no such evidence."""
+    born = 0.9  # both legs' leg probability (``_pair``)
     walker = _track(0.5).tracks[0]
-    assert walker.p_dynamic > 0.9 and walker.moving
+    assert bayes_factor(born, walker.p_dynamic) > 9.0 and walker.moving
     still = _track(0.05).tracks[0]
-    assert still.p_dynamic < 0.55 and not still.moving
+    assert bayes_factor(born, still.p_dynamic) < 1.2 and not still.moving
 
 
 def test_a_partly_hidden_thing_sliding_with_its_occluders_edge_is_no_moving_person() -> None:
@@ -130,3 +134,18 @@ def test_a_walker_whose_far_leg_is_partly_hidden_is_moving_within_a_second() -> 
     walks = _half_hidden_walker(0.4, 3)
     assert any(walks[:11]) and all(walks[11:])
     assert not any(_half_hidden_walker(0.0, 3))
+
+
+
+def test_a_person_born_of_a_leg_pair_is_a_body_that_moves_as_likely_as_its_legs_are_a_persons() -> None:
+    """P(a body that moves) at birth: two legs the detector takes (0.9 and 0.7) are a person's as likely as
+    the less likely of them is a leg (0.7); a lone leg-like segment (what a post or a table leg gives as
+    well) starts at even odds, whatever its leg probability. A person who stood still since then needs
+    that much less evidence when it walks off (a standing person's stand counts against it from there:
+    ``stand_dwell_s``)."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    pair = [LegDetection(2.0, -0.1, 0.9, 0, 1), LegDetection(2.0, 0.1, 0.7, 2, 3)]
+    tr.step(0.0, pair + [LegDetection(4.0, 2.0, 0.95, 4, 5)])
+    two, one = sorted(tr.tracks, key=lambda t: len(t.leg_ids), reverse=True)
+    assert len(two.leg_ids) == 2 and len(one.leg_ids) == 1
+    assert two.p_dynamic == pytest.approx(0.7) and one.p_dynamic == pytest.approx(0.5)

@@ -14,6 +14,8 @@ from vipsm.legs import LegConfig
 from vipsm.people import LegDetection, PeopleConfig, PeopleTracker, detect_legs, weak_floor
 from vipsm.types import Pose2D
 
+from .evidence import bayes_factor
+
 
 def _pair(x: float, y: float, p: float, weak: bool, gap: float = 0.1) -> list[LegDetection]:
     return [LegDetection(x, y - gap, p, 0, 1, weak=weak), LegDetection(x, y + gap, p, 2, 3, weak=weak)]
@@ -112,8 +114,8 @@ def test_weak_candidates_are_no_evidence_that_a_body_moves() -> None:
         for k in range(1, 6):
             tr.step(0.1 * k, _pair(2.0 + 0.1 * k, 0.0, 0.4, weak=weak) if not weak else
                     [LegDetection(2.0 + 0.1 * k, y, 0.4, 0, 1, evidence=True, weak=True) for y in (-0.1, 0.1)])
-        gain[weak] = tr.tracks[0].p_dynamic - before
-    assert gain[False] > 0.2 and gain[True] <= 0.0
+        gain[weak] = bayes_factor(before, tr.tracks[0].p_dynamic)
+    assert gain[False] > 2.0 and gain[True] <= 1.0
 
 
 def test_a_free_leg_track_is_not_kept_alive_by_weak_candidates() -> None:
