@@ -58,9 +58,8 @@ def test_a_straight_wall_piece_is_no_body() -> None:
 
 
 def test_a_thin_leg_uncovered_from_behind_another_has_no_evidence_with_the_scan_memory() -> None:
-    """Issue 11, cylinder_clutter seed 7: a table leg hidden behind a chair leg sits in grid cells the
-    beams beside the shadow crossed; uncovered, it "violated" free space. At beam resolution it never
-    was seen through."""
+    """Issue 11: a table leg hidden behind a chair leg sits in grid cells the beams beside the shadow
+    crossed; uncovered, it "violated" free space. At beam resolution it never was seen through."""
     from vipsm.seen_through import ScanMemory
 
     world = box_room(8.0, 6.0, pillars=False)
@@ -95,8 +94,8 @@ def test_a_body_partly_hidden_by_a_nearer_one_is_occluded_a_leg_behind_its_partn
 
 
 def test_a_body_cut_by_the_edge_of_the_field_of_view_is_occluded() -> None:
-    """cylinder_clutter seed 101: a cylinder leaving the scanner's 270 deg showed a shrinking sliver whose
-    centre moved with the edge; its track followed the sliver, lost it and took furniture as its own."""
+    """A body leaving the scanner's 270 deg shows a shrinking sliver whose centre moves with the edge: a
+    passing cylinder's track followed the sliver, lost it and took furniture as its own."""
     world = box_room(8.0, 6.0, pillars=False)
     edge = float(np.min(world.scan(ORIGIN).bearings_rad))
     cut = (2.0 * np.cos(edge + 0.05), 2.0 * np.sin(edge + 0.05))  # a 0.3 m body straddling the edge
@@ -111,9 +110,9 @@ def test_a_body_cut_by_the_edge_of_the_field_of_view_is_occluded() -> None:
 
 
 def test_a_camera_interval_that_holds_a_bodys_occluder_gives_the_hidden_body_no_cue() -> None:
-    """cylinder_clutter seed 107: the flow's blob of the cylinder passing in front of a box spread over
-    the box's edge, which the cylinder covered and uncovered; the box got camera evidence, its partial
-    fit drifted, and it was confirmed. The camera sees the front surface move."""
+    """A body passing in front of another: the flow's blob of a cylinder passing in front of a box
+    spread over the box's edge, which the cylinder covered and uncovered; the box got camera evidence,
+    its partial fit drifted, and it was confirmed. The camera sees the front surface move."""
     from vipsm.restore import BearingInterval
 
     world = box_room(8.0, 6.0, pillars=False)
@@ -132,10 +131,10 @@ def test_a_camera_interval_that_holds_a_bodys_occluder_gives_the_hidden_body_no_
 
 
 def test_a_camera_interval_wider_than_any_body_at_the_segments_range_gives_it_no_cue() -> None:
-    """cylinder_clutter seed 240: the flow merged the passing cylinder with the far side of the image,
-    one interval 47 deg wide, and a box 4.3 m away inside it got camera evidence and became a track.
-    At 4.3 m that interval is 3.6 m wide, wider than a body and the background it uncovers; at 1.7 m
-    (the cylinder) 1.4 m, still a body's."""
+    """A camera interval wider than any body at the segment's range: the flow merged a passing
+    cylinder with the far side of the image, one interval 47 deg wide, and a box 4.3 m away inside it
+    got camera evidence and became a track. At 4.3 m that interval is 3.6 m wide, wider than a body
+    and the background it uncovers; at 1.7 m (the cylinder) 1.4 m, still a body's."""
     from vipsm.restore import BearingInterval
 
     world = box_room(12.0, 8.0, pillars=False)
@@ -197,8 +196,8 @@ def test_a_leg_before_a_wall_stays_apart_across_the_dropped_mixed_pixel() -> Non
 
 
 def test_a_gap_the_pre_filter_made_is_an_occluders_and_is_never_bridged() -> None:
-    """cylinder_clutter seed 121: a chair leg 0.8 m in front of a box showed as one or two returns the
-    pre-filter removed (a lone return, a mixed pixel); bridged, the box was whole in one scan and cut
+    """A thin occluder, a chair leg 0.8 m in front of a box, shows as one or two returns the
+    pre-filter removes (a lone return, a mixed pixel); bridged, the box was whole in one scan and cut
     by the leg in the next, its circle fit jumped 0.1 m between the two and the static box was
     reported moving. Only a gap with no echo (a dropout) is bridged."""
     from vipsm.bodies import segments
@@ -218,8 +217,8 @@ def test_a_gap_the_pre_filter_made_is_an_occluders_and_is_never_bridged() -> Non
 
 
 def test_a_post_that_stood_there_is_a_fixture_never_a_passers_leg_partner() -> None:
-    """Recorded path eth_hotel 20: a walker's leg passed 0.6 m from a post; the two were paired into a
-    "person" between them, the track moved onto the post and predicted it into the robot's path."""
+    """A walker's leg passing 0.6 m from a post (on a recorded pedestrian path): the two were paired into
+    a "person" between them, the track moved onto the post and predicted it into the robot's path."""
     world = box_room(8.0, 6.0, pillars=False)
     world.circles = [Circle(2.5, -1.2, 0.05)]  # the post, seen for 3 s
     grid = FreeSpaceGrid()
@@ -273,10 +272,10 @@ def test_a_person_who_stood_and_takes_the_first_step_is_still_a_pair() -> None:
 
 
 def test_a_long_occupied_cell_left_or_hidden_counts_as_vacated_one_still_ending_a_beam_does_not() -> None:
-    """head_on_step_aside seed 191: the walker's first step came straight at the laser, so the swing
-    leg hid its own long-occupied cell from the beam; a cell whose beam ends nearer (hidden) or
-    farther (seen through) than it no longer holds what stood there; one whose beam still ends in
-    it does (a box beside a post)."""
+    """A walker's first step straight at the laser (head-on): the swing leg hid its own
+    long-occupied cell from the beam; a cell whose beam ends nearer (hidden) or farther (seen
+    through) than it no longer holds what stood there; one whose beam still ends in it does (a box
+    beside a post)."""
     from vipsm.bodies import _vacated_near
 
     grid = FreeSpaceGrid()

@@ -366,9 +366,9 @@ def test_a_thin_leg_seen_by_one_beam_is_no_free_space_for_the_static_map() -> No
 
 
 def test_a_static_body_the_keyframe_had_cut_out_is_not_ahead_of_it() -> None:
-    """cylinder_clutter seed 91: the camera's flow flagged a box, restoration bridged it in the keyframe,
-    and for as long as that keyframe lived the box stood "in front of what the keyframe saw" in every
-    scan: motion evidence every cycle, a phantom. What the keyframe saw is the measured range."""
+    """A static box the camera's flow flagged: restoration bridged it in the keyframe, and for as long as
+    that keyframe lived the box stood "in front of what the keyframe saw" in every scan: motion evidence
+    every cycle, a phantom. What the keyframe saw is the measured range."""
     from vipsm.keyframes import Keyframe, MatchOutcome
     from vipsm.psm import prepare_scan
     from vipsm.restore import BearingInterval, restore

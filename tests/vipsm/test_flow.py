@@ -223,11 +223,11 @@ def test_camera_panning_between_frames() -> None:
 
 
 def test_a_body_filling_half_the_image_does_not_pass_its_motion_to_the_background() -> None:
-    """cylinder_clutter seed 240 (the residual field as it was, 80 x 60 cells): the passing cylinder
-    1.7 m away filled the right half of the image with a residual of -7.5 px, the background a uniform
-    -1 px (a heading error of the odometry). The fit over all pixels took the cylinder's motion as the
-    robot's (shift -4.6 px, scale at its bound) and the whole background then moved. The fit must
-    remove the background's shift and leave the cylinder's motion."""
+    """A passing body filling half the image (the residual field as a simulated run gave it, 80 x 60
+    cells): the cylinder 1.7 m away filled the right half with a residual of -7.5 px, the background a
+    uniform -1 px (a heading error of the odometry). The fit over all pixels took the cylinder's
+    motion as the robot's (shift -4.6 px, scale at its bound) and the whole background then moved. The
+    fit must remove the background's shift and leave the cylinder's motion."""
     from vipsm.flow import _remove_global_error
 
     rng = np.random.default_rng(4)
@@ -266,10 +266,10 @@ def test_a_blob_covering_half_a_foreground_body_snaps_to_its_depth_edges() -> No
 
 
 def test_a_blob_lying_mostly_on_a_body_snaps_to_it_however_little_of_the_body_it_covers() -> None:
-    """The paper's slow cylinder at 45 deg (realistic paper1, default seed): the flow sees its leading
-    side move first, a blob 7 columns over the wall it is covering and 17 on the body, a quarter of the
-    body's width. Most of the blob is on the body: it is about the body. A blob mostly on the wall beside
-    a body is not (kept as it is), nor is one on the wall alone."""
+    """The paper's slow cylinder at 45 deg (in the realistic world): the flow sees its leading side move
+    first, a blob 7 columns over the wall it is covering and 17 on the body, a quarter of the body's
+    width. Most of the blob is on the body: it is about the body. A blob mostly on the wall beside a body
+    is not (kept as it is), nor is one on the wall alone."""
     st, cfg = 4, FlowConfig()
     depth = _depth_with_body()
     assert _snap_to_depth(33 * st, 57 * st, depth, st, cfg) == (40 * st, 100 * st)
@@ -281,9 +281,9 @@ def test_a_blob_lying_mostly_on_a_body_snaps_to_it_however_little_of_the_body_it
 
 def test_a_blob_on_a_surface_that_reaches_the_image_edge_is_not_snapped_to_it() -> None:
     """A wall filling the view has no depth edge in it: nearer than "both neighbours" only because
-    nothing is seen beyond the image's edges. A small blob on it (a walker's, stand_then_walk seed
-    139) is not the whole view; nor is one on a body cut by the image's edge. A blob covering half
-    such a body still snaps to its edge in view."""
+    nothing is seen beyond the image's edges. A small blob on it (a walker's, as a simulated run
+    gave it) is not the whole view; nor is one on a body cut by the image's edge. A blob covering
+    half such a body still snaps to its edge in view."""
     st, cfg = 4, FlowConfig()
     wall = np.full(160, 4.0)
     assert _snap_to_depth(20 * st, 40 * st, wall, st, cfg) == (20 * st, 40 * st)

@@ -133,11 +133,10 @@ def test_a_jittering_static_thing_with_evidence_never_becomes_a_reported_track()
 
 
 def test_two_static_posts_seen_as_a_pair_or_as_one_leg_never_confirm() -> None:
-    """Two posts 0.6 m apart (static_clutter, seed 15): the leg pairing flickers, so the detection is
-    either their midpoint ("person") or one post ("leg"), 0.3 m apart, with free-space evidence now
-    and then. The jump between kinds is no motion: the track was confirmed and reported with it. (The
-    detections' jitter is kept small here: what a jitter alone confirms is the sustained-evidence rule's
-    business, not this test's.)"""
+    """Two static posts 0.6 m apart: the leg pairing flickers, so the detection is either their midpoint
+    ("person") or one post ("leg"), 0.3 m apart, with free-space evidence now and then. The jump between
+    kinds is no motion: the track was confirmed and reported with it. (The detections' jitter is kept small
+    here: what a jitter alone confirms is the sustained-evidence rule's business, not this test's.)"""
     rng = np.random.default_rng(15)
     tr = Tracker(TrackerConfig())
     for k in range(120):
@@ -164,7 +163,7 @@ def test_a_walker_seen_now_as_a_leg_pair_now_as_one_leg_is_still_confirmed() -> 
 
 def test_a_walker_whose_detection_is_one_trailing_leg_for_a_cycle_stays_reported() -> None:
     """Walking at 1.5 m/s, seen as a leg pair, for one scan as the trailing leg alone (0.3 m behind the
-    midpoint, realistic cross_90 seed 31): the jump to and from the leg is faster than a walker, but a
+    midpoint, as in a simulated crossing): the jump to and from the leg is faster than a walker, but a
     leg and a pair's midpoint are different points of one body. Reported before and after (it was
     suppressed for a second: 37 % of that crossing missed)."""
     tr = Tracker(TrackerConfig())
@@ -295,8 +294,8 @@ def test_the_birth_detection_counts_toward_confirmation() -> None:
 
 
 def test_an_unconfirmed_track_coasting_does_not_grab_a_detection_far_away() -> None:
-    """cylinder_clutter seed 7: a tentative track coasted 7 cycles, its gate grew to metres and it took
-    a table leg 1.1 m away as its own, which "moved" it far enough to confirm."""
+    """A tentative track among furniture coasted 7 cycles, its gate grew to metres and it took a table
+    leg 1.1 m away as its own, which "moved" it far enough to confirm."""
     tr = Tracker(TrackerConfig())
     tr.step(0.0, [_det(8.06, 1.52, kind="leg")])
     tr.step(0.1, [_det(8.08, 1.55, kind="leg")])
@@ -319,7 +318,7 @@ def test_an_unconfirmed_track_that_never_moves_dies_young() -> None:
 
 
 def test_a_detection_that_sits_still_then_jumps_once_does_not_confirm() -> None:
-    """A box corner's circle fit: still for a few cycles, then 0.1 m off in one jump (seed 3)."""
+    """A box corner's circle fit: still for a few cycles, then 0.1 m off in one jump (fits as simulated)."""
     tr = Tracker(TrackerConfig())
     xs = [7.30, 7.30, 7.29, 7.30, 7.26, 7.21]
     for k, x in enumerate(xs):
@@ -341,8 +340,8 @@ def test_an_occluded_detection_drifting_with_the_occluders_edge_does_not_confirm
 
 
 def test_a_fitted_circle_whose_radius_keeps_changing_is_no_displacement_evidence() -> None:
-    """A box corner uncovered behind a passing body (cylinder_clutter seed 2, the detections as they
-    were): circle fits of 0.09, 0.11, 0.17, 0.11 m, the centre jumping with the visible part. A rigid
+    """A box corner uncovered behind a passing body (detections as a simulated furnished room gave
+    them): circle fits of 0.09, 0.11, 0.17, 0.11 m, the centre jumping with the visible part. A rigid
     round body keeps its radius: the same positions with a steady radius would be motion (partly
     occluded too, a partial fit of a round body keeping its radius within 10 %)."""
     xy = [(5.98, -0.98), (5.99, -1.00), (6.04, -1.05), (5.98, -1.02)]
@@ -363,7 +362,7 @@ def _confirmed_by_fits(xy: list[tuple[float, float]], radii: list[float], occlud
 
 
 def test_a_partly_hidden_fit_that_shrinks_steadily_is_no_displacement_evidence() -> None:
-    """cylinder_clutter seed 20 (the detections as they were): a box face beside the passing cylinder,
+    """A box face beside a passing cylinder (detections as a simulated furnished room gave them),
     flagged by the camera, fitted as a 0.30 m circle that shrank to 0.27 m while the cylinder covered
     it, its centre drifting 4 cm. Each fit was within 10 % of the track's smoothed radius, which lags;
     a round body's partial views keep one radius over the window."""
@@ -373,11 +372,11 @@ def test_a_partly_hidden_fit_that_shrinks_steadily_is_no_displacement_evidence()
 
 
 def test_a_box_whose_fit_grows_as_a_face_turns_into_view_does_not_confirm() -> None:
-    """cylinder_clutter seed 179 (the detections as they were, the laser at (3.05, 0)): a box 4.3 m
-    away, flagged by the camera's flow near the image border, fitted with a radius growing 0.19 ->
-    0.26 m as more of a face showed; each centre lies its radius behind the visible surface, so the
-    centre receded 5.5 cm while the front moved 1.3 cm. The same centres with a steady radius are a
-    round body moving."""
+    """A box 4.3 m away whose face turns into view (detections as a simulated furnished room gave
+    them, the laser at (3.05, 0)), flagged by the camera's flow near the image border, fitted with a
+    radius growing 0.19 -> 0.26 m as more of a face showed; each centre lies its radius behind the
+    visible surface, so the centre receded 5.5 cm while the front moved 1.3 cm. The same centres
+    with a steady radius are a round body moving."""
     xy = [(7.138, 1.251), (7.170, 1.263), (7.171, 1.269), (7.192, 1.268)]
     view = [math.atan2(y, x - 3.05) for x, y in xy]
 
@@ -462,9 +461,9 @@ def test_an_occluded_detection_ends_the_chain_of_earlier_detections() -> None:
 
 
 def test_a_track_born_where_an_unconfirmed_one_died_sees_its_static_past() -> None:
-    """A box with camera evidence now and then (the cylinder passing beside it, cylinder_clutter seed 3):
-    its unconfirmed track dies at ``tentative_max_age_s``; the next one, born there, must not judge the
-    box's motion from three fresh detections when its fit then slides 10 cm along the occluder's edge."""
+    """A box with camera evidence now and then (a cylinder passing beside it): its unconfirmed track dies
+    at ``tentative_max_age_s``; the next one, born there, must not judge the box's motion from three
+    fresh detections when its fit then slides 10 cm along the occluder's edge."""
     tr = Tracker(TrackerConfig())
     xs = {12: 7.26, 13: 7.20}
     for k in range(16):
@@ -568,11 +567,11 @@ def test_a_walker_who_stopped_half_a_second_ago_is_no_longer_reported() -> None:
 
 
 def test_a_walker_seen_by_the_front_leg_then_the_back_leg_stays_reported() -> None:
-    """stand_then_walk seed 127 (the detections as they were): a person crossing at 1 m/s seen as a leg
-    pair, then for two scans by one leg each, the front one 0.15 m ahead of the pelvis and then the
-    back one 0.15 m behind: one offset per kind cannot align both, the newest five detections read as
-    a step back and the walker was withheld for a cycle, twice. A standing person seen now as a pair,
-    now by one leg, is still not reported."""
+    """A person crossing at 1 m/s (detections recorded from a simulated crossing) seen as a leg pair,
+    then for two scans by one leg each, the front one 0.15 m ahead of the pelvis and then the back one
+    0.15 m behind: one offset per kind cannot align both, the newest five detections read as a step
+    back and the walker was withheld for a cycle, twice. A standing person seen now as a pair, now by
+    one leg, is still not reported."""
     ys = [0.96, 0.80, 0.66, 0.55, 0.52, 0.43, 0.30, 0.15, -0.15, 0.11, -0.14, -0.22, -0.36]
     kinds = ["person"] * 8 + ["leg", "leg"] + ["person"] * 3
     tr = Tracker(TrackerConfig())
@@ -593,12 +592,12 @@ def test_a_walker_seen_by_the_front_leg_then_the_back_leg_stays_reported() -> No
 
 
 def test_a_walker_seen_by_one_leg_then_by_the_other_stays_reported() -> None:
-    """Recorded zara01 walker 9 (seed 1047, the detections as they were): a person walking at 1.15 m/s
-    seen as a leg pair, then by one leg, then for three scans by the other leg 0.45 m further on (the
-    jump from the back leg to the front one, in one scan, is faster than a walker), then as a pair again.
-    Both are the same body's legs: it stays reported (it was withheld for the whole 1 s report window,
-    60 % of that crossing missed). A person standing still seen now by one leg, now by the other, is
-    still not reported."""
+    """A person walking at 1.15 m/s on a recorded pedestrian path (detections as the simulation gave
+    them), seen as a leg pair, then by one leg, then for three scans by the other leg 0.45 m further on
+    (the jump from the back leg to the front one, in one scan, is faster than a walker), then as a pair
+    again. Both are the same body's legs: it stays reported (it was withheld for the whole 1 s report
+    window, 60 % of that crossing missed). A person standing still seen now by one leg, now by the other,
+    is still not reported."""
     rows = [(4.82, 2.16, "person", False), (4.82, 2.15, "person", False), (4.81, 2.13, "person", False),
             (4.71, 2.01, "person", True), (4.64, 1.92, "person", True), (4.62, 1.89, "person", True),
             (4.52, 1.80, "person", True), (4.47, 1.69, "person", True), (4.39, 1.55, "person", True),
@@ -630,11 +629,11 @@ def test_a_walker_seen_by_one_leg_then_by_the_other_stays_reported() -> None:
 
 
 def test_a_walker_stepping_out_with_one_leg_partly_hidden_confirms_at_once() -> None:
-    """Recorded zara01 walker 11 (seed 510, the detections as they were): a person stepping out from
+    """A person on a recorded pedestrian path (detections as the simulation gave them) stepping out from
     behind a box is seen by one leg, then as a pair with one leg partly hidden for three scans. A pair's
-    midpoint is off by at most 0.7 leg radius then, so those count as displacement: confirmed at
-    the third pair, not four scans later when they had left the window (75 % of that crossing located).
-    A standing pair whose one leg is being hidden moves its midpoint by less than that: never."""
+    midpoint is off by at most 0.7 leg radius then, so those count as displacement: confirmed at the
+    third pair, not four scans later when they had left the window (75 % of that crossing located). A
+    standing pair whose one leg is being hidden moves its midpoint by less than that: never."""
     rows = [(5.82, 1.55, "leg", False), (5.60, 1.38, "leg", False), (5.54, 1.46, "person", True),
             (5.51, 1.43, "person", True), (5.44, 1.37, "person", True)]
     tr = Tracker(TrackerConfig())
@@ -652,8 +651,8 @@ def test_a_walker_stepping_out_with_one_leg_partly_hidden_confirms_at_once() -> 
 
 
 def test_a_person_who_stopped_is_not_reported_on_the_pairs_jitter() -> None:
-    """curve_crossing seed 5 (the detections as they were): a person walking at 1.2 m/s stops; the
-    pair's midpoints then sit within 4 cm of each other, now and then a lone leg 0.23 m away. Three
+    """A person walking at 1.2 m/s stops (detections recorded from a simulated crossing); the pair's
+    midpoints then sit within 4 cm of each other, now and then a lone leg 0.23 m away. Three
     midpoints moving 3 cm are "straight", but they do not cover a walker's speed."""
     rows = [(-0.81, "person"), (-0.92, "person"), (-1.09, "person"), (-1.13, "leg"), (-1.37, "person"),
             (-1.42, "person"), (-1.34, "leg"), (-1.66, "person"), (-1.84, "person"), (-1.99, "person"),
@@ -666,9 +665,9 @@ def test_a_person_who_stopped_is_not_reported_on_the_pairs_jitter() -> None:
 
 
 def test_the_chain_of_earlier_detections_passes_over_a_scan_or_two_without_the_body() -> None:
-    """A table leg (cylinder_clutter seed 9) unseen for two scans, then camera evidence from the
-    cylinder passing, while its centre slides 8 cm along the occluder: with its earlier detections
-    across the gap the slide is no straight motion; without them three fresh detections confirmed."""
+    """A table leg unseen for two scans, then camera evidence from a cylinder passing, while its
+    centre slides 8 cm along the occluder: with its earlier detections across the gap the slide is no
+    straight motion; without them three fresh detections confirmed."""
     seen = {0: (5.32, 1.09), 1: (5.32, 1.07), 2: (5.33, 1.12), 3: (5.32, 1.05), 6: (5.33, 1.12), 7: (5.29, 1.14),
             8: (5.24, 1.14), 9: (5.32, 1.11), 10: (5.32, 1.07), 11: (5.30, 1.14), 12: (5.32, 1.13)}
     tr = Tracker(TrackerConfig())
@@ -681,10 +680,9 @@ def test_the_chain_of_earlier_detections_passes_over_a_scan_or_two_without_the_b
 
 
 def test_a_box_uncovered_by_a_passing_body_does_not_confirm_on_its_shifting_fit() -> None:
-    """cylinder_clutter seed 19: a box partly hidden by the cylinder passing in front; as it is
-    uncovered its circle fit moves 11 cm and its radius shrinks 0.33 -> 0.24 m (each step within the
-    30 % radius tolerance of a fit in full view, not within the 10 % of a partly occluded one), with
-    camera evidence from the cylinder's flow."""
+    """A box partly hidden by a cylinder passing in front: as it is uncovered its circle fit moves 11 cm
+    and its radius shrinks 0.33 -> 0.24 m (each step within the 30 % radius tolerance of a fit in full
+    view, not within the 10 % of a partly occluded one), with camera evidence from the cylinder's flow."""
     rows = [(6.546, -1.436, 0.331, False), (6.531, -1.355, 0.260, True), (6.538, -1.333, 0.243, True),
             (6.528, -1.316, 0.231, True), (6.538, -1.335, 0.247, False), (6.530, -1.317, 0.230, False)]
     tr = Tracker(TrackerConfig())
@@ -695,11 +693,11 @@ def test_a_box_uncovered_by_a_passing_body_does_not_confirm_on_its_shifting_fit(
 
 
 def test_a_person_who_stops_and_is_then_seen_by_one_leg_gets_no_velocity_towards_it() -> None:
-    """two_people_opposite, seed 61: a person walks at 1.2 m/s away from the robot's path and stops;
-    then only the nearer leg is seen, 0.27 m back towards the path, scan after scan. A lone leg says
-    the centre is within half a leg pair of it, not where it is: taken as the centre, the manoeuvre
-    model read 0.8 m/s back towards the path, predicting the person 0.3 m from it within 2 s, and the
-    robot stopped for 11 cycles. Here the prediction 2 s ahead stays over 1 m from the path."""
+    """A person walks at 1.2 m/s away from the robot's path and stops; then only the nearer leg is
+    seen, 0.27 m back towards the path, scan after scan. A lone leg says the centre is within half a
+    leg pair of it, not where it is: taken as the centre, the manoeuvre model read 0.8 m/s back
+    towards the path, predicting the person 0.3 m from it within 2 s, and the robot stopped for 11
+    cycles. Here the prediction 2 s ahead stays over 1 m from the path."""
     tr = Tracker(TrackerConfig())
     for k in range(35):
         t = 0.1 * k
@@ -716,10 +714,10 @@ def test_a_person_who_stops_and_is_then_seen_by_one_leg_gets_no_velocity_towards
 
 
 def test_a_static_leg_whose_centre_drifts_7_cm_does_not_confirm() -> None:
-    """cylinder_clutter seed 84: a table leg 1-2 m from the passing robot, its centre placed from 4-5
-    returns: over six scans it drifts 7 cm, nearly straight, while the cylinder's flow gives it camera
-    evidence. Confirmed on the 6 cm a walker's legs need, it held the safety stop; lone legs now need
-    10 cm (a walker covers that in 0.1-0.3 s)."""
+    """A table leg 1-2 m from the passing robot, its centre placed from 4-5 returns: over six scans it
+    drifts 7 cm, nearly straight, while a passing cylinder's flow gives it camera evidence. Confirmed
+    on the 6 cm a walker's legs need, it held the safety stop; lone legs now need 10 cm (a walker
+    covers that in 0.1-0.3 s)."""
     xy = [(3.120, 0.854), (3.102, 0.869), (3.130, 0.806), (3.132, 0.854), (3.131, 0.857), (3.107, 0.871),
           (3.123, 0.862), (3.074, 0.877), (3.10, 0.87), (3.11, 0.87)]
     tr = Tracker(TrackerConfig())
@@ -742,12 +740,12 @@ def test_a_walker_seen_only_by_one_leg_is_still_confirmed_quickly() -> None:
 def test_a_walker_stepping_out_from_behind_furniture_is_confirmed_on_its_path_since_it_came_out(
     kind: str, expect: int
 ) -> None:
-    """A person crossing a furnished room (stress variant person_clutter3 seed 904) is seen partly
-    hidden beside a box for three scans, then whole. A body placed an assumed radius behind its visible
-    returns is unreliable there: the path since it came out (0.18 m in three scans, straight) confirms
-    it; waiting for the unreliable positions to leave the 6-detection window confirmed it 0.3 s later,
-    and it was reported 1.4 s after it started to walk. As a leg pair with one leg partly hidden, its
-    midpoint is good to 0.7 leg radius: it confirms at the third detection."""
+    """A person crossing a furnished room (a simulated stress case) is seen partly hidden beside a box
+    for three scans, then whole. A body placed an assumed radius behind its visible returns is
+    unreliable there: the path since it came out (0.18 m in three scans, straight) confirms it; waiting
+    for the unreliable positions to leave the 6-detection window confirmed it 0.3 s later, and it was
+    reported 1.4 s after it started to walk. As a leg pair with one leg partly hidden, its midpoint is
+    good to 0.7 leg radius: it confirms at the third detection."""
     xy = [(4.566, 1.479), (4.495, 1.350), (4.462, 1.295), (4.410, 1.226), (4.332, 1.085), (4.229, 0.923),
           (4.169, 0.793), (4.136, 0.737), (4.087, 0.664)]
     tr = Tracker(TrackerConfig())
@@ -784,10 +782,10 @@ def _confirmed_at(rows: list[tuple[float, float, bool]], kind: str = "person") -
 
 
 def test_a_walker_who_stood_is_confirmed_on_its_first_two_steps() -> None:
-    """Suite scenario head_on_step_aside, fresh seed 311: the walker stood 7.7 m away, head-on, and
-    started at 7.3 s; the free-space test flagged its first two steps (10 and 13 cm). Its track starts
-    at the standing detections (retro), whose still steps counted against the 70 % of advancing steps
-    until they left the window: confirmed at the fourth moving detection, located 93.3 %."""
+    """A walker stood 7.7 m away, head-on, and started at 7.3 s (as traced in simulation); the
+    free-space test flagged its first two steps (10 and 13 cm). Its track starts at the standing
+    detections (retro), whose still steps counted against the 70 % of advancing steps until they left
+    the window: confirmed at the fourth moving detection, located 93.3 %."""
     rows = [(7.696, -0.647, False), (7.697, -0.646, False), (7.699, -0.656, False), (7.700, -0.657, False),
             (7.597, -0.649, True), (7.466, -0.648, True), (7.390, -0.648, True), (7.361, -0.641, True)]
     assert _confirmed_at(rows) == 5
@@ -871,8 +869,8 @@ def _body_track(tr: Tracker, n: int = 20) -> None:
 
 
 def test_a_coasting_track_takes_a_far_detection_only_when_it_shows_motion() -> None:
-    """cylinder_clutter seed 101: the cylinder's track coasted while the cylinder was out of view, its
-    covariance (and so its gate) grew, and it took a box 0.7 m away, then a table leg, at 2-3 m/s."""
+    """A passing cylinder's track coasted while the cylinder was out of view: its covariance (and so
+    its gate) grew, and it took a box 0.7 m away, then a table leg, at 2-3 m/s."""
     for evidence in (False, True):
         tr = Tracker(TrackerConfig())
         _body_track(tr)
@@ -895,7 +893,7 @@ def test_a_coasting_track_takes_a_far_detection_only_when_it_shows_motion() -> N
 
 
 def test_an_unconfirmed_coasting_track_takes_no_far_detection_even_with_motion() -> None:
-    """Recorded path ucy_zara01 13: a table leg a passer-by uncovered started a track; it coasted, its
+    """A table leg a passer-by uncovered (on a recorded pedestrian path) started a track; it coasted, its
     covariance grew, and it took the next table leg 0.6 m away (with motion evidence of its own), was
     confirmed by that jump and reported at 1.7 m/s. A track that has not shown it moves keeps gate_m."""
     tr = Tracker(TrackerConfig())
@@ -929,10 +927,10 @@ def test_a_partly_occluded_detection_pulls_the_track_less() -> None:
 
 
 def test_a_coasting_person_is_kept_while_a_return_lies_where_a_leg_could_stand() -> None:
-    """cross_60 and curve_crossing seed 163: a walker whose leg was split by a dropped return was no
-    body for one scan; the beams between the legs crossed the predicted centre's cell and the track
-    was dropped, its successor unreported for 3 cycles. A return within half the widest leg pair of
-    the centre may be a leg; with none there the space is free."""
+    """A walker whose leg was split by a dropped return was no body for one scan (seen in simulated
+    crossings); the beams between the legs crossed the predicted centre's cell and the track was
+    dropped, its successor unreported for 3 cycles. A return within half the widest leg pair of the
+    centre may be a leg; with none there the space is free."""
     def coasting() -> Tracker:
         tr = Tracker(TrackerConfig())
         for k in range(10):
@@ -949,10 +947,10 @@ def test_a_coasting_person_is_kept_while_a_return_lies_where_a_leg_could_stand()
 
 
 def test_a_leg_uncovered_beside_a_tracked_post_does_not_take_the_posts_past() -> None:
-    """`cylinder_clutter` seed 165: a post (tracked, unconfirmed, camera evidence from the cylinder
-    passing in front) and a table leg 0.26 m from it that the cylinder uncovers. The leg's new track
-    must not start from the post's earlier detections, which the post's live track took: with them the
-    leg "walked" 0.26 m from the post and was confirmed (and reported) as a moving body."""
+    """A post (tracked, unconfirmed, camera evidence from a cylinder passing in front) and a table leg
+    0.26 m from it that the cylinder uncovers. The leg's new track must not start from the post's
+    earlier detections, which the post's live track took: with them the leg "walked" 0.26 m from the
+    post and was confirmed (and reported) as a moving body."""
     tr = Tracker(TrackerConfig())
     for k in range(14):
         dets = [_det(6.23, -0.84 - 0.001 * k, evidence=k in (2, 3, 4, 5, 6, 9, 10), kind="leg")]
@@ -963,10 +961,10 @@ def test_a_leg_uncovered_beside_a_tracked_post_does_not_take_the_posts_past() ->
 
 
 def _two_table_legs(b_stays: bool) -> bool:
-    """`cylinder_clutter` seed 178, the detections as they were: table legs A (4.93, -1.59) and B
-    (5.37, -1.04), 0.70 m apart, seen as lone legs; for two cycles, while the camera's interval of the
-    passing cylinder covered them, paired as a person (midpoint, with evidence); then A alone, both,
-    A alone. Whether any track was confirmed; ``b_stays``: leg B is still detected after the pairing."""
+    """Table legs A (4.93, -1.59) and B (5.37, -1.04), 0.70 m apart (detections as a simulated furnished
+    room gave them), seen as lone legs; for two cycles, while the camera's interval of the passing
+    cylinder covered them, paired as a person (midpoint, with evidence); then A alone, both, A alone.
+    Whether any track was confirmed; ``b_stays``: leg B is still detected after the pairing."""
     a = [(4.872, -1.621), (4.943, -1.579), (4.926, -1.612), (4.947, -1.578), (4.879, -1.624)]
     b = [(5.377, -1.043), (5.366, -1.056), (5.373, -1.041), (5.364, -1.007), (5.347, -1.070)]
     cycles = [[_det(*pa, evidence=False, kind="leg"), _det(*pb, evidence=False, kind="leg")] for pa, pb in zip(a, b)]
@@ -1199,7 +1197,7 @@ def test_only_reported_tracks_are_moving_a_confirmed_one_that_stopped_is_not() -
 
 
 def test_a_rigid_bodys_radius_is_not_held_by_one_bad_first_fit() -> None:
-    """cart_pusher (a 0.5 x 0.8 m cart, seed 314, the fits as they were): the first circle fit of the cart,
+    """A pushed cart (0.5 x 0.8 m, the fits as a simulated run gave them): the first circle fit of the cart,
     seen as it came out from behind its pusher, was 0.74 m, every later one 0.37-0.49 m, the last three
     partly hidden by the pusher's leg. A rigid body's radius is a constant: the mean of its fits so far (then
     of about the last five). A smoothed radius that started at the first fit took ten cycles to come within

@@ -2,12 +2,12 @@
 radius is set by the curl of its ends and changes with the beams that hit them, and its centre lies that radius
 behind the face along the face's normal, not along the view line from the laser.
 
-Traced (realistic scene ``door_swing``, seed 9001, 9.2-9.6 s): the open door's leaf, 0.9 m at 3 m, 32-45 deg off the
-robot's heading (its normal 28 deg off the view line to the fitted centre), fitted with radii 1.28 -> 1.32 -> 1.41
--> 1.49 m (its near end's edge and the return at the hinge curl the face's ends by 2-3 cm), its fitted centre
-sliding 0.21 m along the leaf's normal; a flow error gave it motion evidence, and it was confirmed and reported (3.0
-false moving obstacles a minute). Taking the radius's change out along the view line (the line a round body's centre
-lies behind its front on) left 0.1 m of "motion" across it.
+Traced in a simulated room with a door (9.2-9.6 s): the open door's leaf, 0.9 m at 3 m, 32-45 deg off the robot's
+heading (its normal 28 deg off the view line to the fitted centre), fitted with radii 1.28 -> 1.32 -> 1.41 -> 1.49 m
+(its near end's edge and the return at the hinge curl the face's ends by 2-3 cm), its fitted centre sliding 0.21 m
+along the leaf's normal; a flow error gave it motion evidence, and it was confirmed and reported (3.0 false moving
+obstacles a minute). Taking the radius's change out along the view line (the line a round body's centre lies behind
+its front on) left 0.1 m of "motion" across it.
 """
 
 from __future__ import annotations
@@ -78,12 +78,12 @@ def test_a_standing_face_whose_fit_changes_as_the_laser_drives_by_is_not_reporte
 
 
 def test_a_leaf_that_stopped_swinging_is_not_reported_on_a_young_window_whose_fits_slide() -> None:
-    """door_swing (seed 99, 7.1-7.9 s) as traced: the leaf's fits at 7.1-7.2 s while it still swung, nothing seen
-    for 0.3 s, then the stopped leaf fitted 0.92 -> 1.05 -> 1.28 m, its centre sliding 0.37 m along its normal
-    (+x). The track born at 7.6 s chained back to the swinging leaf's 7.2 s fit and was confirmed at 7.8 s on that
-    swing; its report window (7.6-7.9 s) was younger than 0.5 s and was reported on confirmation alone, though
-    with each fit moved by its radius's change the leaf stood within 7 mm. A young window is reported where
-    its body moved at least as far as the change of radius moved its fits."""
+    """A door leaf that stops swinging, as traced in simulation (7.1-7.9 s): the leaf's fits at 7.1-7.2 s while it
+    still swung, nothing seen for 0.3 s, then the stopped leaf fitted 0.92 -> 1.05 -> 1.28 m, its centre sliding
+    0.37 m along its normal (+x). The track born at 7.6 s chained back to the swinging leaf's 7.2 s fit and was
+    confirmed at 7.8 s on that swing; its report window (7.6-7.9 s) was younger than 0.5 s and was reported on
+    confirmation alone, though with each fit moved by its radius's change the leaf stood within 7 mm. A young
+    window is reported where its body moved at least as far as the change of radius moved its fits."""
     fits = {7.1: (6.116, 1.678, 1.325, -0.221), 7.2: (6.153, 1.811, 1.289, -0.119),  # x, y, radius, behind_rad
             7.6: (5.849, 1.980, 0.915, 0.023), 7.8: (5.980, 1.984, 1.047, 0.017), 7.9: (6.221, 1.987, 1.281, 0.012)}
     tracker = Tracker()
@@ -116,7 +116,7 @@ def test_a_young_window_counts_as_moving_unless_its_fits_change_of_radius_accoun
     assert _fit_moved_less(rows((0.0, 0.0), (0.0, 0.25)), rows((0.0, 0.05), (0.0, 0.25)))
 
 
-#: door_swing seed 1000 as traced, the leaf still swinging (7.1-7.4 s): stamp -> fitted centre x, y, radius,
+#: a door leaf as traced in simulation, still swinging (7.1-7.4 s): stamp -> fitted centre x, y, radius,
 #: behind_rad (the direction from the face to the centre) and the laser's x (at y = 0)
 SWINGING = {7.1: (6.246, 1.646, 1.451, -0.223, 2.12), 7.2: (6.314, 1.787, 1.443, -0.122, 2.14),
             7.3: (6.210, 1.909, 1.292, -0.043, 2.16), 7.4: (6.230, 1.969, 1.289, 0.003, 2.18)}
@@ -141,13 +141,13 @@ def _swinging_leaf(with_laser: bool) -> tuple[int, int]:
 
 
 def test_a_swinging_leaf_whose_fitted_centre_swings_with_its_turn_is_not_reported() -> None:
-    """door_swing seed 1000 (2.98 false moving obstacles a minute): the leaf, 0.9 m, in the last 0.4 s of its swing,
-    fitted with radii 1.29-1.45 m, its normal turning 0.6 rad/s against the view line. Its fitted centre, 1.3-1.45 m
-    behind the face, swung 0.26 m in 0.2 s across the face (read 1.2-1.3 m/s), its face moved 9 cm along its
-    normal. Confirmed on three fits and reported on that young window while the face's turn moved the centres: with
-    each fit put where the newest would have put it (its radius and its turn against the view line), the face's 9 cm
-    are less than what the fit's change moved them, and the young window is not reported. Without the laser's
-    position (the turn unknown, each fit moved by its radius alone) it is reported, as before."""
+    """A swinging door leaf (2.98 false moving obstacles a minute in simulation): the leaf, 0.9 m, in the last 0.4 s
+    of its swing, fitted with radii 1.29-1.45 m, its normal turning 0.6 rad/s against the view line. Its fitted
+    centre, 1.3-1.45 m behind the face, swung 0.26 m in 0.2 s across the face (read 1.2-1.3 m/s), its face moved
+    9 cm along its normal. Confirmed on three fits and reported on that young window while the face's turn moved the
+    centres: with each fit put where the newest would have put it (its radius and its turn against the view line),
+    the face's 9 cm are less than what the fit's change moved them, and the young window is not reported. Without
+    the laser's position (the turn unknown, each fit moved by its radius alone) it is reported, as before."""
     confirmed, reports = _swinging_leaf(with_laser=True)
     assert confirmed and reports == 0
     confirmed, reports = _swinging_leaf(with_laser=False)

@@ -18,7 +18,7 @@ def _leg(x: float, y: float, evidence: bool = False) -> Detection:
 
 def _walk_in_and_stop(tr: Tracker, period_s: float) -> float:
     """A walker along -x at 1 m/s, seen as leg pairs, stops at (1.0, -2.15) and stands 0.5 s seen as pairs
-    (cross_30 seed 6007's person 0, which stood from 10.8 s). Returns the last stamp."""
+    (as a walker in a simulated crossing did, standing from 10.8 s). Returns the last stamp."""
     t_s = 0.0
     for k in range(20):
         t_s = period_s * k
@@ -31,12 +31,11 @@ def _walk_in_and_stop(tr: Tracker, period_s: float) -> float:
 
 
 def test_a_standing_person_seen_by_one_leg_is_not_pulled_onto_it() -> None:
-    """cross_30 seed 6007: a person standing still, its far leg hidden, is seen for a second by its near leg
-    alone, 0.11 m from the pair's midpoint. Each detection of that leg carries the same offset from the centre;
-    taken as white noise (the leg's share of ``KIND_CHANGE_M``), their mean pulled the filter onto the leg at
-    0.2 m/s and the track was reported as moving for 9 cycles. As an offset of the filter's state, the first
-    detection sets it and the next ones add no displacement: the track stands and is never reported, at 10
-    and 7.5 scans a second."""
+    """A person standing still, its far leg hidden, is seen for a second by its near leg alone, 0.11 m from the
+    pair's midpoint. Each detection of that leg carries the same offset from the centre; taken as white noise
+    (the leg's share of ``KIND_CHANGE_M``), their mean pulled the filter onto the leg at 0.2 m/s and the track
+    was reported as moving for 9 cycles. As an offset of the filter's state, the first detection sets it and
+    the next ones add no displacement: the track stands and is never reported, at 10 and 7.5 scans a second."""
     for period_s in (0.1, 0.1333):
         tr = Tracker(TrackerConfig())
         t_s = _walk_in_and_stop(tr, period_s)

@@ -79,10 +79,10 @@ def test_a_walker_who_stood_2_s_is_reported_two_steps_after_its_filter_starts(pe
 
 
 def test_the_traced_second_start_is_reported_at_its_third_leg_pair() -> None:
-    """stop_and_go's second start as traced (default seed, 10.0-11.0 s): the walker stood seen as a round body,
-    then walked on seen as leg pairs, the first already 7 cm on. The old window's least-squares speed with an
-    offset per kind, 7 of its 10 detections standing bodies, was 0.06 m/s at the third pair (the filter's 0.42)
-    and the report waited for the fourth; from the filter's last stand the third pair reports."""
+    """A walker's second start after a stop, as traced in simulation (10.0-11.0 s): the walker stood seen as a
+    round body, then walked on seen as leg pairs, the first already 7 cm on. The old window's least-squares
+    speed with an offset per kind, 7 of its 10 detections standing bodies, was 0.06 m/s at the third pair (the
+    filter's 0.42) and the report waited for the fourth; from the filter's last stand the third pair reports."""
     tr = Tracker(TrackerConfig())
     t = _walk_in_and_stop(tr, (3.94, 0.86), 0.1)
     stand = [(3.94, 0.86, "body")] * 20 + [(3.94, 0.84, "body")]
@@ -96,9 +96,9 @@ def test_the_traced_second_start_is_reported_at_its_third_leg_pair() -> None:
 
 def test_a_stand_lasts_two_detections_and_a_walk_from_it_needs_two_steps_of_one_kind() -> None:
     """``Tracker._walk_start`` on report-window rows (stamp, x, y, kind code, radius, view, stood): one row with
-    which the filter stood (a walker turning back passes through zero speed; positive_6 at 9.33 s) is no stand;
-    from two in a row the walk counts from the last, and needs two steps between detections of one kind (a lone
-    leg, 1, and a pair's midpoint, 2, are different points of a person)."""
+    which the filter stood (a walker turning back passes through zero speed, as one in a real recording did at
+    9.33 s) is no stand; from two in a row the walk counts from the last, and needs two steps between detections
+    of one kind (a lone leg, 1, and a pair's midpoint, 2, are different points of a person)."""
     def rows(kinds: str, stood: str) -> list[tuple[float, ...]]:
         return [(0.1 * i, 0.0, 0.0, float(k), math.nan, math.nan, float(s == "S"))
                 for i, (k, s) in enumerate(zip(kinds, stood, strict=True))]
@@ -125,11 +125,11 @@ def _cart_pushed_to_a_stop() -> Tracker:
 
 
 def test_a_stopped_cart_whose_fit_drifts_beyond_its_radius_change_is_not_reported() -> None:
-    """cart_pusher (default seed, 11.6-12.6 s) as traced: the stopped cart's fit shrank 0.34 -> 0.17 m as the robot
-    drove up and its centre, moved back along the view line by the radius's change, still drifted 4 cm in 0.2 s.
-    From the filter's stand that read as 0.12 m/s and was reported before the walk had to beat its own standard
-    error; now the speed since the stand (0.39 m/s over its three detections) is within one standard error (1.0
-    m/s with the partly hidden fit's noise, half its radius): no walk, with no exception for fitted centres."""
+    """A pushed cart that stopped, as traced in simulation (11.6-12.6 s): the stopped cart's fit shrank 0.34 ->
+    0.17 m as the robot drove up and its centre, moved back along the view line by the radius's change, still drifted
+    4 cm in 0.2 s. From the filter's stand that read as 0.12 m/s and was reported before the walk had to beat its own
+    standard error; now the speed since the stand (0.39 m/s over its three detections) is within one standard error
+    (1.0 m/s with the partly hidden fit's noise, half its radius): no walk, with no exception for fitted centres."""
     tr = _cart_pushed_to_a_stop()
     stood = [(4.15, -1.67, 0.34, -0.99)] * 25
     drift = [(4.11, -1.64, 0.30, -1.035), (4.08, -1.62, 0.27, -1.052), (4.05, -1.58, 0.23, -1.067),
@@ -143,10 +143,10 @@ def test_a_stopped_cart_whose_fit_drifts_beyond_its_radius_change_is_not_reporte
 
 
 def test_a_standing_person_seen_by_a_lone_leg_then_by_jittering_pairs_is_not_reported() -> None:
-    """curve_crossing (seed 4242, 16.2-17.2 s) as traced: a standing person's track held one lone leg 0.29 m off the
-    pelvis, then took leg pairs 7 cm apart as its seen legs changed. From the filter's stand their speed (0.36 m/s
-    over three pairs) is within one standard error of a pair's noise (0.42 m/s): no walk (reported without that
-    test); a start's three pairs (0.15 m in 0.2 s) are beyond it."""
+    """A standing person, as traced in a simulated crossing (16.2-17.2 s): its track held one lone leg 0.29 m off
+    the pelvis, then took leg pairs 7 cm apart as its seen legs changed. From the filter's stand their speed
+    (0.36 m/s over three pairs) is within one standard error of a pair's noise (0.42 m/s): no walk (reported without
+    that test); a start's three pairs (0.15 m in 0.2 s) are beyond it."""
     tr = Tracker(TrackerConfig())
     t = 0.0
     for k in range(21):  # walks in seen by one leg
@@ -162,13 +162,13 @@ def test_a_standing_person_seen_by_a_lone_leg_then_by_jittering_pairs_is_not_rep
 
 
 def test_a_stopped_cart_whose_shrinking_fit_drifts_and_whose_track_takes_two_pairs_is_not_reported() -> None:
-    """cart_pusher (seed 7, 12.1-13.1 s) as traced: the stopped cart's partly hidden fit shrank 0.34 -> 0.11 m as the
-    robot drove up, its centre sliding 0.24 m (0.2 m of it the radius's change along the line it lies behind its
-    surface on), then the track took two leg pairs of the pusher's legs and the cart 0.3-0.4 m off it. From the
-    filter's stand the detections as placed walked off (the fits' 0.3 m/s, a fit's noise half its radius), and both
-    views of the window moved: reported at 0.74 m/s, 0.33 m from the standing pusher. With each fit moved by its
-    radius's change the fits drift 4 cm in 0.5 s, within one standard error: no walk, as for every other test of
-    the window, both views must show it."""
+    """A pushed cart that stopped, as traced in simulation (12.1-13.1 s): the stopped cart's partly hidden fit shrank
+    0.34 -> 0.11 m as the robot drove up, its centre sliding 0.24 m (0.2 m of it the radius's change along the line
+    it lies behind its surface on), then the track took two leg pairs of the pusher's legs and the cart 0.3-0.4 m off
+    it. From the filter's stand the detections as placed walked off (the fits' 0.3 m/s, a fit's noise half its
+    radius), and both views of the window moved: reported at 0.74 m/s, 0.33 m from the standing pusher. With each fit
+    moved by its radius's change the fits drift 4 cm in 0.5 s, within one standard error: no walk, as for every other
+    test of the window, both views must show it."""
     tr = _cart_pushed_to_a_stop()
     stood = [(4.151, -1.674, 0.344, -0.583)] * 25
     shrink = [(4.115, -1.644, 0.305, -0.641), (4.078, -1.614, 0.265, -0.72), (4.05, -1.584, 0.232, -0.803),
@@ -188,12 +188,12 @@ def test_a_stopped_cart_whose_shrinking_fit_drifts_and_whose_track_takes_two_pai
 
 
 def test_a_standing_person_whose_other_leg_is_seen_as_a_leg_sized_fit_is_not_reported() -> None:
-    """two_people_opposite (seed 7, 13.0-16.3 s) as traced: a person standing at (3.92, 2.15), seen as leg pairs
-    (midpoint 5 cm off the pelvis) and as one lone leg 0.28 m off in turn; then a lone leg for 1 s (the filter drifts
-    to it at 0.2 m/s: it leaves its stand), three pairs 5 cm apart, the lone leg, and the other leg twice as a
-    leg-sized round body (a fit of 0.11 m, 0.23 m off the pelvis on the far side). The newer half's pair midpoints
-    were judged with that fit as one of them: the pair to the fit read as 0.23 m in 0.4 s, reported at 0.51 m/s. A
-    pair's midpoint and a fitted centre are different points (an offset per kind): they stood."""
+    """A person standing at (3.92, 2.15), as traced in simulation (13.0-16.3 s), seen as leg pairs (midpoint 5 cm off
+    the pelvis) and as one lone leg 0.28 m off in turn; then a lone leg for 1 s (the filter drifts to it at 0.2 m/s:
+    it leaves its stand), three pairs 5 cm apart, the lone leg, and the other leg twice as a leg-sized round body (a
+    fit of 0.11 m, 0.23 m off the pelvis on the far side). The newer half's pair midpoints were judged with that fit
+    as one of them: the pair to the fit read as 0.23 m in 0.4 s, reported at 0.51 m/s. A pair's midpoint and a fitted
+    centre are different points (an offset per kind): they stood."""
     tr = Tracker(TrackerConfig())
     px, py = 3.92, 2.15
     t = _walk_in_and_stop(tr, (px, py - 0.05), 0.1)
