@@ -80,8 +80,8 @@ class FlowConfig:
     global_scale_max: float = 0.5
     #: cells this close to the image's border (px at the working width, in the newest frame or where the
     #: motion takes them in the older) are not used: the flow's 8 px patches reach out of the image there
-    #: (one whole patch, 8 px, also drops the cells where a body enters the view, and was measured to locate
-    #: walkers later: docs/estimator_evidence.md, stage 2)
+    #: (one whole patch, 8 px, was measured to locate a moving body in fewer cycles and to report it later:
+    #: docs/estimator_evidence.md, stage 2)
     border_px: int = 6
     #: two neighbouring columns are two surfaces when their laser depths differ by more than this ...
     snap_jump_m: float = 0.20
