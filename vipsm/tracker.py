@@ -1214,8 +1214,8 @@ class Tracker:
         lone leg, or the partner of ``leg`` in a leg pair the track took (the pair's midpoint is then the two
         legs' midpoint); and their midpoint lies within ``gate_m`` of the prediction. A person seen by both
         legs is where their midpoint is: the two lone legs of a wide stance or a static pair (a chair's)
-        taken one at a time read as a stride (a track that takes the one, then the other 0.64 m away, has
-        moved by a stride). A static leg beside a walker's path stood where none of the walker's legs did."""
+        taken one at a time read as a stride (a track that took the one, then the other 0.64 m away, was
+        reported as moving). A static leg beside a walker's path stood where none of the walker's legs did."""
         c = self.config
         h = np.array(t.history)
         if not t.seen_as_person or h.size == 0:
