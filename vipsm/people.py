@@ -902,7 +902,7 @@ class PeopleTracker:
 def _born_dynamic(legs: list[LegTrack]) -> float:
     """P(a body that moves) of a person born of ``legs`` (seen this cycle). The detector's probability is
     that of one segment being a person's leg, against the leg-like things of rooms without people (it is
-    trained on both, with balanced classes). Two legs, each at its operating point, are a person's with the
+    trained on both, with balanced classes). Two legs at or above its operating point are a person's with the
     probability the less likely of them is a leg: the person's shape, both legs of it. One leg, or a pair
     with a weak candidate, is only a leg-like segment, what a table leg, a post or a bag gives as well:
     even odds, nothing known. What the person's standing, walking and motion evidence then say is weighed
