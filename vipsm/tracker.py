@@ -726,7 +726,9 @@ class Tracker:
             # state (``_leg_offset_applies``), not a white error; the leg's own centre is placed as well as a
             # circle's (the detection's noise, a hip's half-width off the centre, is in that offset)
             extra = 0.0
-        elif det.kind != track.kind:  # another point of the body: a lone leg vs the pair's midpoint
+        elif det.kind != track.kind and not (det.kind == "person" and track.seen_as_person):
+            # another point of the body than the last detection's (a lone leg vs the pair's midpoint). Not a
+            # person's leg pair: it measures the centre, the filter's own point (a lone leg's offset is a state)
             extra = 0.5 * KIND_CHANGE_M
         if det.occluded:  # only part of the body seen: its centre is anywhere within about a radius
             extra = math.hypot(extra, 0.5 * track.radius_m)
