@@ -347,7 +347,8 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
     view, or on beams its own robot blocks: background nearer than ``SELF_M``) is out of view: a track
     coasting where the laser cannot look is judged neither on nor off the background, and counted apart.
     A still track: its reports lie within ``STILL_TRACK_M`` of their mean and the laser saw its place
-    unchanged (:func:`place_change_m` at most ``PLACE_CHANGE_M``)."""
+    unchanged (:func:`place_change_m` at most ``PLACE_CHANGE_M``, on the beams the robot does not block: its
+    own frame is the nearest return there in every scan, whatever passes behind)."""
     assert run.bearings is not None
     stack = np.array(run.ranges)
     bg = np.percentile(np.where(np.isfinite(stack), stack, OPEN_SPACE_M), BACKGROUND_PERCENTILE, axis=0)
@@ -371,7 +372,8 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
                 on_bg += 1
     close = [np.array(p) for tid, p in tracks.items() if tid not in on_person
              and np.hypot(*(np.array(p)[:, 1:] - np.mean(np.array(p)[:, 1:], axis=0)).T).max() <= STILL_TRACK_M]
-    still = sum(1 for p in close if place_change_m(run, p[:, 0].min(), p[:, 0].max(), p[:, 1:].mean(axis=0))
+    still = sum(1 for p in close
+                if place_change_m(run, p[:, 0].min(), p[:, 0].max(), p[:, 1:].mean(axis=0), bg < SELF_M)
                 <= PLACE_CHANGE_M)
     m = run.minutes
     return {
@@ -383,16 +385,24 @@ def background_metrics(run: Run, labels: list[tuple[float, np.ndarray]] | None =
     }
 
 
-def place_change_m(run: Run, first_s: float, last_s: float, xy: np.ndarray) -> float:
+def place_change_m(run: Run, first_s: float, last_s: float, xy: np.ndarray,
+                   blocked: np.ndarray | None = None) -> float:
     """How much the laser's view of a place changed while a track was reported there: over the scans from
     ``PLACE_WINDOW_S`` before ``first_s`` to as long after ``last_s``, the spread (largest less smallest) of
     the nearest return on the beams within ``PLACE_RADIUS_M`` of ``xy`` (laser frame). A scan with no
-    return there sees open space (``OPEN_SPACE_M``): a thing that came into open space changed it fully."""
+    return there sees open space (``OPEN_SPACE_M``): a thing that came into open space changed it fully.
+    ``blocked`` (per beam): beams the robot that carries the laser blocks (its own parts, the nearest return
+    there every scan); they see nothing of the place and are left out. A place no other beam sees is out of
+    view: its change is unknown (infinite), so no track there counts as still."""
     assert run.bearings is not None
     r = float(np.hypot(*xy))
     half = math.pi if r <= PLACE_RADIUS_M else math.asin(PLACE_RADIUS_M / r)
     off = np.angle(np.exp(1j * (run.bearings - math.atan2(xy[1], xy[0]))))
     beams = np.abs(off) <= half
+    if blocked is not None:
+        beams &= ~blocked
+        if not beams.any():
+            return math.inf
     nearest = [float(np.min(np.where(np.isfinite(rr[beams]), rr[beams], OPEN_SPACE_M), initial=OPEN_SPACE_M))
                for c, rr in zip(run.cycles, run.ranges, strict=True)
                if first_s - PLACE_WINDOW_S <= c.stamp_s <= last_s + PLACE_WINDOW_S]

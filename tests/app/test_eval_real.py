@@ -114,6 +114,37 @@ def test_a_walker_reported_briefly_is_no_still_track_a_chair_is() -> None:
     assert m["still_tracks_per_min"] == pytest.approx(1 / run.minutes, rel=1e-3)  # the chair only
 
 
+def test_the_robots_own_frame_does_not_hide_a_walker_from_the_still_track_test() -> None:
+    """A walker reported for four cycles as it passes beside the robot, on a place whose beams partly hit the
+    robot's own frame (0.4 m in every scan): the frame is the nearest return there whatever passes behind it,
+    so with those beams the place looked unchanged and the walker counted as a still track. Left out, the
+    place changed (the walker came in front of the wall at 4 m); a place only the frame's beams cover is out
+    of view (no change known), and a chair in view stays a still track."""
+    b = np.linspace(-1.0, 1.0, 201)
+    ranges, cycles = [], []
+    for i in range(60):
+        r = np.full(201, 4.0)
+        r[100:104] = 0.4  # the robot's frame, every scan
+        r[40:46] = 2.0  # a chair at 2 m, always there
+        if 25 <= i <= 35:
+            r[94:100] = 0.8  # a walker passing beside the frame, 0.8 m out
+        ranges.append(r)
+        reports = [(1, 0.8 * math.cos(b[99]), 0.8 * math.sin(b[99]))] if 29 <= i <= 32 else []
+        if 29 <= i <= 32:
+            reports.append((2, 2.0 * math.cos(b[43]), 2.0 * math.sin(b[43])))
+        cycles.append(Cycle(i * 0.1, (0.0, 0.0, 0.0), reports, False, None))
+    run = Run("/scan", cycles, ranges, b)
+    blocked = np.zeros(201, bool)
+    blocked[100:104] = True
+    walker = np.array([0.8 * math.cos(b[99]), 0.8 * math.sin(b[99])])
+    assert place_change_m(run, 2.9, 3.2, walker) == pytest.approx(0.0, abs=1e-9)  # the frame in every scan
+    assert place_change_m(run, 2.9, 3.2, walker, blocked) == pytest.approx(3.2)
+    assert place_change_m(run, 2.9, 3.2, walker, np.ones(201, bool)) == math.inf  # every beam blocked
+    m = background_metrics(run)
+    assert m["still_tracks_by_reports_per_min"] == pytest.approx(2 / run.minutes, rel=1e-3)
+    assert m["still_tracks_per_min"] == pytest.approx(1 / run.minutes, rel=1e-3)  # the chair only
+
+
 def test_a_report_where_the_laser_cannot_look_is_out_of_view_not_background() -> None:
     """Beams the robot's own frame blocks (0.3 m, every scan) and bearings outside the field of view see
     nothing behind: a track coasting there is counted apart, not as on the background."""
