@@ -369,8 +369,8 @@ def _camera_cue(in_camera: list[np.ndarray], beams: np.ndarray, occluders: list[
 @dataclass(frozen=True)
 class KnownLeg:
     """A leg the people stage (:mod:`vipsm.people`) tracks, predicted to this scan: where it should be, how
-    far from that its detection may lie (a leg's reach in the elapsed time), and the walking person whose
-    two leg tracks it is one of (None: a leg of no such person)."""
+    far from that its detection may lie (a leg's reach in the elapsed time), and the confirmed person (walking
+    or standing) whose two leg tracks it is one of (None: a leg of no such person)."""
 
     x_m: float
     y_m: float
@@ -403,8 +403,8 @@ def _leg_people(legs: list[tuple[_Segment, float, float]], known: list[KnownLeg]
 
 def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, across_max_m: float) -> bool:
     """Two legs ``(dx, dy)`` apart that continue the tracked legs ``a`` and ``b`` (None: a new leg) can be one
-    person's: a walking person who holds two leg tracks has both its legs, so its legs pair only with each
-    other; the other legs pair among themselves, and only within ``across_max_m`` across the line of walking
+    person's: a person who holds two leg tracks has both its legs, so its legs pair only with each other;
+    the other legs pair among themselves, and only within ``across_max_m`` across the line of walking
     of either, widened by the line's uncertainty (:func:`vipsm.person.across_beyond_m`; the feet swing along
     it a hip's width apart; two walkers side by side have each leg 0.4 m across from the other's same leg)."""
     if (None if a is None else a.person) != (None if b is None else b.person):
@@ -416,7 +416,7 @@ def _may_pair(a: KnownLeg | None, b: KnownLeg | None, dx: float, dy: float, acro
 def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: list[KnownLeg] | None = None
                ) -> list[tuple[int, int | None]]:
     """Greedy nearest pairs of leg centres within ``leg_pair_max_m``, never a fixture, never two legs that
-    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`): a walker's two leg
+    cannot be one person's by the people stage's leg tracks (``known``; :func:`_may_pair`): a person's two leg
     tracks pair only with each other (leg_tracker's model: a person is two leg tracks whose association
     persists), and no two legs lie further apart across the line of walking of either than
     ``leg_across_max_m`` (two people walking side by side in step have each leg 0.4 m across from the other's

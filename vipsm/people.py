@@ -807,14 +807,13 @@ class PeopleTracker:
     def known_legs(self, stamp_s: float) -> list[KnownLeg]:
         """The live leg tracks predicted to ``stamp_s`` (before this cycle's :meth:`step`), each with its
         reach (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen, as the leg
-        association gates it) and, if it is one of the two leg tracks of a moving person (``moving``), that
-        person's id: the body stage pairs such a leg only with the person's other leg
-        (:func:`vipsm.bodies._may_pair`). Only a walker's pairing says more than the legs' distance: its
-        legs pair along its line of walking (``_one_body``, ``_split``) and were kept as they moved; a
-        standing person's legs were paired by distance alone (a standing cart pusher's leg and a leg of
-        the cart, which then kept the pusher's own legs apart)."""
+        association gates it) and, if it is one of the two leg tracks of a confirmed person, walking or
+        standing, that person's id: the body stage pairs such a leg only with the person's other leg
+        (:func:`vipsm.bodies._may_pair`; leg_tracker's model: a person is two leg tracks whose association
+        persists). A standing person's seen leg, its other leg hidden, would otherwise pair with any leg-sized
+        piece beside it (a cart's corner), a "person" off its pelvis that the body tracker reads as a step."""
         c = self.config
-        walker = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.moving for k in t.leg_ids}
+        walker = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.confirmed for k in t.leg_ids}
         out = []
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)

@@ -459,3 +459,35 @@ def test_a_box_beside_a_leg_as_near_as_its_corner_is_a_body_partly_hidden() -> N
     box = [b for b in bodies if b.kind == "body" and math.hypot(b.x_m - cx, b.y_m) < 0.1]
     assert len(box) == 1 and box[0].occluded
     assert any(b.kind == "leg" and math.hypot(b.x_m - 1.66, b.y_m + 0.38) < 0.05 for b in bodies)
+
+
+def test_a_standing_persons_seen_leg_pairs_only_with_its_own_other_leg() -> None:
+    """A person standing still, tracked by the people stage as two leg tracks, has one leg hidden (behind
+    the other, or by the robot's turn) while a leg-sized piece of something else stands 0.45 m beside the
+    seen leg, beyond a leg's reach since it was last seen (a cart's corner come into view). Nearest first,
+    the seen leg pairs with the piece: a "person" 0.2 m off the pelvis, which the body tracker read as a
+    step. A person's two leg tracks are one person's, standing or walking (leg_tracker's model): the seen
+    leg pairs only with its own other leg, so the leg and the piece stay two lone legs, and with both legs
+    seen the person is a pair at its pelvis."""
+    from app.legmodel import default_leg_model
+    from vipsm.people import LegDetection, PeopleConfig, PeopleTracker
+
+    world = box_room(8.0, 6.0, pillars=False)
+    grid = _seen_empty(world)
+    people = PeopleTracker(PeopleConfig(), default_leg_model())
+    legs = [(3.0, 0.1), (3.0, -0.1)]
+    for k in range(20):
+        people.step(0.1 * k, [LegDetection(x, y, 0.9, 2 * i, 2 * i + 1) for i, (x, y) in enumerate(legs)])
+    t = 2.0
+
+    def kinds(circles: list[tuple[float, float]], known: bool) -> list[str]:
+        world.circles = [Circle(x, y, 0.06) for x, y in circles]
+        scan = world.scan(ORIGIN, t_s=t, stamp_s=t)
+        return sorted(b.kind for b in extract_bodies(scan.ranges_m, scan.bearings_rad, ORIGIN, grid, [], CFG,
+                                                     TrackerConfig(),
+                                                     known_legs=people.known_legs(t) if known else None))
+
+    piece = (3.0, 0.55)
+    assert kinds([legs[0], piece], known=False) == ["person"]  # nearest first: the leg and the piece
+    assert kinds([legs[0], piece], known=True) == ["leg", "leg"]
+    assert kinds(legs, known=True) == ["person"]
