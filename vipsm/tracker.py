@@ -394,6 +394,22 @@ def _turns_as_a_face(det: Detection) -> bool:
     return 2.0 * math.asin(min(1.0, 0.5 * chord / det.radius_m)) < FACE_ARC_MAX_RAD
 
 
+def _centre_behind_surface(det: Detection, radius_m: float) -> np.ndarray:
+    """A rigid body's centre from a fitted detection: the track's radius ``radius_m`` behind the visible surface
+    (the returns' middle). The tracker holds every body as a round one of one radius; a fit of another radius
+    tells where the surface is, not the centre (a box's fit grows and shrinks as a corner turns into view). Behind
+    it along the line the fit puts its centre on (``Detection.behind_rad``: the view line for a round body seen
+    whole), or, for a flat face (:func:`_turns_as_a_face`), whose fitted centre lies behind it along its normal
+    and swings with the face's turn, along the view line from the laser."""
+    ux, uy = math.cos(det.behind_rad), math.sin(det.behind_rad)
+    sx, sy = det.x_m - det.radius_m * ux, det.y_m - det.radius_m * uy
+    if _turns_as_a_face(det):
+        vx, vy = sx - det.laser_x_m, sy - det.laser_y_m
+        d = max(math.hypot(vx, vy), 1e-6)
+        ux, uy = vx / d, vy / d
+    return np.array([sx + radius_m * ux, sy + radius_m * uy])
+
+
 #: a track's filter state per model: x, y, vx, vy and the offset of the person's lone leg seen last from its
 #: centre (``Tracker._update``)
 _N_STATE = 6
@@ -667,6 +683,9 @@ class Tracker:
         """The IMM's update: each model's Kalman update, the mode probabilities by how well each model
         predicted the detection, combine."""
         z = np.array([det.x_m, det.y_m])
+        if (det.radius_fitted and not det.occluded and track.radius_known and not track.seen_as_person
+                and math.isfinite(det.behind_rad) and math.isfinite(det.laser_x_m)):
+            z = _centre_behind_surface(det, track.radius_m)
         r = self._measurement_cov(track, det)
         h = np.eye(2, _N_STATE)
         if self._leg_offset_applies(track, det):
