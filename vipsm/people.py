@@ -813,12 +813,12 @@ class PeopleTracker:
         persists). A standing person's seen leg, its other leg hidden, would otherwise pair with any leg-sized
         piece beside it (a cart's corner), a "person" off its pelvis that the body tracker reads as a step."""
         c = self.config
-        walker = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.confirmed for k in t.leg_ids}
+        owner = {k: t.track_id for t in self.tracks if len(t.leg_ids) == 2 and t.confirmed for k in t.leg_ids}
         out = []
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
             reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
-            out.append(KnownLeg(x, y, reach, walker.get(k), *self._walking_line(k)))
+            out.append(KnownLeg(x, y, reach, owner.get(k), *self._walking_line(k)))
         return out
 
     def _walking_line(self, k: int) -> tuple[tuple[float, float] | None, float]:

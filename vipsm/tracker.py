@@ -388,10 +388,15 @@ def _turns_as_a_face(det: Detection) -> bool:
     the face's turn (:func:`_fit_invariant`). Unknown laser position: not judged."""
     if not det.radius_fitted or det.occluded or not (math.isfinite(det.laser_x_m) and math.isfinite(det.behind_rad)):
         return False
-    sx = det.x_m - det.radius_m * math.cos(det.behind_rad) - det.laser_x_m
-    sy = det.y_m - det.radius_m * math.sin(det.behind_rad) - det.laser_y_m
-    chord = 2.0 * math.hypot(sx, sy) * math.tan(0.5 * abs(det.bearing_max_rad - det.bearing_min_rad))
+    sx, sy = _surface_xy(det)
+    chord = 2.0 * math.hypot(sx - det.laser_x_m, sy - det.laser_y_m) * math.tan(
+        0.5 * abs(det.bearing_max_rad - det.bearing_min_rad))
     return 2.0 * math.asin(min(1.0, 0.5 * chord / det.radius_m)) < FACE_ARC_MAX_RAD
+
+
+def _surface_xy(det: Detection) -> tuple[float, float]:
+    """A fitted detection's visible surface (the returns' middle): its fitted radius in front of its centre."""
+    return (det.x_m - det.radius_m * math.cos(det.behind_rad), det.y_m - det.radius_m * math.sin(det.behind_rad))
 
 
 def _centre_behind_surface(det: Detection, radius_m: float) -> np.ndarray:
@@ -402,7 +407,7 @@ def _centre_behind_surface(det: Detection, radius_m: float) -> np.ndarray:
     whole), or, for a flat face (:func:`_turns_as_a_face`), whose fitted centre lies behind it along its normal
     and swings with the face's turn, along the view line from the laser."""
     ux, uy = math.cos(det.behind_rad), math.sin(det.behind_rad)
-    sx, sy = det.x_m - det.radius_m * ux, det.y_m - det.radius_m * uy
+    sx, sy = _surface_xy(det)
     if _turns_as_a_face(det):
         vx, vy = sx - det.laser_x_m, sy - det.laser_y_m
         d = max(math.hypot(vx, vy), 1e-6)

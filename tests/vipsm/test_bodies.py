@@ -465,7 +465,7 @@ def test_a_standing_persons_seen_leg_pairs_only_with_its_own_other_leg() -> None
     """A person standing still, tracked by the people stage as two leg tracks, has one leg hidden (behind
     the other, or by the robot's turn) while a leg-sized piece of something else stands 0.45 m beside the
     seen leg, beyond a leg's reach since it was last seen (a cart's corner come into view). Nearest first,
-    the seen leg pairs with the piece: a "person" 0.2 m off the pelvis, which the body tracker read as a
+    the seen leg pairs with the piece: a "person" 0.3 m off the pelvis, which the body tracker read as a
     step. A person's two leg tracks are one person's, standing or walking (leg_tracker's model): the seen
     leg pairs only with its own other leg, so the leg and the piece stay two lone legs, and with both legs
     seen the person is a pair at its pelvis."""
