@@ -25,6 +25,10 @@ PAPER_NAMES = {"paper1", "paper2", "scenario1_45deg", "scenario2_90deg"}
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.data == "real":
         return cmd_eval_real(args)
+    if args.leg_model is not None:
+        from .errors import AppError
+
+        raise AppError("--leg-model applies to --data real (the simulated runs use the packaged leg detector)")
     tune_allocator()
     scenarios = driven_scenarios(args, args.scenario)
     results = []
@@ -67,6 +71,8 @@ def default_real_data_dir() -> Path:
 
 def cmd_eval_real(args: argparse.Namespace) -> int:
     """``eval --data real``: the real-data suite (:mod:`app.evaluation.real_data`)."""
+    from vipsm.legs import ModelError
+
     from .errors import AppError
     from .evaluation.real_data import RECORDINGS, print_real_table, run_suite
 
@@ -80,8 +86,13 @@ def cmd_eval_real(args: argparse.Namespace) -> int:
         raise AppError(f"unknown recording(s) {unknown}; known: {', '.join(sorted(known))}")
     if args.max_scans is not None and args.max_scans < 1:
         raise AppError("--max-scans must be >= 1")
+    if args.leg_model is not None and not Path(args.leg_model).is_file():
+        raise AppError(f"--leg-model {args.leg_model}: no such file")
     t0 = time.perf_counter()
-    suite = run_suite(data_dir, only, args.max_scans)
+    try:
+        suite = run_suite(data_dir, only, args.max_scans, Path(args.leg_model) if args.leg_model else None)
+    except ModelError as exc:
+        raise AppError(f"--leg-model: {exc}") from exc
     if args.json:
         print_json(suite)
     else:
@@ -133,6 +144,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    "../shared/data/real_people_laser beside the repository)")
     g.add_argument("--only", metavar="NAMES", default=None, help="comma list of recordings (e.g. positive_2)")
     g.add_argument("--max-scans", type=int, metavar="N", default=None, help="only the first N scans of each")
+    g.add_argument("--leg-model", metavar="FILE", default=None,
+                   help="the leg detector's model file (default: the packaged one); e.g. one trained with "
+                   "tools/train_legs.py --held-out positive_N, to score a recording its detector never saw")
     p.set_defaults(func=cmd_eval)
 
 

@@ -1,7 +1,7 @@
 """Train the leg detector (:mod:`vipsm.legs`) on the recorded leg_tracker scans and store it as arrays.
 
     PYTHONPATH=. python tools/train_legs.py [--data-dir DIR] [--out vipsm/data/legs_model.npz] [--json]
-                                            [--baseline OTHER.npz]
+                                            [--baseline OTHER.npz] [--held-out positive_N --out FILE]
 
 (needs scikit-learn, which neither the estimator nor the app imports: the model is stored as arrays)
 
@@ -37,7 +37,10 @@ longest (``URG04LX_MAX_RANGE_M``). The demo recording is never trained on (it ha
 sets are always validated as that class reports them (``validation.by_range.urg04lx_class``).
 
 Split (honest validation): ``HELD_OUT`` is never trained on, and of the drive only the first half (by
-time) is; the held-out recording's positives with the drive's second half are the validation set. The
+time) is; the held-out recording's positives with the drive's second half are the validation set.
+``--held-out`` holds another labelled recording out instead (written to ``--out``, never the packaged file):
+the leave-one-recording-out models that ``eval --data real --leg-model`` scores each recording with, so that
+every recording has a figure from a detector that never saw it. The
 classifier is a random forest (scikit-learn, balanced class weights); the operating point is the
 probability at which out-of-fold estimates (one trained recording, with a third of the drive's first
 half, left out per fold) pass ``TARGET_FPR`` of the recorded non-legs. The validation is reported per
@@ -295,7 +298,8 @@ def banded(p: np.ndarray, x: np.ndarray, thr: float) -> dict[str, Any]:
     return out
 
 
-def validation(model: LegModel, held: tuple[np.ndarray, np.ndarray], held_far: tuple[np.ndarray, np.ndarray],
+def validation(model: LegModel, held_out: str, held: tuple[np.ndarray, np.ndarray],
+               held_far: tuple[np.ndarray, np.ndarray],
                held_wall: tuple[np.ndarray, np.ndarray] | None = None,
                held_urg: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
     """Per range band: recall on the held-out recording's legs, false-positive rate on the drive's
@@ -308,19 +312,20 @@ def validation(model: LegModel, held: tuple[np.ndarray, np.ndarray], held_far: t
         sets["before_wall"] = held_wall
     if held_urg is not None:
         sets["urg04lx_class"] = held_urg
-    return {name: {"recall_" + HELD_OUT: banded(model.predict(pos), pos, thr),
+    return {name: {"recall_" + held_out: banded(model.predict(pos), pos, thr),
                    "false_positive_rate_drive_second_half": banded(model.predict(neg), neg, thr)}
             for name, (pos, neg) in sets.items()}
 
 
-def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None, urg_copies: int = URG_COPIES
-          ) -> dict[str, Any]:
+def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None, urg_copies: int = URG_COPIES,
+          held_out: str = HELD_OUT) -> dict[str, Any]:
     """Train, store the forest at ``out`` and report; ``baseline``: (path, model) validated beside it;
-    ``urg_copies``: URG-04LX-class copies of each sample trained on (:func:`urg_class`)."""
+    ``urg_copies``: URG-04LX-class copies of each sample trained on (:func:`urg_class`); ``held_out``: the
+    labelled recording never trained on (another than ``HELD_OUT`` for a leave-one-recording-out model)."""
     rng = np.random.default_rng(SEED)
     pos = {name: labelled_samples(data, name) for name in LABELLED}
     drive_train, drive_val = drive_samples(data)
-    trained = [n for n in LABELLED if n != HELD_OUT]
+    trained = [n for n in LABELLED if n != held_out]
     parts = [pos[n] for n in trained] + [drive_train]
     labels = [1.0] * len(trained) + [0.0]
     xs, ys, gs, real = [], [], [], []
@@ -352,15 +357,15 @@ def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None, 
     if not np.allclose(model.predict(x), forest.predict_proba(x)[:, 1], atol=1e-9):
         raise RuntimeError("the exported forest does not reproduce scikit-learn's probabilities")
     vrng = np.random.default_rng(SEED + 1)
-    held = (pos[HELD_OUT].matrix(), drive_val.matrix())
-    held_far = (farther(pos[HELD_OUT], COPIES, vrng)[0], farther(drive_val, COPIES, vrng)[0])
-    held_wall = (walled(pos[HELD_OUT], WALL_COPIES, vrng)[0], walled(drive_val, WALL_COPIES, vrng)[0])
-    held_urg = (urg_class(pos[HELD_OUT], URG_VALIDATION_COPIES, vrng)[0],
+    held = (pos[held_out].matrix(), drive_val.matrix())
+    held_far = (farther(pos[held_out], COPIES, vrng)[0], farther(drive_val, COPIES, vrng)[0])
+    held_wall = (walled(pos[held_out], WALL_COPIES, vrng)[0], walled(drive_val, WALL_COPIES, vrng)[0])
+    held_urg = (urg_class(pos[held_out], URG_VALIDATION_COPIES, vrng)[0],
                 urg_class(drive_val, URG_VALIDATION_COPIES, vrng)[0])
     p_held, p_val = model.predict(held[0]), model.predict(held[1])
     report = {
         "model": str(out), "trees": len(forest.estimators_), "depth": model.depth, "nodes": int(model.feature.size),
-        "threshold_p": round(thr, 4), "held_out": HELD_OUT, "drive_split": "first half trained, second half held out",
+        "threshold_p": round(thr, 4), "held_out": held_out, "drive_split": "first half trained, second half held out",
         "reseen_copies": COPIES, "reseen_up_to_m": FAR_RANGE_M, "wall_copies": WALL_COPIES,
         "wall_depth_m": list(WALL_DEPTH_M),
         "urg_copies": urg_copies,
@@ -372,21 +377,25 @@ def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None, 
                        "drive_second_half_negatives": figures(np.zeros(0), p_val, thr),
                        "recall_at_drive_fpr": {f"{f:g}": round(float(np.mean(p_held > np.quantile(p_val, 1 - f))), 3)
                                                for f in (0.02, 0.05, 0.1, 0.2)},
-                       "by_range": validation(model, held, held_far, held_wall, held_urg)},
+                       "by_range": validation(model, held_out, held, held_far, held_wall, held_urg)},
         "positives_per_recording": {n: len(pos[n].rows) for n in LABELLED},
         "feature_importance": {n: round(float(v), 4) for n, v in zip(FEATURE_NAMES, forest.feature_importances_,
                                                                        strict=True)},
     }
     if baseline is not None:
         report["baseline"] = {"model": str(baseline[0]),
-                              "by_range": validation(baseline[1], held, held_far, held_wall, held_urg)}
+                              "by_range": validation(baseline[1], held_out, held, held_far, held_wall, held_urg)}
     return report
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="tools/train_legs.py", description=__doc__.split("\n")[0])
     ap.add_argument("--data-dir", type=Path, default=None)
-    ap.add_argument("--out", type=Path, default=default_model_path())
+    ap.add_argument("--out", type=Path, default=None,
+                    help="the model file to write (default: the packaged one, vipsm/data/legs_model.npz)")
+    ap.add_argument("--held-out", choices=LABELLED, default=HELD_OUT,
+                    help="the labelled recording never trained on (default %(default)s, the packaged model's); "
+                    "another one needs --out (a leave-one-recording-out model, for eval --data real --leg-model)")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--urg-copies", type=int, default=URG_COPIES,
                     help="URG-04LX-class copies of each sample to train on (default %(default)s: measured, not kept)")
@@ -395,6 +404,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.urg_copies < 0:
         print(f"train_legs: error: --urg-copies must be >= 0, got {args.urg_copies}", file=sys.stderr)
+        return 2
+    if args.held_out != HELD_OUT and args.out is None:
+        print(f"train_legs: error: --held-out {args.held_out} needs --out (the packaged model holds {HELD_OUT} out)",
+              file=sys.stderr)
         return 2
     try:  # before the training: a bad file fails at once, not after it
         baseline = (args.baseline, load_leg_model(args.baseline)) if args.baseline is not None else None
@@ -405,7 +418,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (data / DRIVE_BAG).exists():
         print(f"train_legs: error: no recordings in {data}", file=sys.stderr)
         return 2
-    report = train(data, args.out, baseline, args.urg_copies)
+    report = train(data, args.out or default_model_path(), baseline, args.urg_copies, args.held_out)
     print(json.dumps(report, indent=None if args.json else 2))
     return 0
 

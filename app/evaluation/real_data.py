@@ -52,12 +52,12 @@ from typing import Any
 import numpy as np
 
 from vipsm.estimator import Estimator, EstimatorConfig
-from vipsm.legs import FEATURE_NAMES
+from vipsm.legs import FEATURE_NAMES, LegModel
 from vipsm.psm import PsmResult
 from vipsm.types import EstimateFlag
 
 from ..bagread import LASER_SCAN, BagTopics, bag_topics, open_reader, read_bag
-from ..legmodel import default_leg_model, leg_candidates
+from ..legmodel import default_leg_model, default_model_path, leg_candidates, load_leg_model
 
 SPEED_WINDOW_S = 1.0  # the centroid fit spans +-half of this
 WALKING_MPS = 0.3
@@ -173,11 +173,12 @@ def refusal_reason(est: Estimator) -> str | None:
 
 
 def run_estimator(bag: Path, topic: str, max_scans: int | None = None,
-                  config: EstimatorConfig | None = None) -> Run:
-    """The estimator (laser only, no odometry: each cycle predicted where the last ended) over a bag."""
+                  config: EstimatorConfig | None = None, leg_model: LegModel | None = None) -> Run:
+    """The estimator (laser only, no odometry: each cycle predicted where the last ended) over a bag, with
+    ``leg_model`` (None: the packaged leg detector)."""
     from ..bagread import BagReadResult
 
-    est = Estimator(config or EstimatorConfig(), leg_model=default_leg_model())
+    est = Estimator(config or EstimatorConfig(), leg_model=leg_model or default_leg_model())
     run = Run(topic)
     read = BagReadResult()
     t0 = time.perf_counter()
@@ -650,8 +651,10 @@ def end_vs_loop(path: np.ndarray, loop: np.ndarray) -> dict[str, float]:
 # the suite
 
 
-def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = None) -> list[dict[str, Any]]:
-    """One entry per scan topic evaluated (the drive has three lasers)."""
+def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = None,
+                       leg_model: LegModel | None = None) -> list[dict[str, Any]]:
+    """One entry per scan topic evaluated (the drive has three lasers); ``leg_model``: as
+    :func:`run_estimator`."""
     bag = data_dir / rec.bag
     topics = scan_topics(bag)
     out = []
@@ -659,7 +662,7 @@ def evaluate_recording(rec: Recording, data_dir: Path, max_scans: int | None = N
     headings_conf: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # the same of the configured reference
     paths: dict[str, LaserPaths] = {}  # per path source, per laser: stamps, poses
     for topic in topics if rec.kind == "drive" else topics[:1]:
-        run = run_estimator(bag, topic, max_scans)
+        run = run_estimator(bag, topic, max_scans, leg_model=leg_model)
         res: dict[str, Any] = {"recording": rec.name, "topic": topic, "kind": rec.kind, "scans": len(run.cycles),
                                "duration_s": round(60.0 * run.minutes, 2), "sensor": run.sensor,
                                "ms_per_cycle": round(run.ms_per_cycle, 2), **refusal_metrics(run), **report_counts(run)}
@@ -757,7 +760,11 @@ def _heading_agreement(results: list[dict[str, Any]], headings: dict[str, tuple[
         r[key]["heading_vs_other_lasers_max_deg"] = round(math.degrees(float(max(diffs))), 2)
 
 
-def run_suite(data_dir: Path, only: list[str] | None = None, max_scans: int | None = None) -> dict[str, Any]:
+def run_suite(data_dir: Path, only: list[str] | None = None, max_scans: int | None = None,
+              leg_model: Path | None = None) -> dict[str, Any]:
+    """Every recording of ``data_dir`` (or those ``only`` names) evaluated, with the leg detector stored at
+    ``leg_model`` (None: the packaged one; :func:`app.legmodel.load_leg_model` raises on a bad file)."""
+    model = default_leg_model() if leg_model is None else load_leg_model(leg_model)
     results, skipped = [], []
     for rec in RECORDINGS:
         if only and rec.name not in only:
@@ -765,8 +772,9 @@ def run_suite(data_dir: Path, only: list[str] | None = None, max_scans: int | No
         if not (data_dir / rec.bag).exists():
             skipped.append(rec.name)
             continue
-        results.extend(evaluate_recording(rec, data_dir, max_scans))
-    return {"data_dir": str(data_dir), "recordings": results, "skipped": skipped}
+        results.extend(evaluate_recording(rec, data_dir, max_scans, model))
+    return {"data_dir": str(data_dir), "leg_model": str(leg_model or default_model_path()), "recordings": results,
+            "skipped": skipped}
 
 
 def print_real_table(suite: dict[str, Any]) -> None:

@@ -232,6 +232,42 @@ def test_eval_real_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     assert json.loads(capsys.readouterr().out)["skipped"] == [r.name for r in RECORDINGS]
 
 
+def test_eval_real_leg_model_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--leg-model``: a missing or damaged file is refused before any recording is read; the simulated runs
+    refuse it (they use the packaged detector)."""
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--leg-model", str(tmp_path / "no.npz")]) == 2
+    assert "--leg-model" in capsys.readouterr().err
+    (tmp_path / "bad.npz").write_bytes(b"PK\x03\x04" + bytes(60))
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--leg-model", str(tmp_path / "bad.npz")]) == 2
+    assert "cannot read the leg model" in capsys.readouterr().err
+    assert main(["eval", "--scenario", "paper1", "--leg-model", str(tmp_path / "bad.npz")]) == 2
+    assert "applies to --data real" in capsys.readouterr().err
+
+
+def test_eval_real_scores_with_the_leg_model_given(shared_data: Path, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """A detector that takes nothing for a leg (every leaf's probability 0) finds nobody where the packaged
+    one finds the labelled walker: the file given is the one the estimator runs with."""
+    from app.legmodel import default_model_path
+
+    src = shared_data / "real_people_laser"
+    if not (src / "positive_2.bag").exists() or not (src / "positive_2_extracted.bag").exists():
+        pytest.skip(f"positive_2 not in {src}")
+    with np.load(default_model_path(), allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["value"] = np.zeros_like(arrays["value"])
+    np.savez_compressed(tmp_path / "blind.npz", **arrays)
+    found = {}
+    for model in (None, tmp_path / "blind.npz"):
+        extra = ["--leg-model", str(model)] if model else []
+        assert main(["eval", "--data", "real", "--data-dir", str(src), "--only", "positive_2", "--max-scans", "120",
+                     "--json", *extra]) == 0
+        suite = json.loads(capsys.readouterr().out)
+        assert suite["leg_model"] == str(model or default_model_path())
+        found[model] = suite["recordings"][0]["people"]["recall_0.5m"]["all"]
+    assert found[None] > 0.5 and found[tmp_path / "blind.npz"] == 0.0
+
+
 def test_drive_against_kiss_icp(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The drive's first 40 scans of each laser: kiss-icp runs as the reference, as recorded and configured
     for the scans (the robot's reach left out, de-skewed), and each path source's three lasers agree with

@@ -209,6 +209,12 @@ def test_train_legs_refuses_a_bad_baseline_before_training(tmp_path, capsys) -> 
     assert "--baseline" in capsys.readouterr().err and not (tmp_path / "m.npz").exists()
     assert tl.main(["--data-dir", str(tmp_path), "--out", str(tmp_path / "m.npz")]) == 2
     assert "no recordings" in capsys.readouterr().err
+    # another recording held out is a leave-one-out model: never written over the packaged one
+    assert tl.main(["--held-out", "positive_1", "--data-dir", str(tmp_path)]) == 2
+    assert "needs --out" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        tl.main(["--held-out", "positive_9", "--out", str(tmp_path / "m.npz")])
+    assert "invalid choice" in capsys.readouterr().err and not (tmp_path / "m.npz").exists()
 
 
 def test_validation_reports_each_model_per_band_on_the_same_rows() -> None:
