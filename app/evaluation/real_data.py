@@ -67,8 +67,8 @@ FAR_M = 1.0
 BACKGROUND_PERCENTILE = 95.0
 BACKGROUND_MARGIN_M = 0.3
 STILL_TRACK_M = 0.3
-#: the place of a track whose reports lie close together, as the laser saw it: the nearest return on the
-#: beams within a person's radius (``PLACE_RADIUS_M``) of the reports' mean, from ``PLACE_WINDOW_S`` before
+#: the place of a track whose reports lie close together, as the laser saw it: the nearest return at or behind
+#: it on the beams within a person's radius (``PLACE_RADIUS_M``) of the reports' mean, from ``PLACE_WINDOW_S`` before
 #: the first report to as long after the last. A change of more than ``PLACE_CHANGE_M`` (a leg's width: the
 #: people stage's ``leg_travel_m``) means something came or left there: the track was on a moving thing.
 #: A chair stays put to the range noise, a standing person's sway moves its nearest return a few cm
@@ -390,11 +390,14 @@ def place_change_m(run: Run, first_s: float, last_s: float, xy: np.ndarray,
                    blocked: np.ndarray | None = None) -> float:
     """How much the laser's view of a place changed while a track was reported there: over the scans from
     ``PLACE_WINDOW_S`` before ``first_s`` to as long after ``last_s``, the spread (largest less smallest) of
-    the nearest return on the beams within ``PLACE_RADIUS_M`` of ``xy`` (laser frame). A scan with no
-    return there sees open space (``OPEN_SPACE_M``): a thing that came into open space changed it fully.
-    ``blocked`` (per beam): beams the robot that carries the laser blocks (its own parts, the nearest return
-    there every scan); they see nothing of the place and are left out. A place no other beam sees is out of
-    view: its change is unknown (infinite), so no track there counts as still."""
+    the nearest return at or behind the place on the beams within ``PLACE_RADIUS_M`` of ``xy`` (laser frame).
+    A scan with no return there sees open space (``OPEN_SPACE_M``): a thing that came into open space changed
+    it fully. A return nearer than where its beam enters the place's disc (``PLACE_RADIUS_M`` about ``xy``)
+    hides the place on that beam and says nothing of it: a static thing in front of the place at the edge of
+    its beams would otherwise be the nearest return in every scan, whatever came and went at the place.
+    ``blocked`` (per beam): beams the robot that carries the laser blocks (its own parts); they see nothing of
+    the place and are left out. A place no beam sees in any scan of the window is out of view: its change is
+    unknown (infinite), so no track there counts as still."""
     assert run.bearings is not None
     r = float(np.hypot(*xy))
     half = math.pi if r <= PLACE_RADIUS_M else math.asin(PLACE_RADIUS_M / r)
@@ -404,10 +407,17 @@ def place_change_m(run: Run, first_s: float, last_s: float, xy: np.ndarray,
         beams &= ~blocked
         if not beams.any():
             return math.inf
-    nearest = [float(np.min(np.where(np.isfinite(rr[beams]), rr[beams], OPEN_SPACE_M), initial=OPEN_SPACE_M))
-               for c, rr in zip(run.cycles, run.ranges, strict=True)
-               if first_s - PLACE_WINDOW_S <= c.stamp_s <= last_s + PLACE_WINDOW_S]
-    return max(nearest) - min(nearest) if nearest else 0.0
+    # where each beam enters the place's disc: a return nearer than that hides the place on that beam
+    across = r * np.sin(off[beams])
+    entry = r * np.cos(off[beams]) - np.sqrt(np.maximum(PLACE_RADIUS_M**2 - across**2, 0.0))
+    nearest = []
+    for c, rr in zip(run.cycles, run.ranges, strict=True):
+        if first_s - PLACE_WINDOW_S <= c.stamp_s <= last_s + PLACE_WINDOW_S:
+            seen = np.where(np.isfinite(rr[beams]), rr[beams], OPEN_SPACE_M)
+            seen = seen[seen >= entry]
+            if seen.size:
+                nearest.append(float(seen.min()))
+    return max(nearest) - min(nearest) if nearest else math.inf
 
 
 def _labelled_legs(labels: list[tuple[float, np.ndarray]] | None, stamp_s: float) -> np.ndarray | None:

@@ -137,12 +137,45 @@ def test_the_robots_own_frame_does_not_hide_a_walker_from_the_still_track_test()
     blocked = np.zeros(201, bool)
     blocked[100:104] = True
     walker = np.array([0.8 * math.cos(b[99]), 0.8 * math.sin(b[99])])
-    assert place_change_m(run, 2.9, 3.2, walker) == pytest.approx(0.0, abs=1e-9)  # the frame in every scan
+    # the frame, nearer than the place, hides it on its beams even where they are not known to be blocked
+    assert place_change_m(run, 2.9, 3.2, walker) == pytest.approx(3.2)
     assert place_change_m(run, 2.9, 3.2, walker, blocked) == pytest.approx(3.2)
     assert place_change_m(run, 2.9, 3.2, walker, np.ones(201, bool)) == math.inf  # every beam blocked
     m = background_metrics(run)
     assert m["still_tracks_by_reports_per_min"] == pytest.approx(2 / run.minutes, rel=1e-3)
     assert m["still_tracks_per_min"] == pytest.approx(1 / run.minutes, rel=1e-3)  # the chair only
+
+
+def test_a_thing_in_front_of_a_place_does_not_hide_a_walker_from_the_still_track_test() -> None:
+    """A post at 2.0 m stands at the edge of the beams of a place 2.36 m out, where a walker passes for 0.7 s in
+    front of a wall at 3.0 m: the post is the nearest return of those beams in every scan, so the place looked
+    unchanged and the walker, reported three cycles, counted as a still track. Returns nearer than where their
+    beam enters the place's disc hide it on that beam and say nothing of it (a second post at the other edge,
+    at the place's own range but beside the disc, too): the place changed (the walker came in front of the wall). A
+    place hidden in every scan of its window is out of view, never still; the post's own place is still."""
+    b = np.linspace(-1.0, 1.0, 401)
+    ranges, cycles = [], []
+    place = np.array([2.36, 0.0])
+    post = int(np.searchsorted(b, -0.1))  # within the place's beams: asin(0.25 / 2.36) = 0.106 rad
+    aside = int(np.searchsorted(b, 0.1))
+    for i in range(40):
+        r = np.full(401, 3.0)
+        r[post - 1:post + 1] = 2.0
+        r[aside - 1:aside + 1] = 2.2  # at the place's range, 0.28 m beside it: outside its disc, in front of it
+        if 15 <= i <= 21:
+            r[196:205] = 2.3  # the walker, passing the place
+        ranges.append(r)
+        reports = [(1, 2.36, 0.05 * (i - 18))] if 17 <= i <= 19 else []
+        cycles.append(Cycle(i * 0.1, (0.0, 0.0, 0.0), reports, False, None))
+    run = Run("/scan", cycles, ranges, b)
+    assert place_change_m(run, 1.7, 1.9, place) == pytest.approx(0.7)
+    post_xy = np.array([2.0 * math.cos(b[post]), 2.0 * math.sin(b[post])])
+    assert place_change_m(run, 1.7, 1.9, post_xy) == pytest.approx(0.0)
+    hidden = np.array([3.5 * math.cos(b[200]), 3.5 * math.sin(b[200])])  # behind the wall: never seen
+    assert place_change_m(run, 1.7, 1.9, hidden) == math.inf
+    m = background_metrics(run)
+    assert m["still_tracks_by_reports_per_min"] == pytest.approx(1 / run.minutes, rel=1e-3)
+    assert m["still_tracks_per_min"] == 0.0
 
 
 def test_a_report_where_the_laser_cannot_look_is_out_of_view_not_background() -> None:
