@@ -229,8 +229,8 @@ def test_validation_reports_each_model_per_band_on_the_same_rows() -> None:
     far = leg.copy()
     far[FEATURE_NAMES.index("range_m")] = 7.0
     rows = np.stack([leg, far])
-    out = tl.validation(model, (rows, rows), (rows, rows))
-    rec = out["recorded"]["recall_" + tl.HELD_OUT]
+    out = tl.validation(model, "positive_2", (rows, rows), (rows, rows))
+    rec = out["recorded"]["recall_positive_2"]  # named for the recording held out
     assert rec["0-2"]["n"] == 0 and rec["2-3.5"]["n"] == 1 and rec["6.5-8"]["n"] == 1
     p = model.predict(rows)
     assert rec["2-3.5"]["share"] == float(p[0] >= model.threshold_p)
