@@ -148,6 +148,12 @@ def _forest() -> Any:
                                   class_weight="balanced_subsample", random_state=SEED, n_jobs=1)
 
 
+def _sklearn_version() -> str:
+    import sklearn
+
+    return str(sklearn.__version__)
+
+
 def operating_point(x: np.ndarray, y: np.ndarray, groups: np.ndarray, recorded: np.ndarray
                     ) -> tuple[float, np.ndarray]:
     """The leg probability at which forests trained on the other groups pass ``TARGET_FPR`` of the
@@ -365,6 +371,8 @@ def train(data: Path, out: Path, baseline: tuple[Path, LegModel] | None = None, 
     p_held, p_val = model.predict(held[0]), model.predict(held[1])
     report = {
         "model": str(out), "trees": len(forest.estimators_), "depth": model.depth, "nodes": int(model.feature.size),
+        # the forest grown from the same samples differs between scikit-learn releases (docs/real_data.md)
+        "scikit_learn": _sklearn_version(), "numpy": np.__version__,
         "threshold_p": round(thr, 4), "held_out": held_out, "drive_split": "first half trained, second half held out",
         "reseen_copies": COPIES, "reseen_up_to_m": FAR_RANGE_M, "wall_copies": WALL_COPIES,
         "wall_depth_m": list(WALL_DEPTH_M),
