@@ -10,14 +10,15 @@ is a pair of leg tracks):
    likelier is kept (:func:`_apart`: two legs cannot overlap);
 2. **leg tracks**: global nearest neighbour (:func:`vipsm.assignment.assign`) of the legs to the leg
    tracks' predicted positions within a leg's reach in the elapsed time (``leg_step_m`` plus
-   ``leg_max_speed_mps`` per second), then of the weak candidates to the person's leg tracks no leg
-   continued (a far leg of 3 returns often scores below the operating point); a weak candidate never
-   starts a leg track, joins no leg to a person and starts no person, is weighed by its leg probability
-   in the person's existence, and is no evidence that a body moves (it may be another thing's segment);
-   a leg track unseen for ``leg_memory_s`` ends. A static leg's
-   detection barely moves, so a chair's four legs are four still leg tracks whatever the viewpoint. A
-   track that took a detection where something else already stood (the laser returned there when it last
-   saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
+   ``leg_max_speed_mps`` per second; each pair's cost its distance squared over that reach), one person's
+   two legs then given their two detections by a gait's model (:meth:`PeopleTracker._one_leg_at_a_time`),
+   then of the weak candidates to the person's leg tracks no leg continued (a far leg of 3 returns often
+   scores below the operating point); a weak candidate never starts a leg track, joins no leg to a person
+   and starts no person, is weighed by its leg probability in the person's existence, and is no evidence
+   that a body moves (it may be another thing's segment); a leg track unseen for ``leg_memory_s`` ends. A
+   static leg's detection barely moves, so a chair's four legs are four still leg tracks whatever the
+   viewpoint. A track that took a detection where something else already stood (the laser returned there
+   when it last saw the place) re-locked onto that thing: its "travel" there is no motion evidence;
 3. **people from leg tracks**: a person keeps its leg tracks (at most two) for as long as they live.
    Its measurement is the midpoint of its two legs (one hidden: the midpoint with where that leg's track
    predicts it, at its own velocity for up to ``leg_memory_s``, with noise growing with how far it may have
@@ -409,7 +410,11 @@ class PeopleTracker:
                    ) -> dict[int, int]:
         """Global nearest neighbour of the leg tracks to the detections ``cols`` within each track's reach
         (``leg_step_m`` plus ``leg_max_speed_mps`` over the time since it was seen): track index -> detection
-        index."""
+        index. Each pair costs its distance squared over the track's reach (a Gaussian's negative
+        log-likelihood, the reach its scale): summed distances let a track whose own leg went unseen jump
+        past another body's leg onto a far detection while that body's track takes a worse one (side-by-side
+        walkers' tracks swapping legs); one person's two legs are judged by a gait's model after
+        (:meth:`_one_leg_at_a_time`)."""
         c = self.config
         if not tracks or not cols:
             return {}
@@ -420,8 +425,35 @@ class PeopleTracker:
             for k, j in enumerate(cols):
                 dist = math.hypot(detections[j].x_m - px, detections[j].y_m - py)
                 if dist <= reach:
-                    cost[i, k] = dist
-        return {i: cols[k] for i, k in assign_gated(cost).items()}
+                    cost[i, k] = (dist / reach) ** 2
+        got = {i: cols[k] for i, k in assign_gated(cost).items()}
+        self._one_leg_at_a_time(stamp_s, tracks, detections, got)
+        return got
+
+    def _one_leg_at_a_time(self, stamp_s: float, tracks: list[LegTrack], detections: list[LegDetection],
+                           got: dict[int, int]) -> None:
+        """Which of one person's two leg tracks took which of two detections, by a gait's model (in place in
+        ``got``): the association's cost, a leg's squared distance over its reach, keeps each track off
+        another person's leg, but between one person's two legs it prefers both moving half as far to one
+        standing and one swinging, and a gait moves one leg at a time. So of the two ways to give the two
+        detections to the person's two legs, the likelier under :func:`_leg_cost` (each leg standing or
+        swinging, even odds) is kept, where both lie within both legs' reach."""
+        c = self.config
+        index = {lt.leg_id: i for i, lt in enumerate(tracks)}
+        for t in self.tracks:
+            if len(t.leg_ids) != 2 or not all(k in index and index[k] in got for k in t.leg_ids):
+                continue
+            a, b = (index[k] for k in t.leg_ids)
+            pa, pb = (tracks[i].predicted(stamp_s, c.leg_memory_s) for i in (a, b))
+            ra, rb = (c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - tracks[i].seen_s, 0.0) for i in (a, b))
+            da, db = detections[got[a]], detections[got[b]]
+
+            def cost(p: tuple[float, float], r: float, d: LegDetection) -> float:
+                dist = math.hypot(d.x_m - p[0], d.y_m - p[1])
+                return _leg_cost(dist, r, 0.5 * c.leg_step_m) if dist <= r else math.inf
+
+            if cost(pa, ra, db) + cost(pb, rb, da) < cost(pa, ra, da) + cost(pb, rb, db):
+                got[a], got[b] = got[b], got[a]
 
     def _one_body(self, a: tuple[float, float], b: tuple[float, float], v: tuple[float, float]) -> bool:
         """Two leg centres ``a``, ``b`` can be one person's whose body moves at velocity ``v``: within a
@@ -896,6 +928,16 @@ class PeopleTracker:
                               tuple(float(v) for v in p[:2, :2].ravel()), round(t.p_moving, 4), t.moving,
                               round(t.existence, 4), t.legs))
         return tuple(out)
+
+
+def _leg_cost(dist_m: float, reach_m: float, stand_sigma_m: float) -> float:
+    """The negative log-likelihood of a leg's detection ``dist_m`` from its prediction under a gait's two leg
+    states, even odds: standing (placed within ``stand_sigma_m``) or swinging (anywhere within its reach,
+    ``reach_m`` as two sigma). Of two ways to move a person's two legs, one standing and one swinging far is
+    likelier than both moving half as far."""
+    def density(sigma_m: float) -> float:
+        return math.exp(-0.5 * (dist_m / sigma_m) ** 2) / (2.0 * math.pi * sigma_m**2)
+    return -math.log(0.5 * density(stand_sigma_m) + 0.5 * density(0.5 * reach_m) + 1e-300)
 
 
 def _born_dynamic(legs: list[LegTrack]) -> float:

@@ -673,6 +673,36 @@ def test_gated_assignment_leaves_out_forbidden_pairs() -> None:
     assert assign_gated(np.zeros((0, 3))) == {}
 
 
+def test_two_peoples_legs_each_move_a_little_rather_than_one_jumping_past_the_other() -> None:
+    """Leg tracks A and B of no one person, 0.2 m apart; next scan one detection where B stood and one 0.36 m
+    from A, 0.2 m beyond B. Summed distances take A past B onto the far one and leave B standing (0.36 against
+    0.2 + 0.2); the association's cost, each distance squared over the track's reach, moves each 0.2 m: a leg
+    does not jump past another body's leg. (One person's two legs are judged by a gait's model instead, one leg
+    at a time: ``test_a_swing_leg_landing_a_short_stride_beside_its_partner_still_travels``.)"""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    tr._track_legs(0.0, [LegDetection(0.0, 0.0, 0.9, 0, 1), LegDetection(0.2, 0.0, 0.9, 2, 3)])
+    a, b = sorted(tr.legs.values(), key=lambda lt: lt.x_m)
+    tr._track_legs(0.1, [LegDetection(0.2, 0.0, 0.9, 0, 1), LegDetection(0.324, 0.057, 0.9, 2, 3)])
+    assert (a.x_m, a.y_m) == (pytest.approx(0.2), pytest.approx(0.0))
+    assert (b.x_m, b.y_m) == (pytest.approx(0.324), pytest.approx(0.057)) and len(tr.legs) == 2
+
+
+def test_one_persons_two_legs_are_given_their_detections_one_leg_at_a_time() -> None:
+    """The same two detections given to one standing person's two legs: one leg stands and the other swings
+    past it, as a gait moves its legs, not both moving half as far (``_leg_cost``: standing within half a
+    leg's step, or swinging anywhere within its reach)."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(4):
+        tr.step(0.1 * k, [LegDetection(0.0, 0.0, 0.9, 0, 1), LegDetection(0.2, 0.0, 0.9, 2, 3)],
+                seen_free=lambda x, y: False)
+    (person,) = tr.tracks
+    a, b = sorted((tr.legs[k] for k in person.leg_ids), key=lambda lt: lt.x_m)
+    tr.step(0.4, [LegDetection(0.2, 0.0, 0.9, 0, 1), LegDetection(0.324, 0.057, 0.9, 2, 3)],
+            seen_free=lambda x, y: False)
+    assert (b.x_m, b.y_m) == (pytest.approx(0.2), pytest.approx(0.0))
+    assert (a.x_m, a.y_m) == (pytest.approx(0.324), pytest.approx(0.057))
+
+
 def test_the_estimator_without_a_leg_model_tracks_no_people() -> None:
     from vipsm.estimator import Estimator
     from vipsm.types import Odometry, Scan
