@@ -421,7 +421,7 @@ class PeopleTracker:
         cost = np.full((len(tracks), len(cols)), np.inf)
         for i, lt in enumerate(tracks):
             px, py = lt.predicted(stamp_s, c.leg_memory_s)
-            reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+            reach = self._reach_m(lt, stamp_s)
             for k, j in enumerate(cols):
                 dist = math.hypot(detections[j].x_m - px, detections[j].y_m - py)
                 if dist <= reach:
@@ -438,22 +438,29 @@ class PeopleTracker:
         standing and one swinging, and a gait moves one leg at a time. So of the two ways to give the two
         detections to the person's two legs, the likelier under :func:`_leg_cost` (each leg standing or
         swinging, even odds) is kept, where both lie within both legs' reach."""
-        c = self.config
         index = {lt.leg_id: i for i, lt in enumerate(tracks)}
         for t in self.tracks:
             if len(t.leg_ids) != 2 or not all(k in index and index[k] in got for k in t.leg_ids):
                 continue
-            a, b = (index[k] for k in t.leg_ids)
-            pa, pb = (tracks[i].predicted(stamp_s, c.leg_memory_s) for i in (a, b))
-            ra, rb = (c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - tracks[i].seen_s, 0.0) for i in (a, b))
-            da, db = detections[got[a]], detections[got[b]]
+            a, b = (tracks[index[k]] for k in t.leg_ids)
+            da, db = (detections[got[index[k]]] for k in t.leg_ids)
+            if (self._gait_cost(stamp_s, a, db) + self._gait_cost(stamp_s, b, da)
+                    < self._gait_cost(stamp_s, a, da) + self._gait_cost(stamp_s, b, db)):
+                ia, ib = (index[k] for k in t.leg_ids)
+                got[ia], got[ib] = got[ib], got[ia]
 
-            def cost(p: tuple[float, float], r: float, d: LegDetection) -> float:
-                dist = math.hypot(d.x_m - p[0], d.y_m - p[1])
-                return _leg_cost(dist, r, 0.5 * c.leg_step_m) if dist <= r else math.inf
+    def _gait_cost(self, stamp_s: float, lt: LegTrack, d: LegDetection) -> float:
+        """:func:`_leg_cost` of leg track ``lt`` taking detection ``d`` (inf beyond its reach)."""
+        c = self.config
+        px, py = lt.predicted(stamp_s, c.leg_memory_s)
+        dist, reach = math.hypot(d.x_m - px, d.y_m - py), self._reach_m(lt, stamp_s)
+        return _leg_cost(dist, reach, 0.5 * c.leg_step_m) if dist <= reach else math.inf
 
-            if cost(pa, ra, db) + cost(pb, rb, da) < cost(pa, ra, da) + cost(pb, rb, db):
-                got[a], got[b] = got[b], got[a]
+    def _reach_m(self, lt: LegTrack, stamp_s: float) -> float:
+        """How far leg track ``lt``'s leg may be from its prediction at ``stamp_s``: ``leg_step_m`` plus
+        ``leg_max_speed_mps`` over the time since it was seen (the leg association's gate)."""
+        c = self.config
+        return c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
 
     def _one_body(self, a: tuple[float, float], b: tuple[float, float], v: tuple[float, float]) -> bool:
         """Two leg centres ``a``, ``b`` can be one person's whose body moves at velocity ``v``: within a
@@ -849,7 +856,7 @@ class PeopleTracker:
         out = []
         for k, lt in self.legs.items():
             x, y = lt.predicted(stamp_s, c.leg_memory_s)
-            reach = c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+            reach = self._reach_m(lt, stamp_s)
             out.append(KnownLeg(x, y, reach, owner.get(k), *self._walking_line(k)))
         return out
 
