@@ -86,8 +86,6 @@ def cmd_eval_real(args: argparse.Namespace) -> int:
         raise AppError(f"unknown recording(s) {unknown}; known: {', '.join(sorted(known))}")
     if args.max_scans is not None and args.max_scans < 1:
         raise AppError("--max-scans must be >= 1")
-    if args.leg_model is not None and not Path(args.leg_model).is_file():
-        raise AppError(f"--leg-model {args.leg_model}: no such file")
     t0 = time.perf_counter()
     try:
         suite = run_suite(data_dir, only, args.max_scans, Path(args.leg_model) if args.leg_model else None)
