@@ -179,6 +179,8 @@ class Body:
     #: body seen whole it is the view line from the laser; for a flat face seen obliquely (a door leaf, a
     #: box's side) it is the face's normal, which the view line is not
     behind_rad: float = math.nan
+    #: a leg pair's or a lone leg's: the centres of its legs (world frame), one per leg seen
+    legs_xy: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -473,12 +475,13 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
         x = float(np.mean([g[1] for g in group]))
         y = float(np.mean([g[2] for g in group]))
         kind = "person" if j is not None else "leg"
-        bodies.append(_body(x, y, der.person_radius_m, False, kind, [g[0] for g in group], bearings_rad, cfg))
+        bodies.append(_body(x, y, der.person_radius_m, False, kind, [g[0] for g in group], bearings_rad, cfg,
+                            tuple((g[1], g[2]) for g in group)))
     return bodies
 
 
 def _body(x: float, y: float, radius: float, fitted: bool, kind: str, segs: list[_Segment],
-          bearings_rad: np.ndarray, cfg: BodiesConfig) -> Body:
+          bearings_rad: np.ndarray, cfg: BodiesConfig, legs_xy: tuple[tuple[float, float], ...] = ()) -> Body:
     a = min(sg.start for sg in segs)
     z = max(sg.stop for sg in segs)
     n_pts = sum(sg.points.shape[0] for sg in segs)
@@ -487,4 +490,4 @@ def _body(x: float, y: float, radius: float, fitted: bool, kind: str, segs: list
     # an occluder that is another segment of this body (one leg in front of the other) hides nothing
     occluded = any(not any(o.start <= k < o.stop for o in segs) for sg in segs for k in sg.occluders)
     return Body(x, y, radius, fitted, kind, float(share), any(sg.camera for sg in segs), a, z,
-                float(bearings_rad[a]), float(bearings_rad[z - 1]), evidence, occluded)
+                float(bearings_rad[a]), float(bearings_rad[z - 1]), evidence, occluded, legs_xy=legs_xy)

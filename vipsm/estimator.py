@@ -719,7 +719,7 @@ def _detection(b: Body, laser: Pose2D, heading_sigma_rad: float = math.nan, held
                      sigma_across_m=_SIGMA_ACROSS_M.get(b.kind), kind=b.kind,
                      occluded=b.occluded, behind_rad=_behind_rad(b, laser),
                      laser_x_m=laser.x_m, laser_y_m=laser.y_m, laser_theta_rad=laser.theta_rad,
-                     heading_sigma_rad=heading_sigma_rad, held=held)
+                     heading_sigma_rad=heading_sigma_rad, held=held, legs_xy=b.legs_xy)
 
 
 def _behind_rad(b: Body, laser: Pose2D) -> float:

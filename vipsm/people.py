@@ -57,7 +57,7 @@ from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
 from .legs import FEATURE_NAMES, LegConfig, LegModel, segment_features
-from .person import PersonSize, across_beyond_m
+from .person import PersonSize, across_beyond_m, leg_reach_m
 from .types import Obstacle, Person, Pose2D
 
 
@@ -68,9 +68,9 @@ class PeopleConfig:
     #: a leg's radius at the laser's height (shin): the centre lies this far behind the returns
     leg_radius_m: float = PersonSize.leg_radius_m
     #: a leg moves at most this fast (a swing leg: about twice the walking speed) ...
-    leg_max_speed_mps: float = 3.0
+    leg_max_speed_mps: float = PersonSize.leg_max_speed_mps
     #: ... plus this (its centre's noise) between two detections
-    leg_step_m: float = 0.1
+    leg_step_m: float = PersonSize.leg_step_m
     #: a leg track unseen this long ends (a walker's leg hidden behind the other for a stride)
     leg_memory_s: float = 0.5
     #: a leg seen this far from where it was within ``leg_memory_s`` has left its own footprint (a leg's
@@ -459,8 +459,7 @@ class PeopleTracker:
     def _reach_m(self, lt: LegTrack, stamp_s: float) -> float:
         """How far leg track ``lt``'s leg may be from its prediction at ``stamp_s``: ``leg_step_m`` plus
         ``leg_max_speed_mps`` over the time since it was seen (the leg association's gate)."""
-        c = self.config
-        return c.leg_step_m + c.leg_max_speed_mps * max(stamp_s - lt.seen_s, 0.0)
+        return leg_reach_m(self.config, stamp_s - lt.seen_s)
 
     def _one_body(self, a: tuple[float, float], b: tuple[float, float], v: tuple[float, float]) -> bool:
         """Two leg centres ``a``, ``b`` can be one person's whose body moves at velocity ``v``: within a

@@ -19,6 +19,8 @@ class PersonKeys(Protocol):
     leg_pair_max_m: float
     person_radius_m: float
     leg_across_max_m: float
+    leg_max_speed_mps: float
+    leg_step_m: float
 
 
 @dataclass(frozen=True)
@@ -35,6 +37,17 @@ class PersonSize:
     #: two legs of a walking person: centres at most this far apart across its line of walking (the feet
     #: swing along it a hip's width apart, 0.1-0.2 m at the laser's height, plus each centre's few cm)
     leg_across_max_m: float = 0.3
+    #: a leg moves at most this fast (a swing leg: about twice the walking speed) ...
+    leg_max_speed_mps: float = 3.0
+    #: ... plus this (its centre's noise) between two detections
+    leg_step_m: float = 0.1
+
+
+def leg_reach_m(keys: PersonKeys, dt_s: float) -> float:
+    """How far one leg's centre may be from where it was ``dt_s`` earlier: ``leg_step_m`` plus
+    ``leg_max_speed_mps`` over that time (the people stage's leg association gate; the tracker's test of
+    whether two leg pairs can be the same two legs)."""
+    return keys.leg_step_m + keys.leg_max_speed_mps * max(dt_s, 0.0)
 
 
 def across_beyond_m(dx: float, dy: float, line: tuple[float, float], sigma_rad: float) -> float:

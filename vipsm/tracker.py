@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 from numba import njit
 
-from .person import PersonSize
+from .person import PersonSize, leg_reach_m
 from .types import Pose2D
 
 if TYPE_CHECKING:
@@ -264,6 +264,8 @@ class Detection:
     #: something stood where its returns lie when the laser last saw that place (before this scan; tracked moving
     #: bodies write no occupancy): the static background, unless it shows motion (``evidence``)
     held: bool = False
+    #: a leg pair's or a lone leg's: the centres of its legs (world frame), one per leg seen
+    legs_xy: tuple[tuple[float, float], ...] = ()
 
 
 def fit_circle(points: np.ndarray) -> tuple[float, float, float] | None:
@@ -479,7 +481,8 @@ def _pair_of(a: Detection, b: Detection, default_sigma_m: float) -> Detection:
                    scan_index_start=min(a.scan_index_start, b.scan_index_start),
                    scan_index_stop=max(a.scan_index_stop, b.scan_index_stop),
                    bearing_min_rad=min(a.bearing_min_rad, b.bearing_min_rad),
-                   bearing_max_rad=max(a.bearing_max_rad, b.bearing_max_rad), behind_rad=math.nan)
+                   bearing_max_rad=max(a.bearing_max_rad, b.bearing_max_rad), behind_rad=math.nan,
+                   legs_xy=a.legs_xy + b.legs_xy)
 
 
 def _onset(hist: np.ndarray) -> int:
@@ -596,6 +599,8 @@ class Track:
     standing: bool = False
     #: how many fitted radii it has had (``radius_m`` is their mean, ``Tracker._update``)
     fits: int = 0
+    #: the leg centres of its last detection (``Detection.legs_xy``)
+    legs_xy: tuple[tuple[float, float], ...] = ()
 
     @property
     def radius_known(self) -> bool:
@@ -618,6 +623,7 @@ class Tracker:
         person = person or PersonSize()
         #: a younger track within a person's radius of an older one is the same body (``merge_m``, 0.25 m)
         self.merge_m = person.person_radius_m
+        self._person = person
         self._poses = poses
         self.tracks: list[Track] = []
         self._next_id = 1
@@ -791,6 +797,7 @@ class Tracker:
         from behind a box was held until its three partly hidden pairs left the window, 0.4 s)."""
         t.kind = det.kind
         t.seen_as_person |= det.kind == "person"
+        t.legs_xy = det.legs_xy
         t.recent.append((t.stamp_s, det.x_m, det.y_m, _KIND_CODE.get(det.kind, -1.0),
                          det.radius_m if det.radius_fitted else math.nan, det.behind_rad, float(self._stands(t)),
                          self._point_noise_m(t, det), det.laser_x_m, det.laser_y_m, float(_turns_as_a_face(det))))
@@ -806,11 +813,24 @@ class Tracker:
     def _fold(self, t: Track, det: Detection) -> None:
         """A detection into the track (already predicted to its stamp): the filter, the counts, the
         windows (its radius judged against the track's before the update folds it in)."""
-        agrees = self._radius_agrees(t, det)
+        reliable = self._radius_agrees(t, det) and not self._recomposed(t, det)
         self._update(t, det)
         t.hits += 1
         t.evidence += int(det.evidence)
-        self._remember(t, det, agrees)
+        self._remember(t, det, reliable)
+
+    def _recomposed(self, t: Track, det: Detection) -> bool:
+        """A leg pair after a leg pair whose two legs cannot be the last one's two: one of them lies beyond a leg's
+        reach in the time between (``leg_reach_m``) from where either was, whichever way the two are matched. The
+        midpoint then jumps between two different pairs (a piece of furniture paired with another thing as the view
+        changes): another point, not a step of the body."""
+        if len(det.legs_xy) != 2 or len(t.legs_xy) != 2:
+            return False
+        reach = leg_reach_m(self._person, t.stamp_s - t.seen_s)
+        (a, b), (p, q) = det.legs_xy, t.legs_xy
+        straight = max(math.dist(a, p), math.dist(b, q))
+        crossed = max(math.dist(a, q), math.dist(b, p))
+        return min(straight, crossed) > reach
 
     def _confirm(self, t: Track, detections: list[Detection], own: Detection) -> None:
         """Confirmed once: enough hits, motion evidence, and consistent displacement of the detections
