@@ -658,8 +658,10 @@ class PeopleTracker:
             ev = any(lt.det.evidence or lt.travelled for lt in legs)
             e_dyn = c.evidence_standing + share * (c.evidence_moving - c.evidence_standing)
             # the kinematics as evidence too; motion evidence measures the same displacement: counted once. A
-            # partly hidden leg's centre moves with the edge of what hides it: its drift is no such evidence
-            drifts = len(legs) < len(seen) or any(lt.det.occluded for lt in seen)
+            # partly hidden leg's centre moves with the edge of what hides it, and a leg track that arrived where
+            # something else stood may have re-locked onto that thing (``_judge_arrival``): the move of either is
+            # no such evidence
+            drifts = len(legs) < len(seen) or any(lt.det.occluded or lt.arrived_held for lt in seen)
             kin_dyn, kin_static = (1.0, 1.0) if ev or drifts else self._kinematic_likelihoods(t, walks, 1.0 - p_leg)
             t.p_dynamic = _bayes(t.p_dynamic, (e_dyn if ev else 1.0 - e_dyn) * stayed * kin_dyn,
                                  (c.evidence_standing if ev else 1.0 - c.evidence_standing) * kin_static)
