@@ -790,8 +790,9 @@ class Tracker:
     def _remember(self, t: Track, det: Detection, reliable: bool = True) -> None:
         """The detection into the track's bounded windows (the birth detection too: it is where the
         body's displacement starts). Its position is unreliable for displacement when it was placed an
-        assumed radius behind a partly occluded segment, or fitted with a radius unlike the track's. A
-        leg pair's midpoint with one leg partly hidden is not: that leg is placed a leg's radius behind
+        assumed radius behind a partly occluded segment, fitted with a radius unlike the track's, or a leg
+        pair of other legs than the last pair's (``_recomposed``). A leg pair's midpoint with one leg partly
+        hidden is not: that leg is placed a leg's radius behind
         its nearest visible point, at most 1.4 leg radii from its centre, so the midpoint is off by at
         most 0.7 leg radius (4 cm), less than the displacement confirmation needs (a walker stepping out
         from behind a box was held until its three partly hidden pairs left the window, 0.4 s)."""
@@ -812,7 +813,8 @@ class Tracker:
 
     def _fold(self, t: Track, det: Detection) -> None:
         """A detection into the track (already predicted to its stamp): the filter, the counts, the
-        windows (its radius judged against the track's before the update folds it in)."""
+        windows (its radius judged against the track's before the update folds it in, a leg pair's legs against
+        the last pair's: ``_recomposed``)."""
         reliable = self._radius_agrees(t, det) and not self._recomposed(t, det)
         self._update(t, det)
         t.hits += 1
