@@ -71,6 +71,7 @@ METRIC_KEYS = (
     "first_report_max_s",
     "first_reports_missing",
     "moving_while_standing_cycles",
+    "person_id_switches",
     "people",
 )
 

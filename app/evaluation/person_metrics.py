@@ -18,6 +18,9 @@ Definitions (docs/evaluation.md, "Per person"):
   nearest pair first, so one report cannot locate two people walking side by side.
 * **located** (``located_fraction``): over the cycles in view, walking or standing, the share with a
   ``Estimate.people`` entry within ``LOCATED_GATE_M``, assigned one-to-one to the people in view.
+* **identity** (``id_switches``): over the located cycles, in time order, how often the ``people`` entry
+  assigned to the person has another track id than the one before (a person who stands, walks, is hidden
+  or passes another keeps one id: 0; the CLEAR MOT metrics' ID switches, Bernardin and Stiefelhagen 2008).
 * **position error**: the mean distance of those located assignments to the pelvis (``err_mean_m``:
   people entries; ``moving_err_mean_m``: moving obstacles).
 * **velocity error** (``velocity_err_mean_mps``): the mean norm of the velocity difference of the
@@ -68,6 +71,9 @@ class PersonLog:
     #: per walk start: [reference time (None: not yet in view), first report delay (None: none yet)]
     walks: dict[float, list[float | None]] = field(default_factory=dict)
     standing_since_s: float = 0.0
+    #: the track id of the ``people`` entry of the last located cycle, and how often it changed
+    last_id: int | None = None
+    id_switches: int = 0
 
     def result(self) -> dict[str, Any]:
         return {
@@ -81,6 +87,7 @@ class PersonLog:
             "velocity_err_mean_mps": _mean(self.vel_errors_mps),
             "first_report_s": [w[1] for start, w in sorted(self.walks.items()) if w[0] is not None],
             "moving_while_standing_cycles": self.moving_while_standing,
+            "id_switches": self.id_switches,
         }
 
 
@@ -160,6 +167,8 @@ class PeopleScore:
                 if err <= LOCATED_GATE_M:
                     p.located += 1
                     p.errors_m.append(err)
+                    p.id_switches += p.last_id is not None and q.track_id != p.last_id
+                    p.last_id = q.track_id
 
     def _moving(self, t_s: float, obstacles: Any, truth: Truth, hits: np.ndarray, view: dict[int, bool]) -> None:
         moving = [(i, o.x_m, o.y_m) for i, o in enumerate(truth.obstacles)
@@ -220,4 +229,5 @@ def summary(persons: list[dict[str, Any]]) -> dict[str, Any]:
         "first_report_max_s": None if not delays or None in delays else max(delays),
         "first_reports_missing": sum(1 for d in delays if d is None),
         "moving_while_standing_cycles": sum(p["moving_while_standing_cycles"] for p in persons),
+        "person_id_switches": sum(p["id_switches"] for p in persons),
     }

@@ -51,9 +51,9 @@ def print_people_table(results: list[dict[str, Any]]) -> None:
     print("Per person (VIPSM; in view: >= 5 laser beams on the legs): located by people / by moving obstacles "
           "while walking,")
     print("error (people / moving obstacles), velocity error, first report after each walk start, "
-          "cycles reported moving while standing > 0.5 s")
+          "cycles reported moving while standing > 0.5 s, people id switches")
     header = (f"{'scenario':<16} {'person':>6} {'view':>5} {'walk':>5} {'located':>7} {'moving':>7} {'err':>6} "
-              f"{'err mov':>7} {'vel err':>7} {'stand':>5}  first report (s)")
+              f"{'err mov':>7} {'vel err':>7} {'stand':>5} {'ids':>3}  first report (s)")
     print(header)
     print("-" * len(header))
     for r in rows:
@@ -64,4 +64,4 @@ def print_people_table(results: list[dict[str, Any]]) -> None:
             print(f"{r['name']:<16} {p['index']:>6} {p['cycles_in_view']:>5} {p['cycles_walking_in_view']:>5} "
                   f"{located:>7} {moving:>7} "
                   f"{_fmt(p['err_mean_m']):>6} {_fmt(p['moving_err_mean_m']):>7} {_fmt(p['velocity_err_mean_mps']):>7} "
-                  f"{p['moving_while_standing_cycles']:>5}  {first}")
+                  f"{p['moving_while_standing_cycles']:>5} {p['id_switches']:>3}  {first}")

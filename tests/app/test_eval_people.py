@@ -36,8 +36,8 @@ def _obstacle(x: float, y: float, vx: float = 1.0, age: int = 20) -> Any:
     return SimpleNamespace(x_m=x, y_m=y, vx_mps=vx, vy_mps=0.0, age_cycles=age)
 
 
-def _person(x: float, y: float, moving: bool) -> Any:
-    return SimpleNamespace(x_m=x, y_m=y, moving=moving)
+def _person(x: float, y: float, moving: bool, track_id: int = 1) -> Any:
+    return SimpleNamespace(x_m=x, y_m=y, moving=moving, track_id=track_id)
 
 
 def _run(paths: list[ObstaclePath], report: Callable[[float, Truth], tuple[list[Any], list[Any]]],
@@ -68,6 +68,23 @@ def test_first_report_per_walk_start_and_moving_while_standing() -> None:
     walking = 19 + 20  # 1.1-2.9 s and 5.0-6.9 s (speed > 0 at the cycle's instant)
     assert p["cycles_walking_in_view"] == walking
     assert p["located_moving_fraction"] == pytest.approx((17 + 18) / walking, abs=1e-4)
+
+
+def test_id_switches_count_changes_of_the_located_people_entry() -> None:
+    """The walker's entry is track 1 while it stands, then track 2 from its walk (one switch); an entry
+    too far to locate it (> 0.5 m) and cycles with none are no switch; track 2 found again after them is
+    the same id."""
+    def report(t: float, truth: Truth) -> tuple[list[Any], list[Any]]:
+        o = truth.obstacles[0]
+        if 2.0 <= t < 2.5:
+            return [], []
+        if 2.5 <= t < 3.0:
+            return [], [_person(o.x_m + 0.8, o.y_m, False, track_id=7)]
+        return [], [_person(o.x_m, o.y_m, o.moving, track_id=1 if t < 1.5 else 2)]
+
+    (p,) = _run([_walker()], report, until_s=5.0)
+    assert p["id_switches"] == 1
+    assert summary([p, {**p, "id_switches": 2}])["person_id_switches"] == 3
 
 
 def test_a_walker_coming_into_view_is_timed_from_its_first_cycle_in_view() -> None:
@@ -125,7 +142,7 @@ def test_the_table_lists_every_person_of_issue29_scenes(capsys: pytest.CaptureFi
 
     person = {"index": 3, "cycles_in_view": 40, "cycles_walking_in_view": 30, "located_fraction": 0.5,
               "located_moving_fraction": 0.75, "err_mean_m": 0.05, "moving_err_mean_m": 0.04,
-              "velocity_err_mean_mps": 0.2, "first_report_s": [0.4, None], "moving_while_standing_cycles": 2}
+              "velocity_err_mean_mps": 0.2, "first_report_s": [0.4, None], "moving_while_standing_cycles": 2, "id_switches": 1}
     results = [{"name": "stop_and_go", "params": {"targets": "issue29"}, "vipsm": {"people": [person]}},
                {"name": "cross_90", "params": {"targets": "issue11"}, "vipsm": {"people": [person]}}]
     print_people_table(results)
