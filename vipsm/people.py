@@ -338,6 +338,12 @@ class PeopleTracker:
             if z is not None and self._in_gate(t, z[0], z[1]):
                 self._update(t, z)
                 seen.add(t.track_id)
+            elif z is not None and self._own_legs_seen(t):
+                # its two legs, each followed as a leg, left the person's gate together: the motion models
+                # lost a start or a stop faster than they allow, not the person (its legs are its identity)
+                t.filt = Imm(z[0], z[1], z[2], c.imm)
+                self._update(t, z)
+                seen.add(t.track_id)
             elif z is not None:  # legs that drifted apart from the body: free them
                 self._release(t)
         for t in self._from_free_legs(stamp_s):
@@ -825,6 +831,17 @@ class PeopleTracker:
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
+
+    def _own_legs_seen(self, t: PersonTrack) -> bool:
+        """Both of the person's leg tracks are seen this cycle as legs (not weak, not re-locked onto something
+        that stood there) and can be one body's. (A lone leg is not followed so: it lies up to a hip's
+        half-width off the person, and a stop that restarts the motion state on it reads the pair found
+        next as a step.)"""
+        legs = [self.legs[k] for k in t.leg_ids]
+        if len(legs) != 2 or any(lt.det is None or lt.det.weak or lt.arrived_held for lt in legs):
+            return False
+        v = (float(t.filt.mean[2]), float(t.filt.mean[3]))
+        return self._one_body((legs[0].x_m, legs[0].y_m), (legs[1].x_m, legs[1].y_m), v)
 
     def _two_people(self, a: PersonTrack, b: PersonTrack) -> bool:
         """Two tracks near each other are two people when what each is measured from says so, whatever their

@@ -471,6 +471,32 @@ def test_a_person_who_stood_still_is_still_a_person_when_it_walks_on() -> None:
     assert len(tr.tracks) == 1 and tr.tracks[0].p_dynamic > 0.9
 
 
+def _abrupt_start(stood_before=None) -> list[set[int]]:
+    """A person stands 3 s at x = 2 m, then walks at 1.2 m/s from one scan to the next (both legs 0.3 m on
+    at once, as the older scenes' walkers start): the people ids per cycle."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    rng = np.random.default_rng(RNG_SEED)
+    ids = []
+    for k in range(45):
+        t = 0.1 * k
+        x = 2.0 if k < 30 else 2.3 + 1.2 * 0.1 * (k - 30)
+        tr.step(t, _pair(x + rng.normal(0, 0.01), 1.0 + rng.normal(0, 0.01), evidence=k >= 30),
+                seen_free=lambda x, y: True, stood_before=stood_before)
+        ids.append({p.track_id for p in tr.people(t)})
+    return ids
+
+
+def test_a_person_whose_two_legs_leave_its_gate_together_is_still_that_person() -> None:
+    """Both legs, each followed as a leg, jump past what the standing person's motion models allow: the
+    person follows its legs (its motion state starts again there) and keeps its id. A pair whose legs
+    arrived where something already stood (a leg track re-locked onto another thing) is not followed: it
+    is freed, and what it shows starts another person."""
+    ids = _abrupt_start()
+    assert all(len(s) == 1 for s in ids[2:]) and len(set().union(*ids)) == 1
+    relocked = _abrupt_start(stood_before=lambda x, y: x > 2.2)
+    assert len(set().union(*relocked)) > 1
+
+
 def test_a_person_shaped_thing_that_stands_for_minutes_is_furniture() -> None:
     """A still leg pair showing motion evidence as rarely as furniture does (2 % of its detections) and
     drifting by a few cm (the robot's pose error): a new track is as likely a person as not, but a person
