@@ -142,7 +142,8 @@ def test_the_table_lists_every_person_of_issue29_scenes(capsys: pytest.CaptureFi
 
     person = {"index": 3, "cycles_in_view": 40, "cycles_walking_in_view": 30, "located_fraction": 0.5,
               "located_moving_fraction": 0.75, "err_mean_m": 0.05, "moving_err_mean_m": 0.04,
-              "velocity_err_mean_mps": 0.2, "first_report_s": [0.4, None], "moving_while_standing_cycles": 2, "id_switches": 1}
+              "velocity_err_mean_mps": 0.2, "first_report_s": [0.4, None], "moving_while_standing_cycles": 2,
+              "id_switches": 1}
     results = [{"name": "stop_and_go", "params": {"targets": "issue29"}, "vipsm": {"people": [person]}},
                {"name": "cross_90", "params": {"targets": "issue11"}, "vipsm": {"people": [person]}}]
     print_people_table(results)
