@@ -340,8 +340,9 @@ class PeopleTracker:
                 seen.add(t.track_id)
             elif z is not None and self._own_legs_seen(t):
                 # its two legs, each followed as a leg, left the person's gate together: the motion models
-                # lost a start or a stop faster than they allow, not the person (its legs are its identity)
-                t.filt = Imm(z[0], z[1], z[2], c.imm)
+                # lost a start or a stop faster than they allow, not the person (its legs are its identity).
+                # Its motion state starts again there, known to the reporting bound until the measurement
+                t.filt = Imm(z[0], z[1], c.max_position_sigma_m, c.imm)
                 self._update(t, z)
                 seen.add(t.track_id)
             elif z is not None:  # legs that drifted apart from the body: free them
