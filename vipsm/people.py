@@ -835,13 +835,15 @@ class PeopleTracker:
 
     def _own_legs_seen(self, t: PersonTrack) -> bool:
         """Both of the person's leg tracks are seen this cycle as legs (not weak, not re-locked onto something
-        that stood there) and can be one body's. (A lone leg is not followed so: it lies up to a hip's
+        that stood there) and can be one body's at their mean velocity (two walkers' legs side by side, paired
+        while neither had a velocity, cannot: :meth:`_one_body`). (A lone leg is not followed so: it lies up to a hip's
         half-width off the person, and a stop that restarts the motion state on it reads the pair found
         next as a step.)"""
         legs = [self.legs[k] for k in t.leg_ids]
         if len(legs) != 2 or any(lt.det is None or lt.det.weak or lt.arrived_held for lt in legs):
             return False
-        v = (float(t.filt.mean[2]), float(t.filt.mean[3]))
+        # judged at the legs' own mean velocity (the midpoint's: the body's), not the person's, which lost them
+        v = (0.5 * (legs[0].vx_mps + legs[1].vx_mps), 0.5 * (legs[0].vy_mps + legs[1].vy_mps))
         return self._one_body((legs[0].x_m, legs[0].y_m), (legs[1].x_m, legs[1].y_m), v)
 
     def _two_people(self, a: PersonTrack, b: PersonTrack) -> bool:
