@@ -776,8 +776,7 @@ class PeopleTracker:
         groups: list[list[LegTrack]] = []
         for _, i, j in pairs:
             a, b = free[i], free[j]
-            v = (0.5 * (a.vx_mps + b.vx_mps), 0.5 * (a.vy_mps + b.vy_mps))
-            if i not in used and j not in used and self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), v):
+            if i not in used and j not in used and self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), _mean_velocity(a, b)):
                 used |= {i, j}
                 groups.append([free[i], free[j]])
         groups += [[lt] for i, lt in enumerate(free) if i not in used]
@@ -836,15 +835,14 @@ class PeopleTracker:
     def _own_legs_seen(self, t: PersonTrack) -> bool:
         """Both of the person's leg tracks are seen this cycle as legs (not weak, not re-locked onto something
         that stood there) and can be one body's at their mean velocity (two walkers' legs side by side, paired
-        while neither had a velocity, cannot: :meth:`_one_body`). (A lone leg is not followed so: it lies up to a hip's
-        half-width off the person, and a stop that restarts the motion state on it reads the pair found
+        while neither had a velocity, cannot: :meth:`_one_body`). (A lone leg is not followed so: it lies up to a
+        hip's half-width off the person, and a stop that restarts the motion state on it reads the pair found
         next as a step.)"""
         legs = [self.legs[k] for k in t.leg_ids]
         if len(legs) != 2 or any(lt.det is None or lt.det.weak or lt.arrived_held for lt in legs):
             return False
         # judged at the legs' own mean velocity (the midpoint's: the body's), not the person's, which lost them
-        v = (0.5 * (legs[0].vx_mps + legs[1].vx_mps), 0.5 * (legs[0].vy_mps + legs[1].vy_mps))
-        return self._one_body((legs[0].x_m, legs[0].y_m), (legs[1].x_m, legs[1].y_m), v)
+        return self._one_body((legs[0].x_m, legs[0].y_m), (legs[1].x_m, legs[1].y_m), _mean_velocity(*legs))
 
     def _two_people(self, a: PersonTrack, b: PersonTrack) -> bool:
         """Two tracks near each other are two people when what each is measured from says so, whatever their
@@ -979,6 +977,11 @@ def _born_dynamic(legs: list[LegTrack]) -> float:
     if len(legs) == 2 and not any(lt.det is None or lt.det.weak for lt in legs):
         return min(lt.det.p_leg for lt in legs if lt.det is not None)
     return 0.5
+
+
+def _mean_velocity(a: LegTrack, b: LegTrack) -> tuple[float, float]:
+    """The velocity of the midpoint of two legs (a body's, from its legs)."""
+    return 0.5 * (a.vx_mps + b.vx_mps), 0.5 * (a.vy_mps + b.vy_mps)
 
 
 def _keep_nearer(t: PersonTrack, legs: list[LegTrack]) -> None:
