@@ -763,6 +763,18 @@ class PeopleTracker:
     def _release(self, t: PersonTrack) -> None:
         t.leg_ids = [k for k in t.leg_ids if self.legs[k].det is None]
 
+    def _own_legs_seen(self, t: PersonTrack) -> bool:
+        """Both of the person's leg tracks are seen this cycle as legs (not weak, not re-locked onto something
+        that stood there) and can be one body's at their mean velocity (two walkers' legs side by side, paired
+        while neither had a velocity, cannot: :meth:`_one_body`). (A lone leg is not followed so: it lies up to a
+        hip's half-width off the person, and a stop that restarts the motion state on it reads the pair found
+        next as a step.)"""
+        legs = [self.legs[k] for k in t.leg_ids]
+        if len(legs) != 2 or any(lt.det is None or lt.det.weak or lt.arrived_held for lt in legs):
+            return False
+        # judged at the legs' own mean velocity (the midpoint's: the body's), not the person's, which lost them
+        return self._one_body((legs[0].x_m, legs[0].y_m), (legs[1].x_m, legs[1].y_m), _mean_velocity(*legs))
+
     def _from_free_legs(self, stamp_s: float) -> list[PersonTrack]:
         """Free legs paired greedily (nearest first, those that can be one body's: ``_one_body`` with the
         legs' mean velocity) or alone; each such
@@ -831,18 +843,6 @@ class PeopleTracker:
         if len(keep) > c.max_tracks:
             keep = sorted(keep, key=lambda t: -t.existence)[: c.max_tracks]
         self.tracks = sorted(keep, key=lambda t: t.track_id)
-
-    def _own_legs_seen(self, t: PersonTrack) -> bool:
-        """Both of the person's leg tracks are seen this cycle as legs (not weak, not re-locked onto something
-        that stood there) and can be one body's at their mean velocity (two walkers' legs side by side, paired
-        while neither had a velocity, cannot: :meth:`_one_body`). (A lone leg is not followed so: it lies up to a
-        hip's half-width off the person, and a stop that restarts the motion state on it reads the pair found
-        next as a step.)"""
-        legs = [self.legs[k] for k in t.leg_ids]
-        if len(legs) != 2 or any(lt.det is None or lt.det.weak or lt.arrived_held for lt in legs):
-            return False
-        # judged at the legs' own mean velocity (the midpoint's: the body's), not the person's, which lost them
-        return self._one_body((legs[0].x_m, legs[0].y_m), (legs[1].x_m, legs[1].y_m), _mean_velocity(*legs))
 
     def _two_people(self, a: PersonTrack, b: PersonTrack) -> bool:
         """Two tracks near each other are two people when what each is measured from says so, whatever their
