@@ -183,6 +183,13 @@ class Imm:
         self.likelihoods, self.prior_probs = like, self.probs.copy()
         self._weigh(like)
 
+    def widen_position(self, var_m2: float) -> None:
+        """Add ``var_m2`` to every model's position variance (an offset shared by the measurements folded in
+        so far, which their number shrank out of the covariance: :meth:`vipsm.people.PeopleTracker._update`)."""
+        for j in range(self.probs.size):
+            self.covs[j][:2, :2] += np.eye(2) * var_m2
+        self._mean = self._cov = None
+
     def weigh_walking(self, walking: float, standing: float) -> None:
         """Bayes' rule on the model probabilities for an observation other than the position, seen with
         likelihood ``walking`` under every walking model and ``standing`` under the standing model (a leg's

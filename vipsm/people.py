@@ -212,6 +212,9 @@ class PersonTrack:
     #: (``PeopleTracker._missed``): only then is a moving person a moving obstacle (weak candidates alone may
     #: be other things' segments: they are believed only for a person they do not make doubtful)
     leg_seen: bool = False
+    #: the share of its position estimate that lone-leg detections made since its last pair (their
+    #: position gains compounded): how much of a lone leg's offset from the body the estimate carries
+    lone_share: float = 0.0
 
     @property
     def p_moving(self) -> float:
@@ -342,7 +345,7 @@ class PeopleTracker:
                 # its two legs, each followed as a leg, left the person's gate together: the motion models
                 # lost a start or a stop faster than they allow, not the person (its legs are its identity).
                 # Its motion state starts again there, known to the reporting bound until the measurement
-                t.filt = Imm(z[0], z[1], c.max_position_sigma_m, c.imm)
+                t.filt, t.lone_share = Imm(z[0], z[1], c.max_position_sigma_m, c.imm), 0.0
                 self._update(t, z)
                 seen.add(t.track_id)
             elif z is not None:  # legs that drifted apart from the body: free them
@@ -650,6 +653,7 @@ class PeopleTracker:
         c = self.config
         x, y, sigma, seen = z
         walks = self._walking_share(t)  # predicted: before this detection
+        self._lone_offset(t, sigma)
         t.filt.update(np.array([x, y]), np.eye(2) * sigma**2)
         # a body that moves or a static thing: the evidence's rates and the time standing (``_walking_share``);
         # only time seen counts as time standing (at most a leg's memory between detections)
@@ -689,6 +693,19 @@ class PeopleTracker:
         t.updated_s = t.stamp_s
         t.existence = _bayes(t.existence, c.p_detect * p_leg, c.p_clutter * (1.0 - p_leg))
         t.legs, t.leg_seen = tuple((lt.x_m, lt.y_m) for lt in seen), bool(legs) or t.existence >= c.exist_confirm
+
+    def _lone_offset(self, t: PersonTrack, sigma_m: float) -> None:
+        """Before ``t``'s update with a measurement of noise ``sigma_m``: a lone leg stands up to a hip's
+        half-width off the body, an offset all its detections share (not white noise: their number shrinks it out
+        of the covariance, and the estimate drifts onto the leg). ``lone_share`` compounds their position gains
+        (how much of the estimate they made); the first pair after them reveals the part of the offset the
+        estimate took, every model's position variance widened by it: a jump of the reference, no walk."""
+        if len(t.leg_ids) == 1:
+            p = 0.5 * float(np.trace(t.filt.cov[:2, :2]))
+            t.lone_share += p / (p + sigma_m**2) * (1.0 - t.lone_share)
+        elif t.lone_share > 0.0:
+            t.filt.widen_position((t.lone_share * self.config.leg_sigma_m) ** 2)
+            t.lone_share = 0.0
 
     def _kinematic_likelihoods(self, t: PersonTrack, walks: float, other: float) -> tuple[float, float]:
         """This detection's likelihood under "a body that moves" and under "a static thing", from the IMM's

@@ -973,3 +973,35 @@ def test_a_leg_split_by_one_noisy_return_is_one_leg() -> None:
     assert math.hypot(pieces[0].x_m - 1.06, pieces[0].y_m) < 0.06
     pair = detect_legs(scan((-0.08, 0.08), True), b, Pose2D(0.0, 0.0, 0.0), model, cfg, BodiesConfig())
     assert len(pair) == 2
+
+
+def _lone_then_pair(gap_m: float) -> tuple[list[float], float]:
+    """A person stands at (2, 1) m, its legs ``gap_m`` apart across: both legs seen 1 s, then only one for 2 s
+    (the other hidden: its leg track ends, and the person is measured from its lone leg), then both again (the
+    returning leg is taken back). Its P(walking) per cycle from the pair's return, and how far its estimate lies
+    from its body at the pair's first cycle."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    rng = np.random.default_rng(RNG_SEED)
+    after, off_m = [], 0.0
+    for k in range(50):
+        near = LegDetection(2.0 + rng.normal(0, 0.01), 1.0 - 0.5 * gap_m + rng.normal(0, 0.01), 0.9, 0, 1)
+        far = LegDetection(2.0 + rng.normal(0, 0.01), 1.0 + 0.5 * gap_m + rng.normal(0, 0.01), 0.9, 2, 3)
+        tr.step(0.1 * k, [near] if 10 <= k < 30 else [near, far], seen_free=lambda x, y: False)
+        assert not any(t.moving for t in tr.tracks)
+        if k >= 30:
+            (t,) = tr.tracks
+            after.append(t.filt.p_moving)
+            off_m = off_m or math.hypot(float(t.filt.mean[0]) - 2.0, float(t.filt.mean[1]) - 1.0)
+    return after, off_m
+
+
+def test_a_standing_persons_leg_pair_back_after_a_lone_leg_is_no_walk() -> None:
+    """Measured from one leg for 2 s, the person's estimate drifts towards that leg, up to a hip's half-width
+    off its body: an offset every detection of that leg shares, which their number shrank out of the
+    covariance. When both legs show again their midpoint lies that far back: the estimate returns to the body
+    at once, and P(walking) does not rise (before: the estimate slid back over several cycles, 0.09 m off at the
+    first, and P(walking) rose 0.26 -> 0.39, a walk's start to the motion models)."""
+    for gap_m in (0.3, 0.4):
+        after, off_m = _lone_then_pair(gap_m)
+        assert off_m < 0.05, (gap_m, off_m)
+        assert max(after) - after[0] < 0.03, (gap_m, after[:5])
