@@ -843,11 +843,10 @@ class PeopleTracker:
 
     def _prune(self) -> None:
         c = self.config
-        # lost: existence gone, or the position unknown beyond twice the reporting bound under every motion model
-        # (a walker unseen for a second is still known where its walk has taken it; ``_in_gate`` finds it there)
-        lost2 = (2.0 * c.max_position_sigma_m) ** 2
-        alive = [t for t in self.tracks if t.existence >= c.exist_drop
-                 and min(np.linalg.eigvalsh(cv[:2, :2])[-1] for cv in t.filt.covs) <= lost2]
+        # lost: existence gone. How well its place is known bounds what it may take (``_in_gate``) and whether it
+        # is reported (``max_position_sigma_m``), not whether it is there: a walker out of the laser's view for
+        # two seconds is where its walk took it, however wide the models' mixing spread their covariances
+        alive = [t for t in self.tracks if t.existence >= c.exist_drop]
         # a duplicate: a younger track within a leg pair's half-width of an older one that is not another
         # person there (``_two_people``; its legs go free, and the older one adopts them if they fit it)
         keep: list[PersonTrack] = []
