@@ -600,7 +600,8 @@ class PeopleTracker:
     def _measurement(self, t: PersonTrack) -> tuple[float, float, float, list[LegTrack]] | None:
         """(x, y, sigma, the legs seen) from the person's legs this cycle; None when none was seen. A
         hidden leg of the pair is where its track predicts it (a standing leg where it was seen; its
-        noise grows with how far it may have gone since); a partly hidden leg adds half a leg's radius
+        noise grows with how far it may have gone since), or where it was seen if it re-locked onto a thing
+        standing there; a partly hidden leg adds half a leg's radius
         (:meth:`_midpoint_sigma`); a person of one leg is that leg, known to a hip's half-width, and so is a
         pair with a leg that may have re-locked onto another thing (``LegTrack.arrived_held``) and is not
         seen in full as a leg."""
@@ -615,8 +616,11 @@ class PeopleTracker:
         a = seen[0]
         if hidden:
             h = hidden[0]
-            bx, by = h.predicted(t.stamp_s, c.leg_memory_s)
-            gone = math.hypot(h.vx_mps, h.vy_mps) * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
+            # a leg track that re-locked onto a thing standing there (``arrived_held``) stays with it: its velocity
+            # measured the jump between two things, not a leg's swing
+            speed = 0.0 if h.arrived_held else math.hypot(h.vx_mps, h.vy_mps)
+            bx, by = (h.x_m, h.y_m) if h.arrived_held else h.predicted(t.stamp_s, c.leg_memory_s)
+            gone = speed * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
             sigma = min(math.hypot(c.pair_sigma_m, 0.5 * gone), c.leg_sigma_m)
         else:
             bx, by = seen[1].x_m, seen[1].y_m

@@ -372,6 +372,27 @@ def test_a_standing_persons_leg_track_relocked_onto_a_thing_beside_it_does_not_w
     assert any(_walk_stand_relock(lambda held: False)[26:])
 
 
+def test_a_hidden_leg_track_that_re_locked_onto_a_thing_stays_with_it() -> None:
+    """A person just found standing (its motion state still unsure) whose leg track hops 0.4 m onto a thing that
+    stood there (its leg's detection missed for a scan, a partly hidden clutter piece beside it taken instead:
+    ``arrived_held``), the thing hidden the next scans. The track's velocity measured the jump between two things,
+    not a swing: hidden, it stays where it was last seen, and the person is not walked off at the jump's speed
+    (before: predicted at 2 m/s, the midpoint ran off and the standing person was a moving obstacle from the third
+    scan on: turn_in_place at a never-used seed, 3.7 false moving obstacles a minute)."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    rng = np.random.default_rng(RNG_SEED)
+    moving = False
+    for k in range(20):
+        near = LegDetection(2.0 + rng.normal(0, 0.01), 0.9 + rng.normal(0, 0.01), 0.9, 0, 1)
+        far = LegDetection(2.0 + rng.normal(0, 0.01), 1.1 + rng.normal(0, 0.01), 0.9, 2, 3)
+        clutter = LegDetection(2.3, 1.35, 0.9, 4, 5, occluded=True)
+        dets = [near, far] if k < 2 else [near, clutter] if k == 2 else [near]
+        tr.step(0.1 * k, dets, seen_free=lambda x, y: False, stood_before=lambda x, y: x > 2.2)
+        moving = moving or any(t.moving for t in tr.tracks)
+    assert not moving
+    assert all(float(np.hypot(*(t.filt.mean[:2] - (2.0, 1.0)))) < 0.25 for t in tr.tracks if t.confirmed)
+
+
 def _lone_leg_hops(stood_before) -> tuple[float, bool]:
     """A lone leg-like thing seen in full at the detector's operating point (the drive's rear laser at 7.5 Hz:
     a person of one leg, its partner lost) whose leg track, each time its own detection is missed, takes the next of
