@@ -14,7 +14,7 @@ from vipsm.assignment import assign, assign_gated
 from vipsm.bodies import BodiesConfig
 from vipsm.imm import Imm, ImmConfig
 from vipsm.legs import FEATURE_NAMES, LegConfig, ModelError, features, segment_features
-from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, detect_legs
+from vipsm.people import FIRST_ID, LegDetection, PeopleConfig, PeopleTracker, PersonTrack, detect_legs
 from vipsm.types import Obstacle, Pose2D
 
 from .evidence import bayes_factor
@@ -864,18 +864,25 @@ def test_a_doubtful_walker_is_no_obstacle_when_its_legs_are_missed() -> None:
     assert tr.obstacles((p,), (), Pose2D(0.0, 0.0, 0.0)) == ()
 
 
-def test_a_walker_out_of_view_for_a_second_is_found_again_where_its_walk_took_it() -> None:
-    """A walker unseen for 1.5 s (out of the laser's view: no miss against its existence) comes back into view
-    where its walk has taken it. The models' combination lags there (P(standing) grows while nothing is seen)
-    and its covariance spreads past the reporting bound, but the walking models' prediction holds: the same
-    person takes the legs, not a new one (turn_in_place's walker, back in view after the robot's turn)."""
+def _walker_out_of_view(unseen_cycles: int) -> tuple[PeopleTracker, PersonTrack]:
+    """A walker at 1 m/s seen 2 s (10 Hz), then out of the laser's view (no miss against its existence) for
+    ``unseen_cycles``. The tracker and the walker's track."""
     tr = PeopleTracker(PeopleConfig(), default_leg_model())
     rng = np.random.default_rng(RNG_SEED)
     for k in range(20):
         tr.step(0.1 * k, _pair(1.0 + 0.1 * k + rng.normal(0, 0.02), 2.0, evidence=k % 3 == 0))
     (walker,) = tr.tracks
-    for k in range(20, 35):
+    for k in range(20, 20 + unseen_cycles):
         tr.step(0.1 * k, [], visible=lambda x, y: False)
+    return tr, walker
+
+
+def test_a_walker_out_of_view_for_a_second_is_found_again_where_its_walk_took_it() -> None:
+    """A walker unseen for 1.5 s (out of the laser's view: no miss against its existence) comes back into view
+    where its walk has taken it. The models' combination lags there (P(standing) grows while nothing is seen)
+    and its covariance spreads past the reporting bound, but the walking models' prediction holds: the same
+    person takes the legs, not a new one (turn_in_place's walker, back in view after the robot's turn)."""
+    tr, walker = _walker_out_of_view(15)
     assert [t.track_id for t in tr.tracks] == [walker.track_id]
     (t,) = tr.tracks
     assert float(np.hypot(*(t.filt.mean[:2] - (4.5, 2.0)))) > 0.5  # the combination lags ...
@@ -884,20 +891,13 @@ def test_a_walker_out_of_view_for_a_second_is_found_again_where_its_walk_took_it
     assert [t.track_id for t in tr.tracks] == [walker.track_id] and len(tr.tracks[0].legs) == 2
 
 
-
 def test_a_walker_out_of_view_until_every_model_is_unsure_of_its_place_is_still_there() -> None:
     """A walker unseen for 1.8 s (out of the laser's view) until every motion model's position sigma exceeds
     twice the reporting bound (the models' mixing spreads each with the others' lagging means): it is not
     reported, but it exists (its existence says so) and takes its legs back where its walk has taken it (before,
     a track was dropped once every model's sigma passed that bound, and a new person started: turn_in_place's
     walker after the robot's turn, located while walking 0.80)."""
-    tr = PeopleTracker(PeopleConfig(), default_leg_model())
-    rng = np.random.default_rng(RNG_SEED)
-    for k in range(20):
-        tr.step(0.1 * k, _pair(1.0 + 0.1 * k + rng.normal(0, 0.02), 2.0, evidence=k % 3 == 0))
-    (walker,) = tr.tracks
-    for k in range(20, 38):
-        tr.step(0.1 * k, [], visible=lambda x, y: False)
+    tr, walker = _walker_out_of_view(18)
     (t,) = tr.tracks
     bound = (2.0 * tr.config.max_position_sigma_m) ** 2
     assert all(np.linalg.eigvalsh(cv[:2, :2])[-1] > bound for cv in t.filt.covs) and not tr.people(3.7)
