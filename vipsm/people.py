@@ -616,11 +616,11 @@ class PeopleTracker:
         a = seen[0]
         if hidden:
             h = hidden[0]
-            # a leg track that re-locked onto a thing standing there (``arrived_held``) stays with it: its velocity
-            # measured the jump between two things, not a leg's swing
-            speed = 0.0 if h.arrived_held else math.hypot(h.vx_mps, h.vy_mps)
-            bx, by = (h.x_m, h.y_m) if h.arrived_held else h.predicted(t.stamp_s, c.leg_memory_s)
-            gone = speed * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
+            if h.arrived_held:  # re-locked onto a thing standing there: its velocity measured the jump, no swing
+                (bx, by), gone = (h.x_m, h.y_m), 0.0
+            else:
+                bx, by = h.predicted(t.stamp_s, c.leg_memory_s)
+                gone = math.hypot(h.vx_mps, h.vy_mps) * min(max(t.stamp_s - h.seen_s, 0.0), c.leg_memory_s)
             sigma = min(math.hypot(c.pair_sigma_m, 0.5 * gone), c.leg_sigma_m)
         else:
             bx, by = seen[1].x_m, seen[1].y_m
@@ -848,8 +848,8 @@ class PeopleTracker:
     def _prune(self) -> None:
         c = self.config
         # lost: existence gone. How well its place is known bounds what it may take (``_in_gate``) and whether it
-        # is reported (``max_position_sigma_m``), not whether it is there: a walker out of the laser's view for
-        # two seconds is where its walk took it, however wide the models' mixing spread their covariances
+        # is reported (``max_position_sigma_m``), not whether it is there: a walker out of the laser's view is
+        # where its walk took it, however wide the models' mixing has spread their covariances
         alive = [t for t in self.tracks if t.existence >= c.exist_drop]
         # a duplicate: a younger track within a leg pair's half-width of an older one that is not another
         # person there (``_two_people``; its legs go free, and the older one adopts them if they fit it)
