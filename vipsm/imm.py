@@ -185,7 +185,7 @@ class Imm:
 
     def widen_position(self, var_m2: float) -> None:
         """Add ``var_m2`` to every model's position variance (an offset shared by the measurements folded in
-        so far, which their number shrank out of the covariance: :meth:`vipsm.people.PeopleTracker._update`)."""
+        so far, which their number shrank out of the covariance: :meth:`vipsm.people.PeopleTracker._lone_offset`)."""
         for j in range(self.probs.size):
             self.covs[j][:2, :2] += np.eye(2) * var_m2
         self._mean = self._cov = None
