@@ -58,6 +58,7 @@ from vipsm.types import EstimateFlag
 
 from ..bagread import LASER_SCAN, BagTopics, bag_topics, open_reader, read_bag
 from ..legmodel import default_leg_model, default_model_path, leg_candidates, load_leg_model
+from .identity import identity_metrics
 
 SPEED_WINDOW_S = 1.0  # the centroid fit spans +-half of this
 WALKING_MPS = 0.3
@@ -322,6 +323,7 @@ def labelled_metrics(run: Run, labels: list[tuple[float, np.ndarray]], period_s:
                 centre_errors.append(float(np.hypot(*(pts - centre).T).min()))
     minutes = totals["all"] * period_s / 60.0
     classes = ("walking", "slow", "standing", "unknown", "all", "walking_after_onset")
+    run_reports = [by_stamp[round(t, 6)].reports if round(t, 6) in by_stamp else None for t, _ in labels]
     return {
         "labelled_scans": {k: totals[k] for k in classes},
         **{f"recall_{r}m": {k: (round(hits[r][k] / totals[k], 3) if totals[k] else None) for k in classes}
@@ -330,6 +332,7 @@ def labelled_metrics(run: Run, labels: list[tuple[float, np.ndarray]], period_s:
         "person_position_error_median_m": round(float(np.median(centre_errors)), 3) if centre_errors else None,
         "person_position_scans": len(centre_errors),
         "far_reports_per_min": round(far / minutes, 1) if minutes > 0 else None,
+        **identity_metrics(run_reports, labels, PAIR_M, max(RECALL_RADII_M), period_s),
     }
 
 
@@ -788,13 +791,14 @@ def run_suite(data_dir: Path, only: list[str] | None = None, max_scans: int | No
 
 
 def print_real_table(suite: dict[str, Any]) -> None:
-    """One line per recording and laser (the JSON holds every figure)."""
+    """One line per recording and laser (the JSON holds every figure; ``id sw``: the identity switches of
+    ``people`` along the labelled trajectories)."""
     def f(v: Any, digits: int = 2) -> str:
         return "-" if v is None else f"{v:.{digits}f}" if isinstance(v, float) else str(v)
 
     head = (f"{'recording':<46} {'scans':>5} {'refused':>7} {'rep/min':>7} {'bg/min':>6} {'still/min':>9} "
-            f"{'walk@.5':>7} {'all@.5':>6} {'all@.3':>6} {'pos m':>5} {'leg m':>5} {'far/min':>7} {'kiss max m':>10} "
-            f"{'conf max m':>10}")
+            f"{'walk@.5':>7} {'all@.5':>6} {'all@.3':>6} {'pos m':>5} {'leg m':>5} {'far/min':>7} {'id sw':>5} "
+            f"{'kiss max m':>10} {'conf max m':>10}")
     print(head)
     print("-" * len(head))
     for r in suite["recordings"]:
@@ -805,6 +809,7 @@ def print_real_table(suite: dict[str, Any]) -> None:
               f"{f(r.get('still_tracks_per_min')):>9} {f(r5.get('walking')):>7} {f(r5.get('all')):>6} "
               f"{f(r3.get('all')):>6} {f(r.get('person_position_error_median_m')):>5} "
               f"{f(r.get('position_error_median_m')):>5} {f(r.get('far_reports_per_min'), 1):>7} "
+              f"{f(r.get('people', {}).get('id_switches')):>5} "
               f"{f(k.get('max_offset_m')):>10} {f(kc.get('max_offset_m')):>10}")
     for name in suite["skipped"]:
         print(f"{name}: skipped (not in {suite['data_dir']})")
