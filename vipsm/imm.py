@@ -93,6 +93,9 @@ class Imm:
         #: measurement) and the model probabilities it started from (the prediction's); None before one
         self.likelihoods: np.ndarray | None = None
         self.prior_probs: np.ndarray | None = None
+        #: the walking models' mixture (:meth:`walking`) at the last update, and the time predicted since
+        self._walk_seen: tuple[np.ndarray, np.ndarray] | None = None
+        self._since_update_s = 0.0
 
     # ---------------------------------------------------------------- combined estimate
     @property
@@ -132,17 +135,34 @@ class Imm:
         d = means - mean
         return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
 
+    def walked_on(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The state and covariance of a person who kept walking since the last update: the walking models'
+        mixture then, carried on at its velocity with steady walking's noise (the first of ``walk_accel_mps2``).
+        Unlike :meth:`walking` it is not mixed with the standing model while nothing is seen (there, the walking
+        models take in a restart from rest each step, and their mean falls behind a walker that walked on). None
+        before any update."""
+        if self._walk_seen is None:
+            return None
+        mean, cov = self._walk_seen
+        f, q = self._cv(self._since_update_s, self.cfg.walk_accel_mps2[0])
+        return f @ mean, f @ cov @ f.T + q
+
     # ---------------------------------------------------------------- filter steps
-    def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        c = self.cfg
-        f_walk = np.eye(4)
-        f_walk[0, 2] = f_walk[1, 3] = dt
-        f_stand = np.diag([1.0, 1.0, 0.0, 0.0])
+    @staticmethod
+    def _cv(dt: float, accel_mps2: float) -> tuple[np.ndarray, np.ndarray]:
+        """Constant velocity over ``dt``: the transition and the white acceleration noise of ``accel_mps2``."""
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
         g = np.array([[dt**4 / 4, 0, dt**3 / 2, 0], [0, dt**4 / 4, 0, dt**3 / 2],
                       [dt**3 / 2, 0, dt**2, 0], [0, dt**3 / 2, 0, dt**2]])
+        return f, accel_mps2**2 * g
+
+    def _models(self, dt: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        c = self.cfg
+        walks = [self._cv(dt, a) for a in c.walk_accel_mps2]
+        f_stand = np.diag([1.0, 1.0, 0.0, 0.0])
         q_stand = np.diag([c.stand_sigma_mps**2 * dt] * 2 + [1e-6, 1e-6])
-        walks = c.walk_accel_mps2
-        return [f_stand] + [f_walk] * len(walks), [q_stand] + [a**2 * g for a in walks]
+        return [f_stand] + [f for f, _ in walks], [q_stand] + [q for _, q in walks]
 
     def predict(self, dt: float) -> None:
         """Mix the models and predict each ``dt`` seconds ahead."""
@@ -163,6 +183,7 @@ class Imm:
             covs[j] = fs[j] @ covs[j] @ fs[j].T + qs[j]
         self.means, self.covs, self.probs = means, covs, c
         self._mean = self._cov = None
+        self._since_update_s += dt
 
     def innovation(self, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The combined prediction's innovation and its covariance for a position measurement."""
@@ -182,6 +203,7 @@ class Imm:
         self._mean = self._cov = None
         self.likelihoods, self.prior_probs = like, self.probs.copy()
         self._weigh(like)
+        self._walk_seen, self._since_update_s = self.walking(), 0.0
 
     def widen_position(self, var_m2: float) -> None:
         """Add ``var_m2`` to every model's position variance (an offset shared by the measurements folded in

@@ -1013,9 +1013,10 @@ def _keep_nearer(t: PersonTrack, legs: list[LegTrack]) -> None:
 
 def _likelier_state(t: PersonTrack) -> tuple[np.ndarray, np.ndarray]:
     """The prediction (state, covariance) of the person's likelier motion state: where its walk has taken it
-    while P(walking) is at least a half, where it stands otherwise. While nothing is seen the models'
-    combination lies between the two, held back by the other."""
-    return t.filt.walking() if t.filt.p_moving >= 0.5 else (t.filt.means[0], t.filt.covs[0])
+    while P(walking) is at least a half (:meth:`Imm.walked_on`), where it stands otherwise. While nothing is
+    seen the models' combination lies between the two, held back by the other."""
+    walked = t.filt.walked_on() if t.filt.p_moving >= 0.5 else None
+    return walked if walked is not None else (t.filt.means[0], t.filt.covs[0])
 
 
 def _line_of_walking(t: PersonTrack) -> tuple[tuple[float, float], float] | None:

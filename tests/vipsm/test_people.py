@@ -144,6 +144,24 @@ def test_imm_unobserved_weighs_standing_and_walking_alike() -> None:
         assert f.p_moving == pytest.approx(0.5, abs=1e-3)
 
 
+def test_imm_walked_on_carries_the_last_walk_at_its_velocity_while_nothing_is_seen() -> None:
+    """Unseen, the walking models take in a restart from rest each step (the standing model's share of the mixing),
+    and their mean falls behind a walker that walked on; :meth:`Imm.walked_on` is the walk at the last update
+    carried on at its velocity, its covariance grown by steady walking's noise, and starts again at each update."""
+    filt = Imm(0.0, 0.0, 0.05, ImmConfig())
+    assert filt.walked_on() is None
+    _run(filt, [1.0] * 30)
+    x_seen, v_seen = (float(v) for v in filt.walking()[0][[0, 2]])
+    for _ in range(20):
+        filt.predict(0.1)
+    (mean, cov), (lagging, _) = filt.walked_on(), filt.walking()
+    assert float(mean[0]) == pytest.approx(x_seen + 2.0 * v_seen) and float(mean[2]) == pytest.approx(v_seen)
+    assert float(lagging[0]) < float(mean[0]) - 0.3
+    assert np.linalg.eigvalsh(cov[:2, :2])[-1] > 0.3**2 * 2.0**3 / 3.0  # steady walking's spread over 2 s, at least
+    filt.update(np.array([5.0, 0.0]), np.eye(2) * 0.05**2)
+    assert filt.walked_on()[0] == pytest.approx(filt.walking()[0])
+
+
 def test_imm_walk_onset_is_set_by_the_measurements_not_the_switch_rate() -> None:
     """A start at 1.8 m/s^2 (1.1 m/s in 0.6 s), measured with 0.06 m noise at 10 Hz: P(walking) reaches
     0.8 within 0.7 s, at a switch rate of 0.1 per second as at 0.5 (the pelvis has moved 1, 4 and 8 cm
@@ -903,6 +921,18 @@ def test_a_walker_out_of_view_until_every_model_is_unsure_of_its_place_is_still_
     assert all(np.linalg.eigvalsh(cv[:2, :2])[-1] > bound for cv in t.filt.covs) and not tr.people(3.7)
     tr.step(3.8, _pair(4.8, 2.0))
     assert [t.track_id for t in tr.tracks] == [walker.track_id]
+
+
+def test_a_walker_out_of_view_for_three_seconds_is_found_again_where_it_walked_on() -> None:
+    """A walker unseen for 3 s (the robot turned away): the walking models' mixture lags more than the gate's
+    largest disc behind it (each unseen step mixes in a restart from rest), but the walk carried on at its velocity
+    since it was last seen (``Imm.walked_on``) is where the walker comes back into view: the same person takes the
+    legs (before: beyond 2 s out of view a new person started there)."""
+    tr, walker = _walker_out_of_view(30)
+    lag_m = float(np.hypot(*(walker.filt.walking()[0][:2] - (6.0, 2.0))))
+    assert lag_m > 2.0 * tr.config.person_radius_m
+    tr.step(5.0, _pair(6.0, 2.0))
+    assert [t.track_id for t in tr.tracks if t.leg_ids] == [walker.track_id]
 
 
 def _step_from_standing(place_left_seen_empty: bool) -> tuple[PeopleTracker, list[float], list[bool]]:
