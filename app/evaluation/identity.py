@@ -30,41 +30,41 @@ LINK_M = 0.5
 GAP_S = 0.5
 
 
-def _nearest_pairs(a: np.ndarray, b: np.ndarray, max_m: float) -> list[tuple[int, int]]:
-    """One-to-one pairs (i of ``a``, j of ``b``), nearest first, each within ``max_m``."""
-    if not len(a) or not len(b):
-        return []
-    d = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+def _greedy_pairs(d: np.ndarray, max_m: float, one_set: bool = False) -> list[tuple[int, int]]:
+    """Pairs (row, column) of the distance matrix ``d``, nearest first, each within ``max_m``, each row and column
+    in one pair at most (``one_set``: rows and columns index the same things, each in one pair at most)."""
     out: list[tuple[int, int]] = []
-    used_a: set[int] = set()
-    used_b: set[int] = set()
+    used_rows: set[int] = set()
+    used_cols = used_rows if one_set else set()
     for flat in np.argsort(d, axis=None):
         i, j = divmod(int(flat), d.shape[1])
         if d[i, j] > max_m:
             break
-        if i not in used_a and j not in used_b:
+        if i not in used_rows and j not in used_cols:
             out.append((i, j))
-            used_a.add(i)
-            used_b.add(j)
+            used_rows.add(i)
+            used_cols.add(j)
     return out
+
+
+def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+
+
+def _nearest_pairs(a: np.ndarray, b: np.ndarray, max_m: float) -> list[tuple[int, int]]:
+    """One-to-one pairs (i of ``a``, j of ``b``), nearest first, each within ``max_m``."""
+    return _greedy_pairs(_distances(a, b), max_m) if len(a) and len(b) else []
 
 
 def labelled_people(legs: np.ndarray, pair_m: float) -> np.ndarray:
     """(k, 2) people from one scan's labelled ``legs``: pairs within ``pair_m`` (nearest first) at their
     midpoints, then each leg left over."""
     legs = np.asarray(legs, float).reshape(-1, 2)
-    d = np.hypot(legs[:, None, 0] - legs[None, :, 0], legs[:, None, 1] - legs[None, :, 1])
+    d = _distances(legs, legs)
     d[np.tril_indices(len(legs))] = np.inf
-    used: set[int] = set()
-    people = []
-    for flat in np.argsort(d, axis=None):
-        i, j = divmod(int(flat), d.shape[1])
-        if d[i, j] > pair_m:
-            break
-        if i not in used and j not in used:
-            people.append((legs[i] + legs[j]) / 2.0)
-            used |= {i, j}
-    people += [legs[i] for i in range(len(legs)) if i not in used]
+    pairs = _greedy_pairs(d, pair_m, one_set=True)
+    paired = {k for pair in pairs for k in pair}
+    people = [(legs[i] + legs[j]) / 2.0 for i, j in pairs] + [legs[i] for i in range(len(legs)) if i not in paired]
     return np.array(people, float).reshape(-1, 2)
 
 
