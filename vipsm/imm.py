@@ -52,6 +52,14 @@ class ImmConfig:
             raise ValueError(f"init_p_moving must be in (0, 1), got {self.init_p_moving}")
 
 
+def _mixture(means: np.ndarray, covs: np.ndarray, probs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The moment-matched Gaussian of the models ``means`` (m x 4), ``covs`` (m x 4 x 4) weighted by ``probs``."""
+    w = probs / max(float(probs.sum()), 1e-300)
+    mean = w @ means
+    d = means - mean
+    return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
+
+
 def _transitions(n: int, leave: float) -> np.ndarray:
     """trans[i, j] = P(model j next | model i now) over a step in which a model is left with probability
     ``leave``: standing starts a walk (either walking model alike); a walking model stops (to standing)
@@ -93,8 +101,9 @@ class Imm:
         #: measurement) and the model probabilities it started from (the prediction's); None before one
         self.likelihoods: np.ndarray | None = None
         self.prior_probs: np.ndarray | None = None
-        #: the walking models' mixture (:meth:`walking`) at the last update, and the time predicted since
-        self._walk_seen: tuple[np.ndarray, np.ndarray] | None = None
+        #: the walking models' means, covariances and probabilities at the last update (their mixture, as
+        #: :meth:`walking`, is taken only when asked for), and the time predicted since
+        self._walk_seen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._since_update_s = 0.0
 
     # ---------------------------------------------------------------- combined estimate
@@ -113,8 +122,7 @@ class Imm:
     def cov(self) -> np.ndarray:
         """The combined covariance (computed once per filter step)."""
         if self._cov is None:
-            d = self.means - self.mean
-            self._cov = np.einsum("i,ijk->jk", self.probs, self.covs + np.einsum("ij,ik->ijk", d, d))
+            self._cov = _mixture(self.means, self.covs, self.probs)[1]
         return self._cov
 
     def walking_likelihood(self) -> float:
@@ -128,12 +136,7 @@ class Imm:
     def walking(self) -> tuple[np.ndarray, np.ndarray]:
         """The state and covariance given that the person walks (the walking models' mixture): a moving
         person's velocity, not shrunk towards the standing model's zero by P(standing)."""
-        w = self.probs[STANDING + 1 :]
-        w = w / max(float(w.sum()), 1e-300)
-        means, covs = self.means[STANDING + 1 :], self.covs[STANDING + 1 :]
-        mean = w @ means
-        d = means - mean
-        return mean, np.einsum("i,ijk->jk", w, covs + np.einsum("ij,ik->ijk", d, d))
+        return _mixture(self.means[STANDING + 1 :], self.covs[STANDING + 1 :], self.probs[STANDING + 1 :])
 
     def walked_on(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The state and covariance of a person who kept walking since the last update: the walking models'
@@ -143,7 +146,7 @@ class Imm:
         before any update."""
         if self._walk_seen is None:
             return None
-        mean, cov = self._walk_seen
+        mean, cov = _mixture(*self._walk_seen)
         f, q = self._cv(self._since_update_s, self.cfg.walk_accel_mps2[0])
         return f @ mean, f @ cov @ f.T + q
 
@@ -203,7 +206,9 @@ class Imm:
         self._mean = self._cov = None
         self.likelihoods, self.prior_probs = like, self.probs.copy()
         self._weigh(like)
-        self._walk_seen, self._since_update_s = self.walking(), 0.0
+        walks = slice(STANDING + 1, None)
+        self._walk_seen = (self.means[walks].copy(), self.covs[walks].copy(), self.probs[walks].copy())
+        self._since_update_s = 0.0
 
     def widen_position(self, var_m2: float) -> None:
         """Add ``var_m2`` to every model's position variance (an offset shared by the measurements folded in
