@@ -10,10 +10,11 @@ too short to show that it moved).
 
 The people stage's person is the longer-lived identity, so it carries the id across: a moving person that
 stands for a body track (:meth:`vipsm.people.PeopleTracker.bodies_standing_for`: the same body, reported
-once) takes that body's reported id if it has none yet; a body track reported for the first time while a
-person with an id stands for it takes the person's id; a person reported itself keeps its id (its own
-track id unless it took one). An id once given to a track is kept for the track's life (a body's reports
-stay one track), and no id is given twice in one cycle (the later one keeps its own track id then).
+once) takes that body's reported id if it has none yet; a body track reports the id of the person with an id
+standing for it whenever one does (the body tracker may hold one walker, then another passing close), and
+the last id it reported otherwise (at its first report its own); a person reported itself keeps its id (its
+own track id unless it took one). A person's id is kept for its track's life, and no id is given twice in one
+cycle (the later one keeps its own track id then).
 The body tracker also drops a coasting track whose centre a beam of the scan passes through, which it
 does too when the scanner misses a walker's legs for a scan; the walker is then started afresh. A track
 reported for the first time shortly after, where the ended one could have got to and moving on from there,
@@ -63,11 +64,13 @@ class ObstacleIdentity:
         still alive in either tracker. Returns the obstacles, bodies first, with their reported ids."""
         links = {b: p for b, (p, d) in standing_for.items() if d <= self.same_m}
         self._forget(live_bodies, live_persons, stamp_s)
-        for o in bodies:  # a body's first report: the id of the person standing for it, if it has one
-            if o.track_id not in self._body:
-                person = links.get(o.track_id)
-                own = self._person.get(person) if person is not None else None
-                self._body[o.track_id] = own if own is not None else self._stitched(o, stamp_s)
+        for o in bodies:  # the id of the person standing for it, if it has one; else its first report's
+            person = links.get(o.track_id)
+            own = self._person.get(person) if person is not None else None
+            if own is not None:
+                self._body[o.track_id] = own
+            elif o.track_id not in self._body:
+                self._body[o.track_id] = self._stitched(o, stamp_s)
         for body, person in links.items():  # a person with no id yet takes its body's
             if body in self._body and person not in self._person:
                 self._person[person] = self._body[body]

@@ -47,6 +47,20 @@ def test_a_body_keeps_the_id_of_its_first_report() -> None:
     assert ids(idn.relabel((), (ob(P),), {}, {4}, {P})) == [4]  # ... and carries it
 
 
+def test_a_body_reports_the_id_of_the_person_standing_for_it_now() -> None:
+    """The body tracker's track may hold one walker, then another passing close (positive_3: its one body track
+    took a first walker's id and went on to stand for a second, whose reports then alternated between the body's
+    id and the second person's own, 11 identity switches along the labelled walker): the person standing for it
+    is the longer-lived identity, so a body reports that person's id whenever one with an id stands for it,
+    and keeps the last one it reported otherwise."""
+    idn = ObstacleIdentity(0.25)
+    a, b = P, P + 1
+    idn.relabel((), (ob(a), ob(b, 3.0)), {}, set(), {a, b})  # both people reported themselves
+    assert ids(idn.relabel((ob(6),), (ob(b, 3.0),), {6: (a, 0.1)}, {6}, {a, b})) == [a, b]
+    assert ids(idn.relabel((ob(6),), (ob(a, 3.0),), {6: (b, 0.1)}, {6}, {a, b})) == [b, a]  # before: [a, 6]
+    assert ids(idn.relabel((ob(6),), (), {}, {6}, {a, b})) == [b]
+
+
 def test_no_id_is_given_twice_in_one_cycle() -> None:
     idn = ObstacleIdentity(0.25)
     idn.relabel((ob(3),), (), {3: (P, 0.0)}, {3}, {P})
