@@ -64,7 +64,7 @@ class ObstacleIdentity:
         still alive in either tracker. Returns the obstacles, bodies first, with their reported ids."""
         links = {b: p for b, (p, d) in standing_for.items() if d <= self.same_m}
         self._forget(live_bodies, live_persons, stamp_s)
-        for o in bodies:  # the id of the person standing for it, if it has one; else its first report's
+        for o in bodies:  # the id of the person standing for it, if it has one; else the last it reported
             person = links.get(o.track_id)
             own = self._person.get(person) if person is not None else None
             if own is not None:
