@@ -254,6 +254,12 @@ def test_suite_on_one_recording_skips_the_absent(shared_data: Path, tmp_path: Pa
     assert 0 < r["labelled_scans"]["all"] < 83  # the labelled scans among the first 120
     assert 0.0 <= r["recall_0.5m"]["all"] <= 1.0 and r["recall_0.3m"]["all"] <= r["recall_0.5m"]["all"]
     assert 0.0 <= r["refused_share"] <= 1.0 and r["background_reports_per_min"] is not None
+    assert r["people"]["labelled_trajectories"] >= 1 and r["people"]["id_switches"] >= 0
+    # the table: one line per recording, the people's identity switches in the ``id sw`` column
+    assert main(["eval", "--data", "real", "--data-dir", str(tmp_path), "--max-scans", "120"]) == 0
+    head, _, row, *rest = capsys.readouterr().out.splitlines()
+    assert "id sw" in head and row.startswith("positive_2") and f" {r['people']['id_switches']} " in row
+    assert sum("skipped" in line for line in rest) == len(RECORDINGS) - 1
 
 
 def test_eval_real_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
