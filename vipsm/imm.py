@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 STANDING = 0  # the first model; the others walk
+WALKING = slice(STANDING + 1, None)  # the walking models' rows
 
 
 @dataclass(frozen=True)
@@ -130,13 +131,13 @@ class Imm:
         likelihoods weighted by their predicted probabilities (0.0 before any update)."""
         if self.likelihoods is None or self.prior_probs is None:
             return 0.0
-        w = self.prior_probs[STANDING + 1 :]
-        return float(w @ self.likelihoods[STANDING + 1 :] / max(float(w.sum()), 1e-300))
+        w = self.prior_probs[WALKING]
+        return float(w @ self.likelihoods[WALKING] / max(float(w.sum()), 1e-300))
 
     def walking(self) -> tuple[np.ndarray, np.ndarray]:
         """The state and covariance given that the person walks (the walking models' mixture): a moving
         person's velocity, not shrunk towards the standing model's zero by P(standing)."""
-        return _mixture(self.means[STANDING + 1 :], self.covs[STANDING + 1 :], self.probs[STANDING + 1 :])
+        return _mixture(self.means[WALKING], self.covs[WALKING], self.probs[WALKING])
 
     def walked_on(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The state and covariance of a person who kept walking since the last update: the walking models'
@@ -206,8 +207,7 @@ class Imm:
         self._mean = self._cov = None
         self.likelihoods, self.prior_probs = like, self.probs.copy()
         self._weigh(like)
-        walks = slice(STANDING + 1, None)
-        self._walk_seen = (self.means[walks].copy(), self.covs[walks].copy(), self.probs[walks].copy())
+        self._walk_seen = (self.means[WALKING].copy(), self.covs[WALKING].copy(), self.probs[WALKING].copy())
         self._since_update_s = 0.0
 
     def widen_position(self, var_m2: float) -> None:
