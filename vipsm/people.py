@@ -404,9 +404,7 @@ class PeopleTracker:
         taken = set(got.values())
         for j, d in enumerate(detections):
             if j not in taken and not d.weak:
-                self.legs[self._next_leg] = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s)
-                self.legs[self._next_leg].seen(stamp_s, d, c.leg_memory_s)
-                self._next_leg += 1
+                self._new_leg_track(stamp_s, d)
         gone = {k for k, lt in self.legs.items() if stamp_s - lt.seen_s > c.leg_memory_s}
         if len(self.legs) - len(gone) > 2 * c.max_tracks:  # the longest unseen go first
             alive = sorted((lt for k, lt in self.legs.items() if k not in gone), key=lambda lt: -lt.seen_s)
@@ -415,6 +413,13 @@ class PeopleTracker:
             del self.legs[k]
         for t in self.tracks:
             t.leg_ids = [k for k in t.leg_ids if k in self.legs]
+
+    def _new_leg_track(self, stamp_s: float, d: LegDetection) -> LegTrack:
+        lt = LegTrack(self._next_leg, d.x_m, d.y_m, 0.0, 0.0, stamp_s)
+        lt.seen(stamp_s, d, self.config.leg_memory_s)
+        self.legs[self._next_leg] = lt
+        self._next_leg += 1
+        return lt
 
     def _associate(self, stamp_s: float, tracks: list[LegTrack], detections: list[LegDetection], cols: list[int]
                    ) -> dict[int, int]:
@@ -803,16 +808,10 @@ class PeopleTracker:
         starts a person. Returns the people updated or started."""
         c = self.config
         free = self._free()
-        pairs = sorted((math.hypot(a.x_m - b.x_m, a.y_m - b.y_m), i, j)
-                       for i, a in enumerate(free) for j, b in enumerate(free) if i < j)
-        used: set[int] = set()
-        groups: list[list[LegTrack]] = []
-        for _, i, j in pairs:
-            a, b = free[i], free[j]
-            if i not in used and j not in used and self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), _mean_velocity(a, b)):
-                used |= {i, j}
-                groups.append([free[i], free[j]])
-        groups += [[lt] for i, lt in enumerate(free) if i not in used]
+        pairs = _greedy_pairs([(lt.x_m, lt.y_m) for lt in free], lambda i, j: self._one_body(
+            (free[i].x_m, free[i].y_m), (free[j].x_m, free[j].y_m), _mean_velocity(free[i], free[j])))
+        used = {k for pair in pairs for k in pair}
+        groups = [[free[i], free[j]] for i, j in pairs] + [[lt] for i, lt in enumerate(free) if i not in used]
         dets = [(float(np.mean([lt.x_m for lt in g])), float(np.mean([lt.y_m for lt in g])),
                  self._midpoint_sigma(c.pair_sigma_m, g) if len(g) == 2 else c.leg_sigma_m, g)
                 for g in groups]
@@ -834,7 +833,7 @@ class PeopleTracker:
             out.append(t)
         taken = set(got.values())
         for di, (x, y, s, g) in enumerate(dets):
-            if di in taken or all(lt.det.weak for lt in g):  # weak candidates alone start no person
+            if di in taken:
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
             t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
@@ -997,6 +996,20 @@ def _born_dynamic(legs: list[LegTrack]) -> float:
     if len(legs) == 2 and not any(lt.det is None or lt.det.weak for lt in legs):
         return min(lt.det.p_leg for lt in legs if lt.det is not None)
     return 0.5
+
+
+def _greedy_pairs(xy: list[tuple[float, float]], fits: Callable[[int, int], bool]) -> list[tuple[int, int]]:
+    """Pairs of indices into the points ``xy``, nearest first, each index in at most one pair, where
+    ``fits(i, j)`` (asked only of two points neither of which is paired yet)."""
+    pairs = sorted((math.hypot(a[0] - b[0], a[1] - b[1]), i, j) for i, a in enumerate(xy) for j, b in enumerate(xy)
+                   if i < j)
+    used: set[int] = set()
+    out = []
+    for _, i, j in pairs:
+        if i not in used and j not in used and fits(i, j):
+            used |= {i, j}
+            out.append((i, j))
+    return out
 
 
 def _mean_velocity(a: LegTrack, b: LegTrack) -> tuple[float, float]:
