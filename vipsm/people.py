@@ -13,8 +13,9 @@ is a pair of leg tracks):
    ``leg_max_speed_mps`` per second; each pair's cost its distance squared over that reach), one person's
    two legs then given their two detections by a gait's model (:meth:`PeopleTracker._one_leg_at_a_time`),
    then of the weak candidates to the person's leg tracks no leg continued (a far leg of 3 returns often
-   scores below the operating point); a weak candidate never starts a leg track, joins no leg to a person
-   and starts no person, is weighed by its leg probability in the person's existence, and is no evidence
+   scores below the operating point); a weak candidate alone never starts a leg track and joins no leg to a
+   person (two within a stride, in no person's gate, start a person: :meth:`PeopleTracker._from_weak_pairs`),
+   is weighed by its leg probability in the person's existence, and is no evidence
    that a body moves (it may be another thing's segment); a leg track unseen for ``leg_memory_s`` ends. A
    static leg's detection barely moves, so a chair's four legs are four still leg tracks whatever the
    viewpoint. A track that took a detection where something else already stood (the laser returned there
@@ -151,7 +152,7 @@ class LegDetection:
     #: what hides it (a wall piece behind a table leg slides along the wall as the robot drives by)
     occluded: bool = False
     #: below the detector's operating point: a leg candidate only, weighed by ``p_leg`` (it may continue a
-    #: leg track within its reach, never start a leg track or a person)
+    #: leg track within its reach; alone it starts no leg track and no person)
     weak: bool = False
 
 
@@ -300,6 +301,8 @@ class PeopleTracker:
         self._seen_before: PointTest | None = None
         self._visible: PointTest | None = None
         self._stood_before: PointTest | None = None
+        #: this cycle's weak candidates no leg track took (:meth:`_from_weak_pairs`)
+        self._unclaimed_weak: list[LegDetection] = []
 
     # ------------------------------------------------------------------ one cycle
     def step(self, stamp_s: float, detections: list[LegDetection], visible: PointTest | None = None,
@@ -350,7 +353,7 @@ class PeopleTracker:
                 seen.add(t.track_id)
             elif z is not None:  # legs that drifted apart from the body: free them
                 self._release(t)
-        for t in self._from_free_legs(stamp_s):
+        for t in self._from_free_legs(stamp_s) + self._from_weak_pairs(stamp_s):
             seen.add(t.track_id)
         for t in self.tracks:
             if t.track_id not in seen:
@@ -402,6 +405,7 @@ class PeopleTracker:
             before, lt.travelled = lt.travelled, self._travelled(lt)
             lt.stepped = lt.travelled and (lt.stepped or not before)
         taken = set(got.values())
+        self._unclaimed_weak = [d for j, d in enumerate(detections) if j not in taken and d.weak]
         for j, d in enumerate(detections):
             if j not in taken and not d.weak:
                 self._new_leg_track(stamp_s, d)
@@ -839,6 +843,36 @@ class PeopleTracker:
             t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
                             [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), leg_seen=True,
                             p_dynamic=_born_dynamic(g))
+            self._next_id += 1
+            self.tracks.append(t)
+            out.append(t)
+        return out
+
+    def _from_weak_pairs(self, stamp_s: float) -> list[PersonTrack]:
+        """People started from pairs of this cycle's weak candidates that no leg track took: two that can be one
+        body's (within a stride) and whose midpoint lies beyond every person's largest gate disc start a person
+        of two leg tracks. Its existence starts as a pair of that leg probability's does and the existence
+        update then decides (a far person's legs are mostly weak; a leg-like pair of furniture scored near
+        :func:`weak_floor` says no more than a miss); its shape tells nothing of a body that moves (even odds,
+        :func:`_born_dynamic`). A lone weak candidate starts nothing (a post, a table leg)."""
+        c = self.config
+        free = self._unclaimed_weak
+
+        def one_body_alone(i: int, j: int) -> bool:
+            a, b = free[i], free[j]
+            x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
+            return self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), (0.0, 0.0)) and all(
+                math.hypot(x - t.filt.mean[0], y - t.filt.mean[1]) >= 2.0 * c.person_radius_m for t in self.tracks)
+
+        out = []
+        for i, j in _greedy_pairs([(d.x_m, d.y_m) for d in free], one_body_alone):
+            a, b = free[i], free[j]
+            x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
+            legs = [self._new_leg_track(stamp_s, d) for d in (a, b)]
+            p_leg = min(a.p_leg, b.p_leg)
+            t = PersonTrack(self._next_id, Imm(x, y, self._midpoint_sigma(c.pair_sigma_m, legs), c.imm),
+                            c.exist_birth * p_leg / 0.5, stamp_s, [lt.leg_id for lt in legs],
+                            tuple((lt.x_m, lt.y_m) for lt in legs), leg_seen=True, p_dynamic=_born_dynamic(legs))
             self._next_id += 1
             self.tracks.append(t)
             out.append(t)

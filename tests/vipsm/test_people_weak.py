@@ -1,5 +1,6 @@
 """Leg candidates below the detector's operating point (``LegDetection.weak``): they continue leg tracks,
-weighed by their leg probability, and never start a leg track or a person (vipsm.people)."""
+weighed by their leg probability; alone they start nothing, two that can be one body's start a person whose
+existence then decides (vipsm.people)."""
 
 from __future__ import annotations
 
@@ -52,11 +53,48 @@ def test_candidates_below_the_operating_point_are_weak_not_dropped() -> None:
     assert len(loose) == 2 and not any(g.weak for g in loose)
 
 
-def test_weak_candidates_alone_start_no_leg_track_and_no_person() -> None:
+def test_a_lone_weak_candidate_starts_no_leg_track_and_no_person() -> None:
+    """A single leg-like segment below the operating point is what a post or a table leg gives: nothing."""
     tr = PeopleTracker(PeopleConfig(), default_leg_model())
     for k in range(10):
-        tr.step(0.1 * k, _pair(3.0, 0.0, 0.4, weak=True))
+        tr.step(0.1 * k, [LegDetection(3.0, 0.0, 0.4, 0, 1, weak=True)])
     assert tr.legs == {} and tr.tracks == []
+
+
+def test_a_pair_of_weak_candidates_starts_a_person_whose_existence_decides() -> None:
+    """Two weak candidates within a stride, in no person's gate, start a person (a far person's legs mostly
+    score below the operating point): one scored well above the floor is confirmed within a few scans, one
+    scored at the floor says no more for a person than a miss and never is. Either way its shape says
+    nothing of a body that moves (even odds), and it stands."""
+    c = PeopleConfig()
+    confirmed = {}
+    for p in (0.35, weak_floor(c) + 1e-3):
+        tr = PeopleTracker(c, default_leg_model())
+        for k in range(5):
+            tr.step(0.1 * k, _pair(7.0, 0.0, p, weak=True))
+        confirmed[p] = [q for q in tr.people(0.4) if not q.moving]
+        if p == 0.35:
+            assert len(tr.tracks) == 1 and len(tr.tracks[0].leg_ids) == 2 and tr.tracks[0].p_dynamic <= 0.5
+    assert len(confirmed[0.35]) == 1 and confirmed[weak_floor(c) + 1e-3] == []
+
+
+def test_a_weak_pair_in_a_persons_gate_starts_no_second_person() -> None:
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    tr.step(0.0, [LegDetection(3.0, 0.0, 0.9, 0, 1)])
+    tr.step(0.1, [LegDetection(3.0, 0.0, 0.9, 0, 1), *_pair(3.25, 0.3, 0.35, weak=True)])
+    assert len(tr.tracks) == 1
+
+
+def test_a_person_of_weak_candidates_that_walks_is_no_moving_obstacle() -> None:
+    """Weak candidates that walk off in a line with motion evidence on their beams (a wall piece and its
+    neighbour sliding by as the robot drives) make a person, never a moving one: its motion comes from the
+    detector's legs alone."""
+    tr = PeopleTracker(PeopleConfig(), default_leg_model())
+    for k in range(15):
+        tr.step(0.1 * k, [LegDetection(2.0 + 0.1 * k, y, 0.4, 0, 1, evidence=True, weak=True) for y in (-0.1, 0.1)])
+        assert not any(t.moving for t in tr.tracks)
+    assert len(tr.tracks) == 1 and tr.tracks[0].p_dynamic <= 0.5
+    assert tr.obstacles(tr.people(1.4), (), Pose2D(0.0, 0.0, 0.0)) == ()
 
 
 def test_weak_candidates_keep_a_person_started_by_a_leg() -> None:
