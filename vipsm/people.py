@@ -856,13 +856,15 @@ class PeopleTracker:
         :func:`weak_floor` says no more than a miss); its shape tells nothing of a body that moves (even odds,
         :func:`_born_dynamic`). A lone weak candidate starts nothing (a post, a table leg)."""
         c = self.config
-        free = self._unclaimed_weak
 
         def one_body_alone(i: int, j: int) -> bool:
             a, b = free[i], free[j]
             x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
             return self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), (0.0, 0.0)) and all(
                 math.hypot(x - t.filt.mean[0], y - t.filt.mean[1]) >= 2.0 * c.person_radius_m for t in self.tracks)
+
+        # a pair whose person would start below ``exist_drop`` (its lesser p) would be dropped at once: not started
+        free = [d for d in self._unclaimed_weak if c.exist_birth * d.p_leg / 0.5 >= c.exist_drop]
 
         out = []
         for i, j in _greedy_pairs([(d.x_m, d.y_m) for d in free], one_body_alone):

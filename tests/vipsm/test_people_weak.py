@@ -63,9 +63,9 @@ def test_a_lone_weak_candidate_starts_no_leg_track_and_no_person() -> None:
 
 def test_a_pair_of_weak_candidates_starts_a_person_whose_existence_decides() -> None:
     """Two weak candidates within a stride, in no person's gate, start a person (a far person's legs mostly
-    score below the operating point): one scored well above the floor is confirmed within a few scans, one
-    scored at the floor says no more for a person than a miss and never is. Either way its shape says
-    nothing of a body that moves (even odds), and it stands."""
+    score below the operating point): one scored well above the floor is confirmed within a few scans; one
+    scored at the floor says no more for a person than a miss, would be dropped at once and is not started.
+    The shape of a pair of weak candidates says nothing of a body that moves (even odds), and it stands."""
     c = PeopleConfig()
     confirmed = {}
     for p in (0.35, weak_floor(c) + 1e-3):
@@ -75,6 +75,8 @@ def test_a_pair_of_weak_candidates_starts_a_person_whose_existence_decides() -> 
         confirmed[p] = [q for q in tr.people(0.4) if not q.moving]
         if p == 0.35:
             assert len(tr.tracks) == 1 and len(tr.tracks[0].leg_ids) == 2 and tr.tracks[0].p_dynamic <= 0.5
+        else:  # its person would start below ``exist_drop``: not started, and no leg track of it lingers
+            assert tr.tracks == [] and tr.legs == {}
     assert len(confirmed[0.35]) == 1 and confirmed[weak_floor(c) + 1e-3] == []
 
 
