@@ -840,7 +840,7 @@ class PeopleTracker:
             if di in taken:
                 continue
             p_leg = max(lt.det.p_leg for lt in g)
-            t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), c.exist_birth * p_leg / max(p_leg, 0.5), stamp_s,
+            t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), self._birth_existence(p_leg), stamp_s,
                             [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), leg_seen=True,
                             p_dynamic=_born_dynamic(g))
             self._next_id += 1
@@ -851,34 +851,39 @@ class PeopleTracker:
     def _from_weak_pairs(self, stamp_s: float) -> list[PersonTrack]:
         """People started from pairs of this cycle's weak candidates that no leg track took: two that can be one
         body's (within a stride) and whose midpoint lies beyond every person's largest gate disc start a person
-        of two leg tracks. Its existence starts as a pair of that leg probability's does and the existence
-        update then decides (a far person's legs are mostly weak; a leg-like pair of furniture scored near
-        :func:`weak_floor` says no more than a miss); its shape tells nothing of a body that moves (even odds,
-        :func:`_born_dynamic`). A lone weak candidate starts nothing (a post, a table leg)."""
+        of two leg tracks. It starts with the existence of a pair of the lesser leg probability, and the existence
+        update decides (a far person's legs are mostly weak; a leg-like pair of furniture scored near
+        :func:`weak_floor` says no more than a miss; a pair whose person would start below ``exist_drop`` is not
+        started). Its shape tells nothing of a body that moves (even odds, :func:`_born_dynamic`). A lone weak
+        candidate starts nothing (a post, a table leg)."""
         c = self.config
+        free = [d for d in self._unclaimed_weak if self._birth_existence(d.p_leg) >= c.exist_drop]
+
+        def midpoint(i: int, j: int) -> tuple[float, float]:
+            return 0.5 * (free[i].x_m + free[j].x_m), 0.5 * (free[i].y_m + free[j].y_m)
 
         def one_body_alone(i: int, j: int) -> bool:
-            a, b = free[i], free[j]
-            x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
-            return self._one_body((a.x_m, a.y_m), (b.x_m, b.y_m), (0.0, 0.0)) and all(
+            x, y = midpoint(i, j)
+            return self._one_body((free[i].x_m, free[i].y_m), (free[j].x_m, free[j].y_m), (0.0, 0.0)) and all(
                 math.hypot(x - t.filt.mean[0], y - t.filt.mean[1]) >= 2.0 * c.person_radius_m for t in self.tracks)
-
-        # a pair whose person would start below ``exist_drop`` (its lesser p) would be dropped at once: not started
-        free = [d for d in self._unclaimed_weak if c.exist_birth * d.p_leg / 0.5 >= c.exist_drop]
 
         out = []
         for i, j in _greedy_pairs([(d.x_m, d.y_m) for d in free], one_body_alone):
-            a, b = free[i], free[j]
-            x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
-            legs = [self._new_leg_track(stamp_s, d) for d in (a, b)]
-            p_leg = min(a.p_leg, b.p_leg)
+            legs = [self._new_leg_track(stamp_s, d) for d in (free[i], free[j])]
+            x, y = midpoint(i, j)
             t = PersonTrack(self._next_id, Imm(x, y, self._midpoint_sigma(c.pair_sigma_m, legs), c.imm),
-                            c.exist_birth * p_leg / 0.5, stamp_s, [lt.leg_id for lt in legs],
-                            tuple((lt.x_m, lt.y_m) for lt in legs), leg_seen=True, p_dynamic=_born_dynamic(legs))
+                            self._birth_existence(min(free[i].p_leg, free[j].p_leg)), stamp_s,
+                            [lt.leg_id for lt in legs], tuple((lt.x_m, lt.y_m) for lt in legs), leg_seen=True,
+                            p_dynamic=_born_dynamic(legs))
             self._next_id += 1
             self.tracks.append(t)
             out.append(t)
         return out
+
+    def _birth_existence(self, p_leg: float) -> float:
+        """A new person's existence from the leg probability it is born of: ``exist_birth``, scaled down below
+        even odds (a leg candidate the detector doubts starts a less likely person)."""
+        return self.config.exist_birth * p_leg / max(p_leg, 0.5)
 
     def _prune(self) -> None:
         c = self.config
