@@ -839,13 +839,7 @@ class PeopleTracker:
         for di, (x, y, s, g) in enumerate(dets):
             if di in taken:
                 continue
-            p_leg = max(lt.det.p_leg for lt in g)
-            t = PersonTrack(self._next_id, Imm(x, y, s, c.imm), self._birth_existence(p_leg), stamp_s,
-                            [lt.leg_id for lt in g], tuple((lt.x_m, lt.y_m) for lt in g), leg_seen=True,
-                            p_dynamic=_born_dynamic(g))
-            self._next_id += 1
-            self.tracks.append(t)
-            out.append(t)
+            out.append(self._start_person(stamp_s, x, y, s, max(lt.det.p_leg for lt in g), g))
         return out
 
     def _from_weak_pairs(self, stamp_s: float) -> list[PersonTrack]:
@@ -871,19 +865,25 @@ class PeopleTracker:
         for i, j in _greedy_pairs([(d.x_m, d.y_m) for d in free], one_body_alone):
             legs = [self._new_leg_track(stamp_s, d) for d in (free[i], free[j])]
             x, y = midpoint(i, j)
-            t = PersonTrack(self._next_id, Imm(x, y, self._midpoint_sigma(c.pair_sigma_m, legs), c.imm),
-                            self._birth_existence(min(free[i].p_leg, free[j].p_leg)), stamp_s,
-                            [lt.leg_id for lt in legs], tuple((lt.x_m, lt.y_m) for lt in legs), leg_seen=True,
-                            p_dynamic=_born_dynamic(legs))
-            self._next_id += 1
-            self.tracks.append(t)
-            out.append(t)
+            sigma_m = self._midpoint_sigma(c.pair_sigma_m, legs)
+            out.append(self._start_person(stamp_s, x, y, sigma_m, min(free[i].p_leg, free[j].p_leg), legs))
         return out
 
     def _birth_existence(self, p_leg: float) -> float:
         """A new person's existence from the leg probability it is born of: ``exist_birth``, scaled down below
         even odds (a leg candidate the detector doubts starts a less likely person)."""
         return self.config.exist_birth * p_leg / max(p_leg, 0.5)
+
+    def _start_person(self, stamp_s: float, x: float, y: float, sigma_m: float, p_leg: float,
+                      legs: list[LegTrack]) -> PersonTrack:
+        """A new person of ``legs`` (seen this cycle) at (x, y), known to ``sigma_m``, born of leg probability
+        ``p_leg``."""
+        t = PersonTrack(self._next_id, Imm(x, y, sigma_m, self.config.imm), self._birth_existence(p_leg), stamp_s,
+                        [lt.leg_id for lt in legs], tuple((lt.x_m, lt.y_m) for lt in legs), leg_seen=True,
+                        p_dynamic=_born_dynamic(legs))
+        self._next_id += 1
+        self.tracks.append(t)
+        return t
 
     def _prune(self) -> None:
         c = self.config
