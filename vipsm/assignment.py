@@ -10,6 +10,8 @@ gives the same matchings; it is not a dependency of the estimator).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 #: the cost a forbidden pair is given in :func:`assign_gated`: above every allowed one (the callers' costs
@@ -69,3 +71,27 @@ def assign_gated(cost: np.ndarray) -> dict[int, int]:
         return {}
     rows, cols = assign(c)
     return {int(r): int(k) for r, k in zip(rows, cols, strict=True) if c[r, k] < FORBIDDEN_COST}
+
+
+def greedy_pairs(d: np.ndarray, max_cost: float = np.inf, fits: Callable[[int, int], bool] | None = None,
+                 one_set: bool = False) -> list[tuple[int, int]]:
+    """Pairs (row, column) of the cost matrix ``d`` taken greedily, cheapest first (ties row by row), each within
+    ``max_cost`` and, where given, ``fits(row, column)`` (asked only of a pair whose row and column are both
+    free); each row and each column in one pair at most. ``one_set``: rows and columns index the same things
+    (each in one pair at most, as a row or a column); a pair not to be made is ``inf`` in ``d``. Unlike
+    :func:`assign` not optimal: nearest first, as a tracker's or an evaluation's "nearest pair first"."""
+    d = np.asarray(d, dtype=np.float64)
+    out: list[tuple[int, int]] = []
+    if d.size == 0:
+        return out
+    used_rows: set[int] = set()
+    used_cols = used_rows if one_set else set()
+    for flat in np.argsort(d, axis=None, kind="stable"):
+        i, j = divmod(int(flat), d.shape[1])
+        if not d[i, j] <= max_cost or d[i, j] == np.inf:
+            break
+        if i not in used_rows and j not in used_cols and (fits is None or fits(i, j)):
+            out.append((i, j))
+            used_rows.add(i)
+            used_cols.add(j)
+    return out

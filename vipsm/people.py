@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .assignment import assign_gated
+from .assignment import assign_gated, greedy_pairs
 from .bodies import BodiesConfig, KnownLeg, segments
 from .geometry import wrap_angle
 from .imm import Imm, ImmConfig
@@ -812,8 +812,8 @@ class PeopleTracker:
         starts a person. Returns the people updated or started."""
         c = self.config
         free = self._free()
-        pairs = _greedy_pairs([(lt.x_m, lt.y_m) for lt in free], lambda i, j: self._one_body(
-            (free[i].x_m, free[i].y_m), (free[j].x_m, free[j].y_m), _mean_velocity(free[i], free[j])))
+        pairs = greedy_pairs(_pair_distances([(lt.x_m, lt.y_m) for lt in free]), fits=lambda i, j: self._one_body(
+            (free[i].x_m, free[i].y_m), (free[j].x_m, free[j].y_m), _mean_velocity(free[i], free[j])), one_set=True)
         used = {k for pair in pairs for k in pair}
         groups = [[free[i], free[j]] for i, j in pairs] + [[lt] for i, lt in enumerate(free) if i not in used]
         dets = [(float(np.mean([lt.x_m for lt in g])), float(np.mean([lt.y_m for lt in g])),
@@ -862,7 +862,7 @@ class PeopleTracker:
                 math.hypot(x - t.filt.mean[0], y - t.filt.mean[1]) >= 2.0 * c.person_radius_m for t in self.tracks)
 
         out = []
-        for i, j in _greedy_pairs([(d.x_m, d.y_m) for d in free], one_body_alone):
+        for i, j in greedy_pairs(_pair_distances([(d.x_m, d.y_m) for d in free]), fits=one_body_alone, one_set=True):
             legs = [self._new_leg_track(stamp_s, d) for d in (free[i], free[j])]
             x, y = midpoint(i, j)
             sigma_m = self._midpoint_sigma(c.pair_sigma_m, legs)
@@ -1039,18 +1039,12 @@ def _born_dynamic(legs: list[LegTrack]) -> float:
     return 0.5
 
 
-def _greedy_pairs(xy: list[tuple[float, float]], fits: Callable[[int, int], bool]) -> list[tuple[int, int]]:
-    """Pairs of indices into the points ``xy``, nearest first, each index in at most one pair, where
-    ``fits(i, j)`` (asked only of two points neither of which is paired yet)."""
-    pairs = sorted((math.hypot(a[0] - b[0], a[1] - b[1]), i, j) for i, a in enumerate(xy) for j, b in enumerate(xy)
-                   if i < j)
-    used: set[int] = set()
-    out = []
-    for _, i, j in pairs:
-        if i not in used and j not in used and fits(i, j):
-            used |= {i, j}
-            out.append((i, j))
-    return out
+def _pair_distances(xy: list[tuple[float, float]]) -> np.ndarray:
+    """Distances between the points ``xy``, each pair once (row before column; ``inf`` elsewhere)."""
+    p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    d = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    d[np.tril_indices(len(p))] = np.inf
+    return d
 
 
 def _mean_velocity(a: LegTrack, b: LegTrack) -> tuple[float, float]:

@@ -23,28 +23,13 @@ from typing import Any
 
 import numpy as np
 
+from vipsm.assignment import greedy_pairs
+
 #: a labelled person's centre moves less than this between two labelled scans: a walker at 1.5 m/s over two
 #: scans at 7.5 Hz (0.2 m) plus the half stride the centre jumps when one leg hides or shows again
 LINK_M = 0.5
 #: labelled scans further apart than this break every trajectory
 GAP_S = 0.5
-
-
-def _greedy_pairs(d: np.ndarray, max_m: float, one_set: bool = False) -> list[tuple[int, int]]:
-    """Pairs (row, column) of the distance matrix ``d``, nearest first, each within ``max_m``, each row and column
-    in one pair at most (``one_set``: rows and columns index the same things, each in one pair at most)."""
-    out: list[tuple[int, int]] = []
-    used_rows: set[int] = set()
-    used_cols = used_rows if one_set else set()
-    for flat in np.argsort(d, axis=None):
-        i, j = divmod(int(flat), d.shape[1])
-        if d[i, j] > max_m:
-            break
-        if i not in used_rows and j not in used_cols:
-            out.append((i, j))
-            used_rows.add(i)
-            used_cols.add(j)
-    return out
 
 
 def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -53,7 +38,7 @@ def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _nearest_pairs(a: np.ndarray, b: np.ndarray, max_m: float) -> list[tuple[int, int]]:
     """One-to-one pairs (i of ``a``, j of ``b``), nearest first, each within ``max_m``."""
-    return _greedy_pairs(_distances(a, b), max_m) if len(a) and len(b) else []
+    return greedy_pairs(_distances(a, b), max_m)
 
 
 def labelled_people(legs: np.ndarray, pair_m: float) -> np.ndarray:
@@ -62,7 +47,7 @@ def labelled_people(legs: np.ndarray, pair_m: float) -> np.ndarray:
     legs = np.asarray(legs, float).reshape(-1, 2)
     d = _distances(legs, legs)
     d[np.tril_indices(len(legs))] = np.inf
-    pairs = _greedy_pairs(d, pair_m, one_set=True)
+    pairs = greedy_pairs(d, pair_m, one_set=True)
     paired = {k for pair in pairs for k in pair}
     people = [(legs[i] + legs[j]) / 2.0 for i, j in pairs] + [legs[i] for i in range(len(legs)) if i not in paired]
     return np.array(people, float).reshape(-1, 2)

@@ -34,6 +34,7 @@ from hil_fakes.world import RobotMount, Scenario, Truth
 
 from ..health import SafetyMonitor
 from .person_metrics import PeopleScore, summary
+from .person_metrics import _assign as _assign  # the runner's and sim's nearest-first matching
 from .traces import RunTrace, TrackPoint, method_trace
 
 CYCLE_S = 0.1
@@ -311,16 +312,3 @@ def obstacle_in_camera(
     return inside >= 0.5 * (hi - lo)
 
 
-def _assign(est: list[tuple[float, float]], truth: list[tuple[int, float, float]]) -> dict[int, int]:
-    """Greedy one-to-one assignment, nearest pair first: true index -> estimate index."""
-    pairs = sorted((math.hypot(ex - tx, ey - ty), ti, ei) for ei, (ex, ey) in enumerate(est) for ti, tx, ty in truth)
-    used_t: set[int] = set()
-    used_e: set[int] = set()
-    out: dict[int, int] = {}
-    for _, ti, ei in pairs:
-        if ti in used_t or ei in used_e:
-            continue
-        out[ti] = ei
-        used_t.add(ti)
-        used_e.add(ei)
-    return out

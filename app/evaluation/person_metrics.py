@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from hil_fakes.world import Scenario, Truth
+from vipsm.assignment import greedy_pairs
 
 #: a person is in view when at least this many beams hit its legs: a leg segment of 3 returns (the
 #: smallest a leg detector clusters, leg_tracker's minimum) plus returns on the other leg
@@ -101,14 +102,8 @@ def _mean(values: list[float]) -> float | None:
 
 def _assign(est: list[tuple[float, float]], truth: list[tuple[int, float, float]]) -> dict[int, int]:
     """One-to-one, nearest pair first: true index -> estimate index."""
-    pairs = sorted((math.hypot(ex - tx, ey - ty), ti, ei) for ei, (ex, ey) in enumerate(est) for ti, tx, ty in truth)
-    out: dict[int, int] = {}
-    used: set[int] = set()
-    for _, ti, ei in pairs:
-        if ti not in out and ei not in used:
-            out[ti] = ei
-            used.add(ei)
-    return out
+    d = np.array([[math.hypot(ex - tx, ey - ty) for ex, ey in est] for _, tx, ty in truth])
+    return {truth[i][0]: j for i, j in greedy_pairs(d.reshape(len(truth), len(est)))}
 
 
 def wall_segments(scenario: Scenario) -> np.ndarray:

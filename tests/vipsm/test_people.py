@@ -1076,3 +1076,17 @@ def test_a_standing_persons_leg_pair_back_after_a_lone_leg_is_no_walk() -> None:
         after, off_m = _lone_then_pair(gap_m)
         assert off_m < 0.05, (gap_m, off_m)
         assert max(after) - after[0] < 0.03, (gap_m, after[:5])
+
+
+def test_greedy_pairs_are_nearest_first_one_to_one_within_the_bound() -> None:
+    from vipsm.assignment import greedy_pairs
+
+    d = np.array([[0.3, 0.1], [0.2, 0.9]])
+    assert greedy_pairs(d) == [(0, 1), (1, 0)]  # nearest first, not the optimal total (0.3 + 0.9 vs 0.1 + 0.2)
+    assert greedy_pairs(d, max_cost=0.15) == [(0, 1)]
+    assert greedy_pairs(d, fits=lambda i, j: (i, j) != (0, 1)) == [(1, 0)]  # (0, 0) after it: column 0 is taken
+    assert greedy_pairs(np.zeros((0, 3))) == []
+    inf = np.inf
+    one = np.array([[inf, 0.2, 0.5], [inf, inf, 0.1], [inf, inf, inf]])
+    assert greedy_pairs(one, one_set=True) == [(1, 2)]  # 0 with 1 or 2 would reuse an index already paired
+    assert greedy_pairs(np.array([[inf]]), one_set=True) == []  # inf is never paired
