@@ -79,7 +79,9 @@ class LoopConfig:
                                min=0.0)
     max_scan_age_periods: float = _f(6.0, "with max_scan_age_s = 0: scan periods before the scanner counts as "
                                      "stalled (+ period_s: 0.25 s at 40 Hz, 0.9 s at 7.5 Hz)", min=1.0, max=100.0)
-    max_frame_age_s: float = _f(0.3, "frames older than this are not used (plain PSM for the cycle)", min=0.01)
+    max_frame_age_s: float = _f(0.3, "a scan is paired with the frame taken nearest it, at most this far from "
+                                "its stamp (none: plain PSM for the cycle); no frame for this long: camera "
+                                "stalled", min=0.01)
     max_odometry_age_s: float = _f(0.35, "odometry older than this = base lost", min=0.01)
 
 

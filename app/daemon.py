@@ -6,7 +6,9 @@ implemented over the driver clients in ``app.devices``), so the loop is the same
 hardware, the byte-level fakes and tests. Degraded modes, each logged on ``/log`` and visible in the
 status registers:
 
-* no camera (absent, failed, stale frames): plain PSM for the cycle, flagged ``plain_psm``;
+* no camera (absent, failed, no frame taken within ``loop.max_frame_age_s`` of the scan): plain PSM for the
+  cycle, flagged ``plain_psm`` (a scan is paired with the frame taken nearest it, not the newest frame:
+  ``app.framesync``);
 * no scanner, or no scan received for the stall age (:func:`scan_age_limit_s`; on receipt time, less the time the
   loop itself was busy, at most that much again: a late loop is not a stalled scanner): base
   stopped (``device_stop``);
@@ -41,6 +43,7 @@ from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
 from . import logmessages as lm
 from .config import Config, redact_text, redacted_config
 from .fieldlog import FieldLog
+from .framesync import RecentFrames
 from .health import LoopHealth, OdometryHistory, OverloadMonitor, SafetyMonitor
 from .protective_field import FieldParams, ProtectiveField
 from .sdnotify import SystemdNotifier
@@ -64,6 +67,11 @@ class ScanSample:
     host_stamp_s: float | None = None
     #: the sensor's (min, max) valid range (the UTM-30LX's DMIN/DMAX), for ``/scan`` on ROS 2; None: unknown
     range_limits_m: tuple[float, float] | None = None
+
+
+#: an estimate made without the camera: none configured or fresh, the baseline asked for, or a frame
+#: the estimator could not use (too far from the scan, undecodable)
+WITHOUT_CAMERA = EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM | EstimateFlag.STALE_FRAME | EstimateFlag.FRAME_ERROR
 
 
 @dataclass(frozen=True)
@@ -311,6 +319,8 @@ class ControlLoop:
         #: ``/vipsm/scanner`` before the first scan and whenever the scanner's geometry changes
         self._scanner_info = lm.ScannerInfoLog()
         self.last_frame: FrameSample | None = None
+        #: the last few frames, so that a scan is paired with the frame taken nearest it
+        self._frames: RecentFrames[FrameSample] = RecentFrames()
         self.last_estimate: Estimate | None = None
         self.last_odom_sample: OdomSample | None = None
         self.mission_state = "hold"
@@ -384,8 +394,8 @@ class ControlLoop:
         self.cycle += 1
         wall = self.wall(now_s)
         self._drain()
-        scanner_state, base_state, camera_state, frame = self._device_states(now_s)
-        est = self._estimate(now_s, frame, wall)
+        scanner_state, base_state, camera_state = self._device_states(now_s)
+        est = self._estimate(now_s, wall)
         healthy = scanner_state == "ok" and base_state == "ok" and est is not None
         coil = self.status is not None and self.status.stop_requested
         safety_stop = self._command(now_s, scanner_state == "ok" and base_state == "ok", coil)
@@ -434,15 +444,15 @@ class ControlLoop:
         if frame_sample is not None:
             self.stats.frames_in += 1
             self.last_frame = frame_sample
+            self._frames.add(frame_sample)
             if self.log is not None and self.config.log.frames:
                 fs, fw = frame_sample, self.wall(frame_sample.frame.stamp_s)
                 self.log.log("/camera/image", fw, lambda fs=fs, fw=fw: lm.compressed_image(fs.jpeg, fw))
             if self.ros2 is not None:
                 self.ros2.frame(frame_sample, self.wall(frame_sample.frame.stamp_s))
 
-    def _device_states(self, now_s: float) -> tuple[str, str, str, Frame | None]:
-        """Each device's state ("ok" turns "stalled" when its newest sample is too old) and the frame
-        fresh enough to use."""
+    def _device_states(self, now_s: float) -> tuple[str, str, str]:
+        """Each device's state ("ok" turns "stalled" when its newest sample is too old)."""
         cfg = self.config.loop
         scanner_state = self.scanner.state() if self.scanner is not None else "absent"
         base_state = self.base.state() if self.base is not None else "absent"
@@ -453,19 +463,21 @@ class ControlLoop:
             scanner_state = "stalled"
         if base_state == "ok" and not odom_fresh:
             base_state = "stalled"
-        frame = None
         if self._first_cycle_s is None:
             self._first_cycle_s = now_s
         newest_frame_s = self.last_frame.frame.stamp_s if self.last_frame is not None else -math.inf
-        if now_s - newest_frame_s <= cfg.max_frame_age_s:
-            frame = self.last_frame.frame if self.last_frame is not None else None
-        elif camera_state == "ok" and now_s - max(newest_frame_s, self._first_cycle_s) > cfg.max_frame_age_s:
+        if camera_state == "ok" and now_s - max(newest_frame_s, self._first_cycle_s) > cfg.max_frame_age_s:
             # stalled: no frame for max_frame_age_s while the loop ran (a frame aged by the start-up
             # itself, before the first cycle, is not used but is no stall of the camera)
             camera_state = "stalled"
         for dev, st in (("scanner", scanner_state), ("base", base_state), ("camera", camera_state)):
             self._track_state(dev, st, now_s)
-        return scanner_state, base_state, camera_state, frame
+        return scanner_state, base_state, camera_state
+
+    def _frame_for(self, scan: Scan) -> Frame | None:
+        """The frame taken nearest the scan, at most ``loop.max_frame_age_s`` from it (None: plain PSM)."""
+        sample = self._frames.nearest(scan.stamp_s, self.config.loop.max_frame_age_s)
+        return sample.frame if sample is not None else None
 
     def _scan_fresh(self, now_s: float) -> bool:
         return self.last_scan is not None and self._scan_quiet_s(now_s) <= self._scan_age_limit_s()
@@ -531,7 +543,7 @@ class ControlLoop:
                          "obstacles from every scan again", now_s)
         return est
 
-    def _estimate(self, now_s: float, frame: Frame | None, wall: float) -> Estimate | None:
+    def _estimate(self, now_s: float, wall: float) -> Estimate | None:
         """The estimator run on the newest scan, once per scan (None: no new fresh scan, or no
         odometry at its stamp)."""
         scan_sample = self.last_scan
@@ -544,13 +556,14 @@ class ControlLoop:
             self.stats.estimates_deferred += 1
             return None
         self._last_scan_seq_used = scan_sample.scan.seq
+        frame = self._frame_for(scan_sample.scan)
         est = self._timed_step(scan_sample.scan, odom_at_scan, frame, now_s)
         self.last_estimate = est
         self.stats.estimates += 1
-        if frame is not None:
-            self.stats.frames_used += 1
-        if est.flags & (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM):
+        if est.flags & WITHOUT_CAMERA:
             self.stats.plain_psm_cycles += 1
+        elif frame is not None:
+            self.stats.frames_used += 1
         if est.flags & EstimateFlag.ODOMETRY_FALLBACK:
             self.stats.fallback_cycles += 1
         if self.on_estimate is not None:
@@ -684,7 +697,7 @@ class ControlLoop:
             flags.add("base_ok")
         if camera_state == "ok":
             flags.add("camera_ok")
-        if est is not None and est.flags & (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM):
+        if est is not None and est.flags & WITHOUT_CAMERA:
             flags.add("plain_psm")
         if est is not None and est.flags & EstimateFlag.ODOMETRY_FALLBACK:
             flags.add("odometry_fallback")

@@ -344,8 +344,10 @@ def _as_version_1(src: Path, dst: Path) -> None:
                     continue
                 data = {"seq": seq_by_image_time[m.log_time_ns], "format": "jpeg",
                         "data": base64.b64encode(m.data["data"]).decode()}
-            elif m.topic == "/vipsm/cycle" and data["frame"] is not None:
-                data["frame"] = {k: v for k, v in data["frame"].items() if k not in ("image_log_time_ns", "distortion")}
+            elif m.topic == "/vipsm/cycle":
+                if data["frame"] is not None:
+                    data["frame"] = {k: v for k, v in data["frame"].items()
+                                     if k not in ("image_log_time_ns", "distortion")}
             elif m.topic == "/vipsm/config":
                 data.pop("log_version")
             elif m.topic not in ("/truth",):
