@@ -326,6 +326,11 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     if summary.get("live_url"):
         lines.append(f"live:    {summary['live_url']}")
     lines.append("more:    --verbose (every figure), --json (the same as one JSON object)")
+    scanner = (summary.get("fakes") or {}).get("scanner") or {}
+    if scanner.get("scans_late"):
+        lines.append(f"warning: the simulated world fell behind real time (this machine was too busy): "
+                     f"{scanner['scans_late']} of {scanner['scans_late'] + scanner['scans_sent']} scans late or "
+                     "skipped; the figures are of a starved run")
     return lines + headline_lines(summary)
 
 

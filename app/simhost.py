@@ -102,9 +102,9 @@ class SimHost:
         shift = _Shift()
         self.shift = shift
         w = self.world
-        self.scanner = DeviceServer(
-            Utm30lxModel(source=ShiftedRangeSource(w.range_source(), shift)), PtyEndpoint(str(directory / "scanner"))
-        ).start()
+        self.scanner_model = Utm30lxModel(source=ShiftedRangeSource(w.range_source(), shift))
+        self.scanner = DeviceServer(self.scanner_model, PtyEndpoint(str(directory / "scanner"))).start()
+        self._late_before_start = 0
         self.robot_model = FakePioneer(
             PioneerConfig(odometry_noise=self.scenario.odometry_noise),
             plant=ShiftedPlant(w.plant(), shift),
@@ -130,6 +130,7 @@ class SimHost:
 
     def start(self) -> float:
         """The daemon is ready: the world's clock starts now; returns T0 (monotonic)."""
+        self._late_before_start = self.scanner_model.scans_late  # the daemon's start-up starves the fakes
         return self.shift.start()
 
     def truth_line(self, t_mono: float) -> dict[str, Any]:
@@ -163,6 +164,10 @@ class SimHost:
                 "faults": vars(srv.faults.stats),
                 "error": None if srv.error is None else repr(srv.error),
             }
+        model = self.scanner_model
+        # scans_late: while the world ran (its clock started), sent more than a scan period late or skipped
+        late = model.scans_late - self._late_before_start
+        out["scanner"].update({"scans_sent": model.frames_sent, "scans_late": late})
         out["camera_http"] = {"frames_sent": self.camera.frames_sent}
         return out
 

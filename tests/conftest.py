@@ -11,6 +11,8 @@ from typing import Any
 
 import pytest
 
+from tests.machine_lock import MachineLock
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -67,6 +69,20 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("hardware") is not None:
             item.add_marker(pytest.mark.xdist_group("hardware"))
+
+
+@pytest.fixture(scope="session")
+def machine_lock(tmp_path_factory: pytest.TempPathFactory) -> MachineLock:
+    """The machine shared by the test workers of this run, or had by a real-time run alone
+    (``tests/machine_lock.py``)."""
+    base = tmp_path_factory.getbasetemp()
+    return MachineLock(base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base)
+
+
+@pytest.fixture(autouse=True)
+def _machine_shared(machine_lock: MachineLock) -> Generator[None, None, None]:
+    with machine_lock.shared():
+        yield
 
 
 @pytest.fixture(autouse=True)

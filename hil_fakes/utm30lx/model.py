@@ -50,6 +50,7 @@ class Utm30lxModel(ScipCommands, MirrorSweep, DeviceModel):
         self._part_edges = [round(j * n / _SWEEP_PARTS) for j in range(_SWEEP_PARTS + 1)]
         #: what the fake did, for tests
         self.frames_sent = 0
+        self.scans_late = 0
         self.commands_seen: list[str] = []
 
     # ---------------------------------------------------------------- clock

@@ -23,6 +23,8 @@ class MirrorSweep:
     config: Utm30lxConfig
     source: RangeSource
     frames_sent: int
+    #: see :meth:`_count_late`
+    scans_late: int
     _boot_s: float | None
     _next_scan: int
     _laser_on: bool
@@ -47,10 +49,19 @@ class MirrorSweep:
         behind = int((now_s - self._scan_done_s(self._next_scan)) // period) + 1
         if behind > _MAX_CATCH_UP_SCANS:
             self._next_scan += behind - _MAX_CATCH_UP_SCANS
+            self._count_late(behind - _MAX_CATCH_UP_SCANS)
         while self._scan_done_s(self._next_scan) <= now_s:
             k = self._next_scan
             self._next_scan += 1
+            if now_s - self._scan_done_s(k) > period:
+                self._count_late(1)
             self._complete_scan(k, self._scan_done_s(k))  # on the link from the sweep's end
+
+    def _count_late(self, n: int) -> None:
+        """Scans of a stream completed more than a period after their sweep ended, or skipped: the model's
+        clock ran while its thread could not (a host too busy for a real-time fake), not a device fault."""
+        if self._stream is not None:
+            self.scans_late += n
 
     def _wanted(self, k: int) -> bool:
         """Scan ``k`` will be sent (to a stream or a pending single request)."""

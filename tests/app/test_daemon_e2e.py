@@ -2,8 +2,9 @@
 
 These run the real loop against the byte-level fakes on the wall clock, so every assertion is a
 property that holds however slow or busy the machine is (issue 31): the loop's own accounting, the log
-against the daemon's counters, the estimator's accuracy on the cycles it ran; never a count of cycles
-or messages a real-time run "should" reach, never a latency bound (speed belongs in ``bench``).
+against the daemon's counters; never a count of cycles or messages a real-time run "should" reach,
+never a latency bound (speed belongs in ``bench``). The accuracy targets are judged only when the
+simulated world, itself a process on this machine, kept real time (it says how many scans it sent late).
 Waits are bounded generously: they end a hung run, they do not measure one.
 """
 
@@ -31,6 +32,7 @@ from app.fieldlog import LogReadResult, read_log
 from hil_fakes.pioneer import FakePioneer
 from hil_fakes.transport import DeviceServer, PtyEndpoint
 from hil_fakes.utm30lx import Utm30lxModel
+from tests.machine_lock import MachineLock
 
 SIM_S = 12.0
 
@@ -41,16 +43,18 @@ def run_cli(*args: str, timeout_s: float = 240, cwd: Path | None = None) -> subp
 
 
 @pytest.fixture(scope="module")
-def sim_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path]:
+def sim_run(tmp_path_factory: pytest.TempPathFactory, machine_lock: MachineLock) -> tuple[dict, Path]:
     log = tmp_path_factory.mktemp("sim") / "run.mcap"
-    # no status.port given: sim listens on any free port (a second run at once does not clash)
-    proc = run_cli("sim", "--scenario", "2", "--duration", str(SIM_S), "--json", "--no-progress",
-                   "--log", str(log))
+    # no status.port given: sim listens on any free port (a second run at once does not clash); the
+    # machine to itself: the simulated world must keep real time for the targets to mean anything
+    with machine_lock.exclusive():
+        proc = run_cli("sim", "--scenario", "2", "--duration", str(SIM_S), "--json", "--no-progress",
+                       "--log", str(log))
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout), log
 
 
-def test_sim_summary_has_the_interface_fields_and_meets_the_targets(sim_run: tuple[dict, Path]) -> None:
+def test_sim_summary_has_the_interface_fields(sim_run: tuple[dict, Path]) -> None:
     summary, log = sim_run
     for key in ("cycles", "deadline_misses", "loop_jitter_p99_ms", "obstacle_err_mean_m", "pose_err_final_m",
                 "log_path"):
@@ -61,16 +65,29 @@ def test_sim_summary_has_the_interface_fields_and_meets_the_targets(sim_run: tup
     assert summary["cycles"] + summary["skipped_periods"] >= SIM_S / 0.1 - 1
     assert 0 < summary["status_server"]["port"] != 5020
     assert summary["log_dropped"] == 0 and summary["log_error"] is None
-    # the evaluation's targets (issue 6), here through the bytes and the real-time loop
+    # bytes and frames per device, from both sides
+    assert summary["devices"]["scanner"]["frames"] > 0 and summary["devices"]["camera"]["frames"] > 0
+    assert summary["fakes"]["scanner"]["bytes_out"] > 0 and summary["fakes"]["robot"]["bytes_in"] > 0
+    scanner = summary["fakes"]["scanner"]
+    assert scanner["scans_sent"] > 0 and scanner["scans_late"] >= 0
+
+
+def test_sim_meets_the_targets_when_the_simulated_devices_kept_real_time(sim_run: tuple[dict, Path]) -> None:
+    """The evaluation's targets (issue 6), here through the bytes and the real-time loop. The simulated
+    world is a process on this machine: on a shared machine it can be starved of CPU, and then its
+    scanner sends scans late or skips them, which no real UTM-30LX does. The targets are judged when
+    it kept real time; the estimator's accuracy on a simulated clock is judged in ``eval`` always."""
+    summary, _ = sim_run
+    scanner = summary["fakes"]["scanner"]
+    late, sent = scanner["scans_late"], scanner["scans_sent"]
+    if late > 0.05 * (late + sent):
+        pytest.skip(f"the simulated world fell behind real time: {late} of {late + sent} scans late or skipped")
     assert summary["obstacle_err_mean_m"] <= 0.10
     assert summary["obstacle_err_std_m"] <= 0.08
     assert summary["pose_err_final_m"] <= 0.05
     assert summary["heading_err_final_deg"] <= 1.0
     assert summary["obstacle_detected_fraction"] >= 0.85
     assert summary["velocity_err_mean_mps"] <= 0.05
-    # bytes and frames per device, from both sides
-    assert summary["devices"]["scanner"]["frames"] > 0 and summary["devices"]["camera"]["frames"] > 0
-    assert summary["fakes"]["scanner"]["bytes_out"] > 0 and summary["fakes"]["robot"]["bytes_in"] > 0
 
 
 def test_sim_log_has_every_channel_at_its_rate(sim_run: tuple[dict, Path]) -> None:

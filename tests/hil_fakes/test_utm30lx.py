@@ -137,6 +137,20 @@ def test_frames_every_25_ms_with_step0_stamps_computed_once() -> None:
     assert frames[0].distances.tolist() == truth.astype(int).tolist()
 
 
+def test_a_model_polled_late_counts_the_scans_it_sent_late_or_skipped() -> None:
+    """A real-time fake on a host too busy to poll it on time: what it sends late is counted, so a run
+    can tell a starved simulation from the sensor's behaviour."""
+    fake = Driven()
+    fake.send(b"MD0000108001000")
+    fake.advance(0.5)
+    assert fake.model.scans_late == 0 and fake.model.frames_sent == 20  # polled every millisecond
+    sent = fake.model.frames_sent
+    fake.advance(0.1, step=0.1)  # one poll after 0.1 s: four scans at once, three of them a period late
+    assert fake.model.frames_sent - sent == 4 and fake.model.scans_late == 3
+    fake.advance(1.0, step=1.0)  # 40 scans due: the last 8 are sent, 32 skipped, 7 of the 8 late
+    assert fake.model.scans_late == 3 + 32 + 7
+
+
 def test_interval_and_finite_count() -> None:
     fake = Driven()
     fake.send(b"MD0000108001103")
