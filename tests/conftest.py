@@ -65,10 +65,13 @@ def hardware_url(device: str) -> str:
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Tests on real devices share the devices: on several workers (``-n 2 --dist loadgroup``, the README's
-    command) they all run on one worker, one after another."""
+    command) they all run on one worker, one after another; so do the tests of one real-time ``sim_run``."""
     for item in items:
         if item.get_closest_marker("hardware") is not None:
             item.add_marker(pytest.mark.xdist_group("hardware"))
+        elif "sim_run" in getattr(item, "fixturenames", ()):
+            # one worker sets the real-time run up once (it has the machine to itself meanwhile)
+            item.add_marker(pytest.mark.xdist_group("sim_run"))
 
 
 @pytest.fixture(scope="session")

@@ -94,4 +94,4 @@ _MAX_CATCH_UP_SCANS = 8
 
 #: a sweep is measured in this many parts, each as soon as its beams' times have passed, so a sweep's
 #: data are ready when it ends, as on the sensor, instead of being computed all at once then
-_SWEEP_PARTS = 8
+_SWEEP_PARTS = 4

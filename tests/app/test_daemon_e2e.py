@@ -80,7 +80,7 @@ def test_sim_meets_the_targets_when_the_simulated_devices_kept_real_time(sim_run
     summary, _ = sim_run
     scanner = summary["fakes"]["scanner"]
     late, sent = scanner["scans_late"], scanner["scans_sent"]
-    if late > 0.05 * (late + sent):
+    if late > 0.2 * (late + sent):  # alone on an idle machine 0-5 %, starved 37-68 % (docs/simulation.md)
         pytest.skip(f"the simulated world fell behind real time: {late} of {late + sent} scans late or skipped")
     assert summary["obstacle_err_mean_m"] <= 0.10
     assert summary["obstacle_err_std_m"] <= 0.08

@@ -17,6 +17,7 @@ import pytest
 
 from app.cmd_ros2 import LOOPBACK_XML
 from app.ros2.publisher import TOPICS
+from tests.machine_lock import MachineLock
 
 ROOT = Path(__file__).resolve().parents[2]
 CYCLONE_XML = LOOPBACK_XML  # loopback only, no multicast: the machine's network stays out
@@ -29,8 +30,12 @@ def header_ok(h: dict, frame: str, t0: float, t1: float) -> None:
     assert t0 - 1.0 <= t <= t1, (t0, t, t1)
 
 
+# one worker runs this module's tests: the real-time run below is made once
+pytestmark = pytest.mark.xdist_group("ros2_e2e")
+
+
 @pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory) -> dict:
+def run(tmp_path_factory: pytest.TempPathFactory, machine_lock: MachineLock) -> dict:
     tmp = tmp_path_factory.mktemp("ros2")
     xml = tmp / "cyclonedds.xml"
     xml.write_text(CYCLONE_XML)
@@ -43,11 +48,12 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict:
         # the daemon: the domain from ROS_DOMAIN_ID, its Cyclone config from ros2.cyclonedds_config
         sim_env = {k: v for k, v in env.items() if k != "CYCLONEDDS_URI"}
         t0 = time.time()
-        proc = subprocess.run(
-            [sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", "3", "--ros2", "--json",
-             "--no-progress", "--log", str(tmp / "sim.mcap"), "--set", f'ros2.namespace="{NAMESPACE}"',
-             "--set", f'ros2.cyclonedds_config="{xml}"', "--set", "status.port=0"],
-            env=sim_env, cwd=tmp, capture_output=True, text=True, timeout=150)
+        with machine_lock.exclusive():  # a real-time run: the simulated robot must keep its pace
+            proc = subprocess.run(
+                [sys.executable, "-m", "app", "sim", "--scenario", "1", "--duration", "3", "--ros2", "--json",
+                 "--no-progress", "--log", str(tmp / "sim.mcap"), "--set", f'ros2.namespace="{NAMESPACE}"',
+                 "--set", f'ros2.cyclonedds_config="{xml}"', "--set", "status.port=0"],
+                env=sim_env, cwd=tmp, capture_output=True, text=True, timeout=150)
         t1 = time.time()
         assert proc.returncode == 0, proc.stderr[-2000:]
         time.sleep(0.5)  # the last samples in flight
