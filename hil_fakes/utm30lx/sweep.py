@@ -23,7 +23,8 @@ class MirrorSweep:
     config: Utm30lxConfig
     source: RangeSource
     frames_sent: int
-    #: see :meth:`_count_late`
+    #: scans a stream wanted that were completed more than a period after their sweep ended, or skipped:
+    #: the model's clock ran while its thread could not (a host too busy for a real-time fake), no device fault
     scans_late: int
     _boot_s: float | None
     _next_scan: int
@@ -48,20 +49,15 @@ class MirrorSweep:
         period = self.config.scan_period_s
         behind = int((now_s - self._scan_done_s(self._next_scan)) // period) + 1
         if behind > _MAX_CATCH_UP_SCANS:
-            self._next_scan += behind - _MAX_CATCH_UP_SCANS
-            self._count_late(behind - _MAX_CATCH_UP_SCANS)
+            skipped = range(self._next_scan, self._next_scan + behind - _MAX_CATCH_UP_SCANS)
+            self._next_scan = skipped.stop
+            self.scans_late += sum(map(self._stream_wants, skipped))
         while self._scan_done_s(self._next_scan) <= now_s:
             k = self._next_scan
             self._next_scan += 1
-            if now_s - self._scan_done_s(k) > period:
-                self._count_late(1)
+            if now_s - self._scan_done_s(k) > period and self._stream_wants(k):
+                self.scans_late += 1
             self._complete_scan(k, self._scan_done_s(k))  # on the link from the sweep's end
-
-    def _count_late(self, n: int) -> None:
-        """Scans of a stream completed more than a period after their sweep ended, or skipped: the model's
-        clock ran while its thread could not (a host too busy for a real-time fake), not a device fault."""
-        if self._stream is not None:
-            self.scans_late += n
 
     def _wanted(self, k: int) -> bool:
         """Scan ``k`` will be sent (to a stream or a pending single request)."""

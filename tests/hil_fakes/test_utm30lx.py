@@ -149,6 +149,12 @@ def test_a_model_polled_late_counts_the_scans_it_sent_late_or_skipped() -> None:
     assert fake.model.frames_sent - sent == 4 and fake.model.scans_late == 3
     fake.advance(1.0, step=1.0)  # 40 scans due: the last 8 are sent, 32 skipped, 7 of the 8 late
     assert fake.model.scans_late == 3 + 32 + 7
+    every_other = Driven()
+    every_other.send(b"MD0000108001100")  # interval 1: the scans in between are not the stream's
+    every_other.advance(0.2, step=0.2)  # 8 scans due at once, 4 of them the stream's, all a period late
+    assert every_other.model.frames_sent == 4 and every_other.model.scans_late == 4
+    every_other.advance(1.0, step=1.0)  # 40 due: 32 skipped (16 the stream's), 8 measured (4 sent, late)
+    assert every_other.model.scans_late == 4 + 16 + 4
 
 
 def test_interval_and_finite_count() -> None:
