@@ -318,9 +318,8 @@ class ControlLoop:
         self.last_scan: ScanSample | None = None
         #: ``/vipsm/scanner`` before the first scan and whenever the scanner's geometry changes
         self._scanner_info = lm.ScannerInfoLog()
-        self.last_frame: FrameSample | None = None
         #: the last few frames, so that a scan is paired with the frame taken nearest it
-        self._frames: RecentFrames[FrameSample] = RecentFrames()
+        self._frames = RecentFrames()
         self.last_estimate: Estimate | None = None
         self.last_odom_sample: OdomSample | None = None
         self.mission_state = "hold"
@@ -443,7 +442,6 @@ class ControlLoop:
         frame_sample = self.camera.latest() if self.camera is not None else None
         if frame_sample is not None:
             self.stats.frames_in += 1
-            self.last_frame = frame_sample
             self._frames.add(frame_sample)
             if self.log is not None and self.config.log.frames:
                 fs, fw = frame_sample, self.wall(frame_sample.frame.stamp_s)
@@ -465,7 +463,8 @@ class ControlLoop:
             base_state = "stalled"
         if self._first_cycle_s is None:
             self._first_cycle_s = now_s
-        newest_frame_s = self.last_frame.frame.stamp_s if self.last_frame is not None else -math.inf
+        newest = self._frames.newest
+        newest_frame_s = newest.frame.stamp_s if newest is not None else -math.inf
         if camera_state == "ok" and now_s - max(newest_frame_s, self._first_cycle_s) > cfg.max_frame_age_s:
             # stalled: no frame for max_frame_age_s while the loop ran (a frame aged by the start-up
             # itself, before the first cycle, is not used but is no stall of the camera)

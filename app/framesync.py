@@ -11,36 +11,26 @@ the scan's, as a ROS approximate-time synchroniser does.
 from __future__ import annotations
 
 from collections import deque
-from typing import Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING
 
-
-class _Stamped(Protocol):
-    @property
-    def stamp_s(self) -> float: ...
-
-
-class _HasFrame(Protocol):
-    @property
-    def frame(self) -> _Stamped: ...
-
-
-S = TypeVar("S", bound=_HasFrame)
+if TYPE_CHECKING:
+    from .daemon import FrameSample
 
 #: frames kept: 1.6 s at the SNC-RZ50's 10 frames a second over HTTP, 0.5 s at 30. A scan later than
 #: that is stale to the scanner's own stall age long before its frame would be dropped here.
 RECENT_FRAMES = 16
 
 
-class RecentFrames(Generic[S]):
+class RecentFrames:
     """The last :data:`RECENT_FRAMES` frame samples (bounded), and the one to pair with a scan."""
 
     def __init__(self, keep: int = RECENT_FRAMES) -> None:
         if keep < 1:
             raise ValueError(f"keep must be at least 1, got {keep}")
-        self._samples: deque[S] = deque(maxlen=keep)
+        self._samples: deque[FrameSample] = deque(maxlen=keep)
         self._used_stamp_s = float("-inf")
 
-    def add(self, sample: S) -> None:
+    def add(self, sample: FrameSample) -> None:
         """A frame received; frames arrive in stamp order (one camera), an older stamp restarts the ring
         (the camera's clock or stream was reset)."""
         if self._samples and sample.frame.stamp_s < self._samples[-1].frame.stamp_s:
@@ -51,10 +41,15 @@ class RecentFrames(Generic[S]):
     def __len__(self) -> int:
         return len(self._samples)
 
-    def nearest(self, stamp_s: float, max_gap_s: float) -> S | None:
+    @property
+    def newest(self) -> FrameSample | None:
+        """The frame received last (None: none yet)."""
+        return self._samples[-1] if self._samples else None
+
+    def nearest(self, stamp_s: float, max_gap_s: float) -> FrameSample | None:
         """The frame taken nearest ``stamp_s``, at most ``max_gap_s`` from it, and never older than the
         frame this returned last (the estimator's optical flow runs forward in time); None if none."""
-        best: S | None = None
+        best: FrameSample | None = None
         best_gap_s = max_gap_s
         for s in self._samples:
             t = s.frame.stamp_s

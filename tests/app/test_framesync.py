@@ -25,7 +25,7 @@ def _sample(stamp_s: float) -> FrameSample:
 
 
 def test_the_frame_nearest_the_scan_within_the_gap_and_never_an_older_one_than_last_time() -> None:
-    frames: RecentFrames[FrameSample] = RecentFrames(keep=8)
+    frames = RecentFrames(keep=8)
     for t in (1.0, 1.1, 1.2, 1.3):
         frames.add(_sample(t))
     s = frames.nearest(1.12, max_gap_s=0.3)
@@ -37,10 +37,12 @@ def test_the_frame_nearest_the_scan_within_the_gap_and_never_an_older_one_than_l
 
 
 def test_the_ring_is_bounded_and_a_camera_restart_starts_it_again() -> None:
-    frames: RecentFrames[FrameSample] = RecentFrames(keep=4)
+    frames = RecentFrames(keep=4)
     for k in range(10):
         frames.add(_sample(float(k)))
     assert len(frames) == 4 and frames.nearest(2.0, max_gap_s=0.5) is None  # 0..5 were dropped
+    newest = frames.newest
+    assert newest is not None and newest.frame.stamp_s == 9.0
     s = frames.nearest(9.0, max_gap_s=0.5)
     assert s is not None and s.frame.stamp_s == 9.0
     frames.add(_sample(0.5))  # the camera's stamps went back: a new stream
