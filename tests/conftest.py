@@ -63,15 +63,21 @@ def hardware_url(device: str) -> str:
     pytest.skip(f"no real {device} attached (set {env} or plug one in as {udev_name})")
 
 
+#: module fixtures that make one real-time run of the simulated robot (holding the machine alone)
+REAL_TIME_RUNS = ("sim_run", "ros2_run")
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Tests on real devices share the devices: on several workers (``-n 2 --dist loadgroup``, the README's
-    command) they all run on one worker, one after another; so do the tests of one real-time ``sim_run``."""
+    command) they all run on one worker, one after another; so do the tests of one real-time run (the run
+    is then made once, not once per worker)."""
     for item in items:
         if item.get_closest_marker("hardware") is not None:
             item.add_marker(pytest.mark.xdist_group("hardware"))
-        elif "sim_run" in getattr(item, "fixturenames", ()):
-            # one worker sets the real-time run up once (it has the machine to itself meanwhile)
-            item.add_marker(pytest.mark.xdist_group("sim_run"))
+            continue
+        for name in REAL_TIME_RUNS:
+            if name in getattr(item, "fixturenames", ()):
+                item.add_marker(pytest.mark.xdist_group(name))
 
 
 @pytest.fixture(scope="session")

@@ -30,12 +30,8 @@ def header_ok(h: dict, frame: str, t0: float, t1: float) -> None:
     assert t0 - 1.0 <= t <= t1, (t0, t, t1)
 
 
-# one worker runs this module's tests: the real-time run below is made once
-pytestmark = pytest.mark.xdist_group("ros2_e2e")
-
-
 @pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory, machine_lock: MachineLock) -> dict:
+def ros2_run(tmp_path_factory: pytest.TempPathFactory, machine_lock: MachineLock) -> dict:
     tmp = tmp_path_factory.mktemp("ros2")
     xml = tmp / "cyclonedds.xml"
     xml.write_text(CYCLONE_XML)
@@ -63,8 +59,8 @@ def run(tmp_path_factory: pytest.TempPathFactory, machine_lock: MachineLock) -> 
             "t1": t1, "stderr": proc.stderr}
 
 
-def test_every_topic_arrives_with_its_ros2_type_and_qos(run: dict) -> None:
-    seen, summary = run["seen"], run["summary"]
+def test_every_topic_arrives_with_its_ros2_type_and_qos(ros2_run: dict) -> None:
+    seen, summary = ros2_run["seen"], ros2_run["summary"]
     assert summary["ros2"]["state"] == "ok" and summary["ros2"]["errors"] == 0, summary["ros2"]
     assert summary["ros2"]["namespace"] == NAMESPACE
     for name, (ros_type, profile) in TOPICS.items():
@@ -82,8 +78,8 @@ def test_every_topic_arrives_with_its_ros2_type_and_qos(run: dict) -> None:
     assert seen["/scan"]["count"] >= seen["/odom"]["count"]  # at most one estimate per scan
 
 
-def test_frames_stamps_and_content(run: dict) -> None:
-    seen, t0, t1 = run["seen"], run["t0"], run["t1"]
+def test_frames_stamps_and_content(ros2_run: dict) -> None:
+    seen, t0, t1 = ros2_run["seen"], ros2_run["t0"], ros2_run["t1"]
     scan = seen["/scan"]["samples"][0]
     header_ok(scan["header"], "laser", t0, t1)
     assert scan["angle_increment"] > 0 and scan["time_increment"] > 0
