@@ -43,7 +43,7 @@ from vipsm.types import Estimate, EstimateFlag, Frame, Odometry, Scan
 from . import logmessages as lm
 from .config import Config, redact_text, redacted_config
 from .fieldlog import FieldLog
-from .framesync import RecentFrames
+from .framesync import FrameSample, RecentFrames
 from .health import LoopHealth, OdometryHistory, OverloadMonitor, SafetyMonitor
 from .protective_field import FieldParams, ProtectiveField
 from .sdnotify import SystemdNotifier
@@ -80,13 +80,6 @@ class OdomSample:
     battery_v: float = 0.0
     stalled: bool = False
     motors_enabled: bool = True
-
-
-@dataclass(frozen=True)
-class FrameSample:
-    frame: Frame
-    jpeg: bytes
-    zoom_pos: int = 0
 
 
 class ScannerPort(Protocol):

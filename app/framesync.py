@@ -11,10 +11,19 @@ the scan's, as a ROS approximate-time synchroniser does.
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
 
-if TYPE_CHECKING:
-    from .daemon import FrameSample
+from vipsm.types import Frame
+
+
+@dataclass(frozen=True)
+class FrameSample:
+    """A decoded camera frame as the loop received it, with its JPEG (for the log) and the zoom it was
+    taken at (``app.daemon`` re-exports it: the camera port's type)."""
+
+    frame: Frame
+    jpeg: bytes
+    zoom_pos: int = 0
 
 #: frames kept: 1.6 s at the SNC-RZ50's 10 frames a second over HTTP, 0.5 s at 30. A scan later than
 #: that is stale to the scanner's own stall age long before its frame would be dropped here.
