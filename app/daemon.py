@@ -70,8 +70,10 @@ class ScanSample:
 
 
 #: an estimate made without the camera: none configured or fresh, the baseline asked for, or a frame
-#: the estimator could not use (too far from the scan, undecodable)
-WITHOUT_CAMERA = EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM | EstimateFlag.STALE_FRAME | EstimateFlag.FRAME_ERROR
+#: the estimator could not use (too far from the scan, undecodable, or with no earlier frame to take the
+#: optical flow against)
+WITHOUT_CAMERA = (EstimateFlag.NO_FRAME | EstimateFlag.PLAIN_PSM | EstimateFlag.STALE_FRAME | EstimateFlag.FRAME_ERROR
+                  | EstimateFlag.NO_FLOW)
 
 
 @dataclass(frozen=True)

@@ -397,8 +397,8 @@ class Estimator:
         except (cv2.error, ValueError):  # e.g. an image of the wrong dtype or shape
             self._flow.reset()
             return [], flags | EstimateFlag.FRAME_ERROR
-        if fres is None:
-            return [], flags
+        if fres is None:  # no earlier frame to compute the flow against
+            return [], flags | EstimateFlag.NO_FLOW
         return [interval_to_laser(iv, rel_sf, cfg.laser_mount) for iv in fres.intervals], flags
 
     def _track_masks(self, stamp_s: float, predicted: Pose2D) -> list[BearingInterval]:

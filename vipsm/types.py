@@ -164,6 +164,9 @@ class EstimateFlag(enum.Flag):
     FRAME_ERROR = enum.auto()  # the frame could not be processed (bad image) and was not used
     #: no odometry and no accepted match this cycle: the pose is the constant-velocity prediction alone
     POSE_UNCERTAIN = enum.auto()
+    #: the frame had no earlier frame within the flow's ``max_frame_gap_s`` (the first frame, or frames
+    #: further apart than that): no optical flow, so no visual cut this cycle
+    NO_FLOW = enum.auto()
 
 
 @dataclass(frozen=True)

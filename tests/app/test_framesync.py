@@ -135,6 +135,7 @@ def test_a_late_scan_is_paired_with_the_frame_taken_with_it_not_the_newest(late_
 def test_an_estimate_on_a_frame_it_refused_counts_as_plain_psm() -> None:
     from app.daemon import WITHOUT_CAMERA
 
-    for flag in (EstimateFlag.NO_FRAME, EstimateFlag.PLAIN_PSM, EstimateFlag.STALE_FRAME, EstimateFlag.FRAME_ERROR):
+    for flag in (EstimateFlag.NO_FRAME, EstimateFlag.PLAIN_PSM, EstimateFlag.STALE_FRAME, EstimateFlag.FRAME_ERROR,
+                 EstimateFlag.NO_FLOW):
         assert flag & WITHOUT_CAMERA
     assert not EstimateFlag.BRIDGE_INVALID & WITHOUT_CAMERA

@@ -108,6 +108,21 @@ def test_first_scan_no_frame_stale_frame_flags() -> None:
     assert e1.covariance.shape == (3, 3) and np.all(np.linalg.eigvalsh(e1.covariance) > 0)
 
 
+def test_a_frame_with_no_earlier_frame_in_the_flow_gap_is_flagged_no_flow() -> None:
+    """No optical flow without a frame pair: the first frame, and a frame further than ``max_frame_gap_s``
+    after the one before, give a cycle without a visual cut, which is flagged, not silent."""
+    seq = _sequence(_crossing_world(), 12)
+    est = Estimator(CFG)
+    flagged = [EstimateFlag.NO_FLOW in est.step(scan, odo, frame).flags for scan, odo, frame, _ in seq[:4]]
+    assert flagged == [True, False, False, False]
+    gap_s = CFG.flow.max_frame_gap_s
+    later = [s for s in seq[4:] if s[2].stamp_s - seq[3][2].stamp_s > gap_s]
+    scan, odo, frame, _ = later[0]
+    assert EstimateFlag.NO_FLOW in est.step(scan, odo, frame).flags
+    scan, odo, frame, _ = later[1]
+    assert EstimateFlag.NO_FLOW not in est.step(scan, odo, frame).flags
+
+
 @pytest.mark.parametrize("bad", ["all-invalid", "empty"])
 def test_unusable_scan_falls_back_to_odometry(bad: str) -> None:
     world = box_room(8.0, 6.0)
