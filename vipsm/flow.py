@@ -19,6 +19,7 @@ from typing import ClassVar
 
 import cv2
 import numpy as np
+from numba import njit
 
 from .distortion import distort, undistort
 from .geometry import between, inverse, transform_point
@@ -221,18 +222,8 @@ def _remove_global_error(
         idx = idx[:: int(math.ceil(idx.size / 1500))]
     r = np.stack([ru.ravel()[idx], rv.ravel()[idx]])
     p = np.stack([pu.ravel()[idx], pv.ravel()[idx]])
-    e0 = np.hypot(*r)
-    q25 = _lower_quartile(e0)
-    starts = [np.ones(idx.size, bool), e0 <= max(2.0 * q25, cfg.alpha_base_px)]
-    best, best_n = (0.0, 0.0, 0.0), int(np.count_nonzero(e0 < cfg.alpha_base_px))
-    for keep in starts:
-        model = _fit_global(r, p, keep, cfg)
-        if model is None:
-            continue
-        n = int(np.count_nonzero(_global_residual(r, p, model) < cfg.alpha_base_px))
-        if n > best_n:
-            best, best_n = model, n
-    a, b, sc = best
+    a, b, sc = _best_global(r, p, _lower_quartile(np.hypot(r[0], r[1])), float(cfg.alpha_base_px),
+                            float(cfg.global_shift_max_px), float(cfg.global_scale_max))
     return ru - a - sc * pu, rv - b - sc * pv
 
 
@@ -246,38 +237,58 @@ def _lower_quartile(x: np.ndarray) -> float:
     return b - (b - a) * (1.0 - t) if t >= 0.5 else a + (b - a) * t
 
 
-def _global_residual(r: np.ndarray, p: np.ndarray, model: tuple[float, float, float]) -> np.ndarray:
-    a, b, sc = model
-    return np.hypot(r[0] - a - sc * p[0], r[1] - b - sc * p[1])
+@njit(cache=True, nogil=True)
+def _best_global(r, p, q25, alpha_px, shift_max_px, scale_max):  # pragma: no cover - compiled
+    """The model (a, b, s) of :func:`_remove_global_error` leaving the most of the samples ``r`` (2, n)
+    below ``alpha_px``: no correction, or :func:`_fit_global` from all samples or from those the
+    uncorrected prediction explains best (within 2x the lower quartile ``q25`` of their error)."""
+    e0 = np.hypot(r[0], r[1])
+    best_a, best_b, best_s = 0.0, 0.0, 0.0
+    best_n = np.count_nonzero(e0 < alpha_px)
+    for start in range(2):
+        keep = np.ones(e0.size, np.bool_) if start == 0 else e0 <= max(2.0 * q25, alpha_px)
+        ok, a, b, sc = _fit_global(r, p, keep, shift_max_px, scale_max)
+        if ok:
+            n = np.count_nonzero(np.hypot(r[0] - a - sc * p[0], r[1] - b - sc * p[1]) < alpha_px)
+            if n > best_n:
+                best_a, best_b, best_s, best_n = a, b, sc, n
+    return best_a, best_b, best_s
 
 
-def _fit_global(r: np.ndarray, p: np.ndarray, keep: np.ndarray, cfg: FlowConfig) -> tuple[float, float, float] | None:
+@njit(cache=True, nogil=True)
+def _fit_global(r, p, keep, shift_max_px, scale_max):  # pragma: no cover - compiled
     """Least squares of residual (2, n) = (a, b) + s * predicted (2, n) over ``keep``, twice, keeping
     for the second the samples within 3x the median error of the first's; clamped to the configured
-    bounds. None: too few samples."""
-    model = None
+    bounds. (False, ...): too few samples."""
+    ok, a, b, sc = False, 0.0, 0.0, 0.0
     for _ in range(2):
         k = np.flatnonzero(keep)
         if k.size < 30:
             break
         # normal equations of [1 0 pu; 0 1 pv] [a b s]' = [ru; rv]
         n = float(k.size)
-        (pku, pkv), (rku, rkv) = p[:, k], r[:, k]
-        spu, spv = float(pku.sum()), float(pkv.sum())
-        spp = float(np.dot(pku, pku) + np.dot(pkv, pkv))
-        sru, srv = float(rku.sum()), float(rkv.sum())
-        srp = float(np.dot(pku, rku) + np.dot(pkv, rkv))
-        m = np.array([[n + 1e-6, 0.0, spu], [0.0, n + 1e-6, spv], [spu, spv, spp + 1e-6]])
-        try:
-            a, b, sc = np.linalg.solve(m, np.array([sru, srv, srp]))
-        except np.linalg.LinAlgError:
-            return model
-        shift, scale = cfg.global_shift_max_px, cfg.global_scale_max
-        model = (min(max(float(a), -shift), shift), min(max(float(b), -shift), shift),
-                 min(max(float(sc), -scale), scale))
-        e = _global_residual(r, p, model)
-        keep = e < max(3.0 * float(np.median(e[k])), 0.3)
-    return model
+        spu = spv = spp = sru = srv = srp = 0.0
+        for i in k:
+            pu, pv, ru, rv = p[0, i], p[1, i], r[0, i], r[1, i]
+            spu += pu
+            spv += pv
+            spp += pu * pu + pv * pv
+            sru += ru
+            srv += rv
+            srp += pu * ru + pv * rv
+        # the system [[n, 0, spu], [0, n, spv], [spu, spv, spp]] (+1e-6 I) solved by eliminating a and b
+        d = n + 1e-6
+        den = d * (spp + 1e-6) - spu * spu - spv * spv
+        if den == 0.0 or not math.isfinite(den):
+            break
+        sc_ = (d * srp - spu * sru - spv * srv) / den
+        a_, b_ = (sru - spu * sc_) / d, (srv - spv * sc_) / d
+        ok = True
+        a, b = min(max(a_, -shift_max_px), shift_max_px), min(max(b_, -shift_max_px), shift_max_px)
+        sc = min(max(sc_, -scale_max), scale_max)
+        e = np.hypot(r[0] - a - sc * p[0], r[1] - b - sc * p[1])
+        keep = e < max(3.0 * np.median(e[k]), 0.3)
+    return ok, a, b, sc
 
 
 class FlowDetector:

@@ -72,14 +72,26 @@ class LegModel:
             raise ValueError(f"need (n, {len(FEATURE_NAMES)}) features, got {x.shape}")
         if x.shape[0] == 0:
             return np.zeros(0)
-        node = np.broadcast_to(self.roots, (x.shape[0], self.roots.size)).copy()
-        rows = np.arange(x.shape[0])[:, None]
-        for _ in range(self.depth):
-            f = self.feature[node]
-            leaf = f < 0
-            go_left = x[rows, np.where(leaf, 0, f)] <= self.threshold[node]
-            node = np.where(leaf, node, np.where(go_left, self.left[node], self.right[node]))
-        return self.value[node].mean(axis=1)
+        leaves = _leaves(np.ascontiguousarray(x), self.feature, self.threshold, self.left, self.right, self.roots,
+                         self.depth)
+        return self.value[leaves].mean(axis=1)
+
+
+@njit(cache=True, nogil=True)
+def _leaves(x, feature, threshold, left, right, roots, depth):  # pragma: no cover - compiled
+    """The leaf each row of ``x`` reaches in each tree (n, trees), at most ``depth`` steps down (a NaN
+    feature goes right: ``x <= threshold`` is false)."""
+    out = np.empty((x.shape[0], roots.size), dtype=np.intp)
+    for i in range(x.shape[0]):
+        for t in range(roots.size):
+            node = roots[t]
+            for _ in range(depth):
+                f = feature[node]
+                if f < 0:
+                    break
+                node = left[node] if x[i, f] <= threshold[node] else right[node]
+            out[i, t] = node
+    return out
 
 
 def model_from_arrays(arrays: dict[str, np.ndarray], source: str = "the leg model") -> LegModel:
