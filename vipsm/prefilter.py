@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 #: the longest run of mixed pixels the ramp rule drops: the recorded UTM-30LX's mixed runs are 1-3 beams
 #: long (its footprint straddles an edge for up to three 0.25 deg steps)
@@ -182,34 +183,47 @@ def ramp_mask(ranges_m: np.ndarray, tol_m: np.ndarray | float, min_gap_m: np.nda
         surf &= cont[j : j + n - m]
     # a run may start at i0 where a surface ends at i0 - 1 and i0 leaves it
     starts = np.flatnonzero(surf[: n - m - 1] & ~cont[m : n - 1]) + SURFACE_RETURNS
+    _mark_ramps(r, np.ascontiguousarray(tol), np.ascontiguousarray(gaps), surf, starts, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _mark_ramps(r, tol, gaps, surf, starts, out):  # pragma: no cover - compiled
+    """Marks in ``out`` the shortest ramp (1 to ``MAX_RAMP_BEAMS`` beams) starting at each of ``starts``
+    that reaches a surface (``surf``) and passes :func:`_is_ramp`."""
+    n = r.size
     for i0 in starts:
         for k in range(1, MAX_RAMP_BEAMS + 1):
             i1 = i0 + k - 1  # the run's last beam; the far surface starts at i1 + 1
             if i1 + SURFACE_RETURNS >= n or not surf[i1 + 1]:
                 continue
-            if _is_ramp(r[i0 - 2 : i0], r[i0 : i1 + 1], r[i1 + 1 : i1 + 3], float(tol[i0]), float(gaps[i0])):
+            if _is_ramp(r, i0, i1 + 1, tol[i0], gaps[i0]):
                 out[i0 : i1 + 1] = True
                 break
-    return out
 
 
-def _is_ramp(left: np.ndarray, run: np.ndarray, right: np.ndarray, tol_m: float, min_gap_m: float) -> bool:
-    """The run's returns lie between the two surfaces (``left``: the two returns before it, ``right``: the
-    two after it), off both by more than ``tol_m`` (from the surface's nearest return and from its line
-    through its two returns: a sloping surface is followed along its slope), within the gap's middle
-    (``PULLED_SHARE`` to 1 - it), in order from one surface to the other."""
-    near_l, near_r = left[1], right[0]
+@njit(cache=True, nogil=True)
+def _is_ramp(r, i0, i1, tol_m, min_gap_m):  # pragma: no cover - compiled
+    """The run ``r[i0:i1]`` lies between the two surfaces (the two returns before it, the two after it),
+    off both by more than ``tol_m`` (from the surface's nearest return and from its line through its two
+    returns: a sloping surface is followed along its slope), within the gap's middle (``PULLED_SHARE``
+    to 1 - it), in order from one surface to the other."""
+    far_l, near_l, near_r, far_r = r[i0 - 2], r[i0 - 1], r[i1], r[i1 + 1]
+    size = i1 - i0
     lo, hi = min(near_l, near_r), max(near_l, near_r)
     gap = hi - lo
     # the step the two surfaces' own slopes do not explain (a sloping wall's noisy steps are none)
-    slope = 0.5 * ((near_l - left[0]) + (right[1] - near_r))
-    step = abs(near_r - near_l - (run.size + 1) * slope)
-    if not np.all(np.isfinite(run)) or min(gap, step) < max(min_gap_m, 2.0 * tol_m) or gap > MIXED_GAP_M:
+    slope = 0.5 * ((near_l - far_l) + (far_r - near_r))
+    step = abs(near_r - near_l - (size + 1) * slope)
+    if not np.all(np.isfinite(r[i0:i1])) or min(gap, step) < max(min_gap_m, 2.0 * tol_m) or gap > MIXED_GAP_M:
         return False
-    k = np.arange(1, run.size + 1)
-    on_left = np.abs(run - (near_l + k * (near_l - left[0]))) <= tol_m
-    on_right = np.abs(run - (near_r - k[::-1] * (right[1] - near_r))) <= tol_m
-    t = (run - lo) / gap
-    inside = (run > lo + tol_m) & (run < hi - tol_m) & (t > PULLED_SHARE) & (t < 1.0 - PULLED_SHARE)
-    steps = np.diff(run) * np.sign(near_r - near_l)
-    return bool(np.all(inside & ~on_left & ~on_right) and np.all(steps > 0.0))
+    rising = np.sign(near_r - near_l)
+    for j in range(size):
+        x = r[i0 + j]
+        on_left = abs(x - (near_l + (j + 1) * (near_l - far_l))) <= tol_m
+        on_right = abs(x - (near_r - (size - j) * (far_r - near_r))) <= tol_m
+        t = (x - lo) / gap
+        inside = x > lo + tol_m and x < hi - tol_m and t > PULLED_SHARE and t < 1.0 - PULLED_SHARE
+        if not inside or on_left or on_right or (j > 0 and not (x - r[i0 + j - 1]) * rising > 0.0):
+            return False
+    return True
