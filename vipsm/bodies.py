@@ -29,6 +29,7 @@ one where the pre-filter removed a return (a thin thing in front).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
@@ -41,7 +42,7 @@ from .person import PersonKeys, PersonSize, across_beyond_m
 from .restore import BearingInterval, _beams_in
 from .seen_through import ScanMemory
 from .static_map import FreeSpaceGrid, StaticMapConfig
-from .tracker import TrackerConfig, locate_body
+from .tracker import TrackerConfig, locate_body, locate_round
 from .types import Pose2D
 
 #: the fewest returns a segment needs to be a body: three points define a circle (the round-body fit) and
@@ -228,7 +229,7 @@ def segments(r: np.ndarray, b: np.ndarray, cfg: BodiesConfig, dropped: np.ndarra
     return [(int(idx[s0]), int(idx[s1 - 1]) + 1) for s0, s1 in zip(starts, stops, strict=True)]
 
 
-def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool, list[int]]:
+def _foreground(r: Sequence[float], a: int, z: int, cfg: BodiesConfig) -> tuple[bool, list[int]]:
     """The segment stands in front of what lies beside it. Each side's neighbour is the nearest return
     within ``neighbour_beams`` (a dropped mixed pixel does not hide the surface next to it), judged
     against the segment's own return at that end: a side on the same surface (within ``foreground_m``)
@@ -241,21 +242,21 @@ def _foreground(r: np.ndarray, a: int, z: int, cfg: BodiesConfig) -> tuple[bool,
     neighbour (its beam index is -1 or the scan's size): a body leaving the field of view shows a
     shrinking part whose centre moves with the edge, not with the body."""
     occluders: list[int] = []  # the beam of each nearer neighbour
-    nb = cfg.neighbour_beams
-    sides = (np.arange(a - 1, max(a - nb, 0) - 1, -1), np.arange(z, min(z + nb, r.size)))
-    own = r[a:z][np.isfinite(r[a:z])]  # a segment starts and ends with a return
-    for idx, edge, end_m in zip(sides, (-1, r.size), (float(own[0]), float(own[-1])), strict=True):
-        finite = idx[np.isfinite(r[idx])]
-        if not finite.size:
-            if idx.size < nb:  # the scan's first or last beam is beside it: the field of view's edge
+    nb, n = cfg.neighbour_beams, len(r)
+    sides = (range(a - 1, max(a - nb, 0) - 1, -1), range(z, min(z + nb, n)))
+    own = [v for v in r[a:z] if math.isfinite(v)]  # a segment starts and ends with a return
+    for idx, edge, end_m in zip(sides, (-1, n), (float(own[0]), float(own[-1])), strict=True):
+        first = next((k for k in idx if math.isfinite(r[k])), None)
+        if first is None:
+            if len(idx) < nb:  # the scan's first or last beam is beside it: the field of view's edge
                 occluders.append(edge)
             continue
-        if r[finite[0]] >= end_m + cfg.foreground_m:
+        if r[first] >= end_m + cfg.foreground_m:
             continue
-        if r[finite[0]] > end_m - cfg.foreground_m:
+        if r[first] > end_m - cfg.foreground_m:
             return False, []
-        occluders.append(int(finite[0]))
-    return sum(0 <= k < r.size for k in occluders) < 2, occluders
+        occluders.append(first)
+    return sum(0 <= k < n for k in occluders) < 2, occluders
 
 
 def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, z: int, laser: Pose2D,
@@ -269,14 +270,17 @@ def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, 
     _, sv, vt = np.linalg.svd(pts - centre, full_matrices=False)
     if sv[1] > 0.3 * sv[0]:  # not a line (a round body's short arc)
         return False
-    normal = vt[-1]
+    nx, ny = float(vt[-1][0]), float(vt[-1][1])
+    mx, my = float(centre[0]), float(centre[1])
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     for j in (*range(a - 1, max(a - cfg.neighbour_beams, 0) - 1, -1), *range(z, min(z + cfg.neighbour_beams, r.size))):
-        if not np.isfinite(r[j]):
+        rj = float(r[j])
+        if not math.isfinite(rj):
             continue
-        xl, yl = r[j] * math.cos(b[j]), r[j] * math.sin(b[j])
-        p = np.array([laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl])
-        if abs(float((p - centre) @ normal)) < cfg.surface_tol_m:
+        bj = float(b[j])
+        xl, yl = rj * math.cos(bj), rj * math.sin(bj)
+        px, py = laser.x_m + c * xl - s * yl, laser.y_m + s * xl + c * yl
+        if abs((px - mx) * nx + (py - my) * ny) < cfg.surface_tol_m:
             return True
     return False
 
@@ -300,26 +304,29 @@ def _candidate_segments(r: np.ndarray, b: np.ndarray, laser: Pose2D, grid: FreeS
     in_camera = [_beams_in(iv, np.where(finite, r, np.nan), b, 0.0) for iv in camera]
     world = scan_points(laser, r, b)  # nan: no return
     violating = _violating(world, finite, grid, memory)
+    occupied = np.zeros(r.size, np.float32)  # asked once per scan, not once per segment
+    occupied[finite] = grid.occupied(world[finite])
+    r_list = r.tolist()  # the per-segment tests read single returns
     out = []
     for a, z in segments(r, b, cfg, dropped):
         beams = a + np.flatnonzero(finite[a:z])  # a bridged gap's beams hold no return
         if beams.size < MIN_BEAMS:
             continue
-        fg, occluders = _foreground(r, a, z, cfg)
+        fg, occluders = _foreground(r_list, a, z, cfg)
         if not fg:
             continue
         pts = world[beams]
         width = float(np.hypot(*(pts[-1] - pts[0])))
         if width > cfg.max_body_width_m or _continues_a_surface(pts, r, b, a, z, laser, cfg):
             continue
-        share = float(np.mean(violating[beams]))
+        share = np.count_nonzero(violating[beams]) / beams.size
         near_m = float(np.median(r[beams])) if camera else 0.0
         narrow = [m for m, iv in zip(in_camera, camera, strict=True)
                   if (iv.bearing_max_rad - iv.bearing_min_rad) * near_m <= der.camera_interval_max_m]
         cue = _camera_cue(narrow, beams, [k for k in occluders if 0 <= k < r.size])
         if ahead is not None and width > cfg.max_leg_width_m:
             cue = cue or bool(np.mean(ahead[beams]) >= 0.6)
-        stood = width <= cfg.max_leg_width_m and float(np.median(grid.occupied(pts))) >= cfg.fixture_occupied
+        stood = width <= cfg.max_leg_width_m and float(np.median(occupied[beams])) >= cfg.fixture_occupied
         vacated = stood and _vacated_near(pts, r, b, laser, grid, cfg, der)
         out.append(_Segment(a, z, pts, width, share, cue, tuple(occluders), stood, vacated))
     return out
@@ -461,7 +468,7 @@ def extract_bodies(ranges_m: np.ndarray, bearings_rad: np.ndarray, laser: Pose2D
     legs, bodies = [], []
     for sg in segs:
         if sg.width_m <= cfg.max_leg_width_m:
-            lx, ly, _, _ = locate_body(sg.points, sensor, der.leg_radius_m)
+            lx, ly = locate_round(sg.points, sensor, der.leg_radius_m)
             legs.append((sg, lx, ly))
         else:
             cx, cy, rad, fitted = locate_body(sg.points, sensor, None)

@@ -326,10 +326,7 @@ def locate_body(
 ) -> tuple[float, float, float, bool]:
     """Centre (x, y), radius and whether the radius came from a fit, for a round body whose front
     surface produced ``points`` (k x 2, world frame), seen from ``sensor_xy``."""
-    sx, sy = sensor_xy
-    centroid = points.mean(axis=0)
-    ray = centroid - np.array([sx, sy])
-    ray_n = ray / max(float(np.hypot(ray[0], ray[1])), 1e-9)
+    centroid, ray_n = _viewing_ray(points, sensor_xy)
     fit = fit_circle(points) if points.shape[0] >= 5 else None
     fitted = False
     radius = radius_hint_m if radius_hint_m is not None else DEFAULT_RADIUS_M
@@ -343,8 +340,27 @@ def locate_body(
             fitted = True
             if radius_hint_m is None:
                 radius = fr
-    # start from the nearest point pushed back by the radius along the ray, then refine
-    d = points - np.array([sx, sy])
+    cx, cy = _centre_behind(points, sensor_xy, radius, ray_n)
+    return cx, cy, radius, fitted
+
+
+def locate_round(points: np.ndarray, sensor_xy: tuple[float, float], radius_m: float) -> tuple[float, float]:
+    """Centre (x, y) of a round body of a known radius (a leg) whose front surface produced ``points``:
+    :func:`locate_body`'s centre with that radius as the hint, without the circle fit it does not use."""
+    return _centre_behind(points, sensor_xy, radius_m, _viewing_ray(points, sensor_xy)[1])
+
+
+def _viewing_ray(points: np.ndarray, sensor_xy: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The points' centroid and the unit vector from the sensor towards it."""
+    centroid = points.mean(axis=0)
+    ray = centroid - np.array(sensor_xy)
+    return centroid, ray / max(float(np.hypot(ray[0], ray[1])), 1e-9)
+
+
+def _centre_behind(points: np.ndarray, sensor_xy: tuple[float, float], radius: float, ray_n: np.ndarray
+                   ) -> tuple[float, float]:
+    """The nearest point pushed back by the radius along the viewing ray, then refined."""
+    d = points - np.array(sensor_xy)
     near = points[int(np.argmin(np.hypot(d[:, 0], d[:, 1])))]
     start = near + radius * ray_n
     if points.shape[0] >= 3:
@@ -354,7 +370,7 @@ def locate_body(
             cx, cy = float(start[0]), float(start[1])
     else:
         cx, cy = float(start[0]), float(start[1])
-    return cx, cy, radius, fitted
+    return cx, cy
 
 
 def _combine(track: Track) -> None:

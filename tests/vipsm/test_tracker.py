@@ -55,6 +55,16 @@ def test_short_arc_uses_the_radius_hint_along_the_viewing_ray() -> None:
     assert math.hypot(cx - 3.0, cy) < 0.02
 
 
+@pytest.mark.parametrize("n", [3, 6, 12])
+def test_a_leg_of_known_radius_is_placed_where_locate_body_places_it(n: int) -> None:
+    from vipsm.tracker import locate_round
+
+    pts = _front_points(2.0, -0.5, 0.06, n=n, noise=0.003, seed=n)
+    cx, cy, _, _ = locate_body(pts, (0.1, 0.2), 0.06)
+    assert locate_round(pts, (0.1, 0.2), 0.06) == (cx, cy)
+    assert math.hypot(cx - 2.0, cy + 0.5) < 0.03
+
+
 def test_constant_velocity_tracking_and_identities() -> None:
     tr = Tracker(TrackerConfig())
     v1 = (0.15, -0.10)
