@@ -86,21 +86,9 @@ class FreeSpaceGrid:
         c = self.config
         if points_xy.size == 0:
             return np.zeros(0, bool)
-        i, j, inside = self._cells(points_xy)
-        out = np.zeros(points_xy.shape[0], bool)
-        if not inside.any():
-            return out
-        ii, jj = i[inside], j[inside]
-        free = np.full(ii.size, np.inf, np.float32)
-        occ = np.zeros(ii.size, np.float32)
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                a = np.clip(ii + di, 0, self.n - 1)
-                b = np.clip(jj + dj, 0, self.n - 1)
-                occ = np.maximum(occ, self.occ[a, b])
-                free = np.minimum(free, self.free[a, b])
-        out[inside] = (free >= c.min_free) & (occ <= c.max_occupied)
-        return out
+        pts = np.ascontiguousarray(points_xy, dtype=np.float64).reshape(-1, 2)
+        return _violates(pts, self.origin[0], self.origin[1], c.cell_m, self.occ, self.free, np.float32(c.min_free),
+                         np.float32(c.max_occupied))
 
     def occupied(self, points_xy: np.ndarray) -> np.ndarray:
         """Per point: the (decayed) count of scans that ended a beam in its cell (before the current
@@ -149,10 +137,7 @@ class FreeSpaceGrid:
         (the tracked moving bodies) mark free space up to them but no occupancy."""
         c = self.config
         self._recentre(*laser_xy)
-        if self.stamp_s is not None:
-            k = math.exp(-max(stamp_s - self.stamp_s, 0.0) / c.memory_s)
-            self.free *= np.float32(k)
-            self.occ *= np.float32(k)
+        k = 1.0 if self.stamp_s is None else math.exp(-max(stamp_s - self.stamp_s, 0.0) / c.memory_s)
         self.stamp_s = stamp_s
         r = np.require(ranges_m, np.float64, ("C", "W"))  # one compiled signature for every caller
         ang = laser_theta_rad + np.asarray(bearings_rad, float)
@@ -162,11 +147,48 @@ class FreeSpaceGrid:
         crossed = np.zeros((self.n, self.n), bool)
         _mark(laser_xy[0], laser_xy[1], r, ang, hit, steps, c.free_margin_m, c.max_free_range_m, self.origin[0],
               self.origin[1], c.cell_m, occ_now, crossed)
-        self.occ += occ_now
-        self.free += crossed
+        _add_scan(self.free, self.occ, self.occ_s, self.free_s, occ_now, crossed, np.float32(k), stamp_s)
         self.last_free = crossed
-        self.occ_s[occ_now] = stamp_s  # a return in a cell outweighs the beams that passed beside it
-        self.free_s[crossed & ~occ_now] = stamp_s
+
+
+@njit(cache=True, nogil=True)
+def _add_scan(free, occ, occ_s, free_s, occ_now, crossed, decay, stamp_s):  # pragma: no cover - compiled
+    """Decays the counts by ``decay`` (float32) and adds this scan's ends (``occ_now``) and crossings; a
+    return in a cell outweighs the beams that passed beside it in the stamps of when each was seen."""
+    one = np.float32(1.0)
+    for i in range(occ.shape[0]):
+        for j in range(occ.shape[1]):
+            free[i, j] *= decay
+            occ[i, j] *= decay
+            if crossed[i, j]:
+                free[i, j] += one
+            if occ_now[i, j]:
+                occ[i, j] += one
+                occ_s[i, j] = stamp_s
+            elif crossed[i, j]:
+                free_s[i, j] = stamp_s
+
+
+@njit(cache=True, nogil=True)
+def _violates(pts, x0, y0, cell_m, occ, free, min_free, max_occupied):  # pragma: no cover - compiled
+    """Per point: its cell (clamped 3x3 neighbourhood) has at least ``min_free`` free and at most
+    ``max_occupied`` occupied evidence; False outside the grid."""
+    n0, n1 = occ.shape
+    out = np.zeros(pts.shape[0], np.bool_)
+    for p in range(pts.shape[0]):
+        if not (math.isfinite(pts[p, 0]) and math.isfinite(pts[p, 1])):
+            continue
+        i = math.floor((pts[p, 0] - x0) / cell_m)
+        j = math.floor((pts[p, 1] - y0) / cell_m)
+        if not (0 <= i < n0 and 0 <= j < n1):
+            continue
+        lo_free, hi_occ = np.float32(np.inf), np.float32(0.0)
+        for a in range(max(i - 1, 0), min(i + 1, n0 - 1) + 1):
+            for b in range(max(j - 1, 0), min(j + 1, n1 - 1) + 1):
+                lo_free = min(lo_free, free[a, b])
+                hi_occ = max(hi_occ, occ[a, b])
+        out[p] = lo_free >= min_free and hi_occ <= max_occupied
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -491,3 +491,15 @@ def test_a_standing_persons_seen_leg_pairs_only_with_its_own_other_leg() -> None
     assert kinds([legs[0], piece], known=False) == ["person"]  # nearest first: the leg and the piece
     assert kinds([legs[0], piece], known=True) == ["leg", "leg"]
     assert kinds(legs, known=True) == ["person"]
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_segment_median_is_numpys_median(dtype) -> None:
+    from vipsm.bodies import _median
+
+    rng = np.random.default_rng(7)
+    for n in range(1, 40):
+        for _ in range(20):
+            x = (rng.normal(size=n) * 10.0).astype(dtype)
+            x[: n // 3] = np.round(x[: n // 3])  # ties
+            assert _median(x) == float(np.median(x))

@@ -26,6 +26,10 @@ def test_space_seen_free_is_violated_surfaces_and_unknown_space_are_not() -> Non
     pts = np.array([[2.0, 0.5], [5.9, 0.0], [-3.0, 0.0], [8.0, 0.0]])
     # open floor / the far wall (x = 6) / behind the left wall (never seen) / outside the grid's view
     assert grid.violates(pts).tolist() == [True, False, False, False]
+    # no point (NaN) and far outside the grid: no violation; the grid's first cell: its neighbours clamp
+    edge = grid.origin + 0.01
+    odd = np.array([[np.nan, 0.5], [2.0, np.inf], [1e9, 0.0], edge])
+    assert grid.violates(odd).tolist() == [False, False, False, False] and grid.violates(np.zeros((0, 2))).size == 0
 
 
 def test_a_static_post_is_never_a_violation_from_any_viewpoint() -> None:
