@@ -758,9 +758,12 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
 def warm_up(config: EstimatorConfig | None = None) -> None:
     """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
     machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
-    it: the scan matcher's, the static map's ray march, the seen-through test, the body's circle
-    refinement and the leg features (``tests/vipsm/test_warm_up.py`` checks that none is left)."""
+    it: the scan matcher's, the static map's ray march, update and violation test, the seen-through test,
+    the mixed-pixel ramp test, the flow's global fit, the body's circle refinement, the leg features and
+    the leg forest (``tests/app/test_warm_up.py`` checks that none is left)."""
+    from .flow import warm_up as flow_warm_up
     from .legs import features
+    from .legs import warm_up as legs_warm_up
     from .psm import warm_up as psm_warm_up
     from .tracker import refine_fixed_radius
 
@@ -768,7 +771,12 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     psm_warm_up(dataclasses.replace(cfg.psm, refine_iterations=max(cfg.psm.refine_iterations,
                                                                     cfg.no_odometry_refine_iterations)))
     b = np.linspace(-2.0, 2.0, 181)
-    FreeSpaceGrid(cfg.static_map).integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
+    grid = FreeSpaceGrid(cfg.static_map)
+    grid.integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
+    grid.violates(np.array([[1.0, 0.0]]))
+    ramp_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)
+    flow_warm_up(cfg.flow)
+    legs_warm_up()
     memory = ScanMemory(cfg.seen_through)
     memory.push(Pose2D(0.0, 0.0, 0.0), 3.0 + 0.5 * np.sin(3.0 * b), b)
     memory.seen_through(np.array([[1.0, 0.0], [2.0, 0.5]]))

@@ -237,6 +237,14 @@ def _lower_quartile(x: np.ndarray) -> float:
     return b - (b - a) * (1.0 - t) if t >= 0.5 else a + (b - a) * t
 
 
+def warm_up(config: FlowConfig | None = None) -> None:
+    """Load the compiled fit of the odometry's image shift and scale (see :func:`vipsm.estimator.warm_up`)
+    on a made-up residual field."""
+    v_px, u_px = np.mgrid[0:12, 0:12].astype(np.float64)
+    _remove_global_error(0.1 * u_px, 0.1 * v_px, u_px - 6.0, v_px - 6.0, np.ones(u_px.shape, bool),
+                         config or FlowConfig())
+
+
 @njit(cache=True, nogil=True)
 def _best_global(r, p, q25, alpha_px, shift_max_px, scale_max):  # pragma: no cover - compiled
     """The model (a, b, s) of :func:`_remove_global_error` leaving the most of the samples ``r`` (2, n)

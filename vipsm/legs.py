@@ -72,9 +72,17 @@ class LegModel:
             raise ValueError(f"need (n, {len(FEATURE_NAMES)}) features, got {x.shape}")
         if x.shape[0] == 0:
             return np.zeros(0)
-        leaves = _leaves(np.ascontiguousarray(x), self.feature, self.threshold, self.left, self.right, self.roots,
-                         self.depth)
+        x = np.require(x, np.float64, ("C", "W"))  # one compiled signature for every caller
+        leaves = _leaves(x, self.feature, self.threshold, self.left, self.right, self.roots, self.depth)
         return self.value[leaves].mean(axis=1)
+
+
+def warm_up() -> None:
+    """Load the compiled forest walk (see :func:`vipsm.estimator.warm_up`) on a one-leaf forest of the
+    types :func:`model_from_arrays` gives."""
+    leaf = LegModel(np.array([-1], np.intp), np.zeros(1), np.array([-1], np.intp), np.array([-1], np.intp),
+                    np.array([0.5]), np.array([0], np.intp), 1, 0.5)
+    leaf.predict(np.zeros((1, len(FEATURE_NAMES))))
 
 
 @njit(cache=True, nogil=True)

@@ -183,7 +183,9 @@ def ramp_mask(ranges_m: np.ndarray, tol_m: np.ndarray | float, min_gap_m: np.nda
         surf &= cont[j : j + n - m]
     # a run may start at i0 where a surface ends at i0 - 1 and i0 leaves it
     starts = np.flatnonzero(surf[: n - m - 1] & ~cont[m : n - 1]) + SURFACE_RETURNS
-    _mark_ramps(r, np.ascontiguousarray(tol), np.ascontiguousarray(gaps), surf, starts, out)
+    own = ("C", "W")  # one compiled signature for every caller (read-only scans, broadcast values)
+    _mark_ramps(np.require(r, np.float64, own), np.require(tol, np.float64, own), np.require(gaps, np.float64, own),
+                surf, starts, out)
     return out
 
 

@@ -86,7 +86,7 @@ class FreeSpaceGrid:
         c = self.config
         if points_xy.size == 0:
             return np.zeros(0, bool)
-        pts = np.ascontiguousarray(points_xy, dtype=np.float64).reshape(-1, 2)
+        pts = np.require(np.asarray(points_xy, np.float64).reshape(-1, 2), np.float64, ("C", "W"))  # one signature
         return _violates(pts, self.origin[0], self.origin[1], c.cell_m, self.occ, self.free, np.float32(c.min_free),
                          np.float32(c.max_occupied))
 
