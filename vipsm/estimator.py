@@ -774,6 +774,7 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     grid = FreeSpaceGrid(cfg.static_map)
     grid.integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
     grid.violates(np.array([[1.0, 0.0]]))
+    grid.occupied_cells_around(1.0, 0.0, 0.1, 0.5, 1.0)
     ramp_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)
     flow_warm_up(cfg.flow)
     legs_warm_up()

@@ -17,6 +17,7 @@ The estimator does no I/O: ``app.legmodel`` reads the file and :func:`model_from
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -192,15 +193,15 @@ def _circle(x, y):  # pragma: no cover - compiled
     return min(r, 1.0), res
 
 
-def front_of(r: np.ndarray, a: int, z: int, beams: int = 4) -> tuple[float, float]:
+def front_of(r: Sequence[float], a: int, z: int, beams: int = 4) -> tuple[float, float]:
     """How far the nearest return within ``beams`` beams on each side of the segment [a, z) lies behind
-    the segment's nearest return (``FRONT_CLIP_M`` when there is none: open space or the scan's edge)."""
-    near = float(np.nanmin(r[a:z]))
+    the segment's nearest return (``FRONT_CLIP_M`` when there is none: open space or the scan's edge).
+    ``r``: the scan's ranges (NaN: no return), as an array or a list (faster to read one by one)."""
+    near = min(float(v) for v in r[a:z] if not math.isnan(v))
     out = []
-    for idx in (np.arange(a - 1, max(a - beams, 0) - 1, -1), np.arange(z, min(z + beams, r.size))):
-        finite = idx[np.isfinite(r[idx])]
-        out.append(FRONT_CLIP_M if not finite.size else float(np.clip(r[finite[0]] - near, -FRONT_CLIP_M,
-                                                                      FRONT_CLIP_M)))
+    for idx in (range(a - 1, max(a - beams, 0) - 1, -1), range(z, min(z + beams, len(r)))):
+        first = next((float(r[k]) for k in idx if math.isfinite(r[k])), None)
+        out.append(FRONT_CLIP_M if first is None else min(max(first - near, -FRONT_CLIP_M), FRONT_CLIP_M))
     return out[0], out[1]
 
 
@@ -209,13 +210,15 @@ def segment_features(r: np.ndarray, b: np.ndarray, spans: list[tuple[int, int]],
     """The segments ``spans`` that may be legs (enough returns, not too wide) with their returns in the
     laser frame, and their features (n x features)."""
     kept, rows = [], []
+    finite, r_list = np.isfinite(r), r.tolist()
+    cos_b, sin_b = np.cos(b), np.sin(b)
     for a, z in spans:
-        beams = a + np.flatnonzero(np.isfinite(r[a:z]))
+        beams = a + np.flatnonzero(finite[a:z])
         if beams.size < cfg.min_points:
             continue
-        pts = np.stack([r[beams] * np.cos(b[beams]), r[beams] * np.sin(b[beams])], axis=1)
+        pts = np.stack([r[beams] * cos_b[beams], r[beams] * sin_b[beams]], axis=1)
         if float(np.hypot(*(pts[-1] - pts[0]))) > cfg.max_width_m:
             continue
         kept.append((a, z, pts))
-        rows.append(features(pts, *front_of(r, a, z)))
+        rows.append(features(pts, *front_of(r_list, a, z)))
     return kept, np.array(rows).reshape(-1, len(FEATURE_NAMES))

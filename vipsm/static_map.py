@@ -117,13 +117,8 @@ class FreeSpaceGrid:
         k = int(math.ceil(outer_m / c.cell_m)) + 1
         i0 = int(math.floor((x_m - self.origin[0]) / c.cell_m))
         j0 = int(math.floor((y_m - self.origin[1]) / c.cell_m))
-        ii, jj = np.meshgrid(np.arange(i0 - k, i0 + k + 1), np.arange(j0 - k, j0 + k + 1), indexing="ij")
-        cx = self.origin[0] + (ii + 0.5) * c.cell_m
-        cy = self.origin[1] + (jj + 0.5) * c.cell_m
-        d = np.hypot(cx - x_m, cy - y_m)
-        ring = (d > inner_m) & (d <= outer_m) & (ii >= 0) & (ii < self.n) & (jj >= 0) & (jj < self.n)
-        ring[ring] = self.occ[ii[ring], jj[ring]] >= min_occupied
-        return np.stack([cx[ring], cy[ring]], axis=1)
+        return _ring_cells(self.occ, float(self.origin[0]), float(self.origin[1]), c.cell_m, i0, j0, k, float(x_m),
+                           float(y_m), float(inner_m), float(outer_m), np.float32(min_occupied))
 
     def seen_free_now(self, x_m: float, y_m: float) -> bool:
         """Whether a beam of the last integrated scan crossed the cell of (x, y)."""
@@ -167,6 +162,24 @@ def _add_scan(free, occ, occ_s, free_s, occ_now, crossed, decay, stamp_s):  # pr
                 occ_s[i, j] = stamp_s
             elif crossed[i, j]:
                 free_s[i, j] = stamp_s
+
+
+@njit(cache=True, nogil=True)
+def _ring_cells(occ, x0, y0, cell_m, i0, j0, k, x, y, inner_m, outer_m, min_occupied):  # pragma: no cover
+    """Centres (m, 2) of the grid cells within ``k`` cells of (i0, j0), in row order, whose centre lies in
+    (``inner_m``, ``outer_m``] from (x, y) and whose occupancy reaches ``min_occupied`` (float32, as the grid
+    holds it)."""
+    n0, n1 = occ.shape
+    out = np.empty(((2 * k + 1) ** 2, 2))
+    m = 0
+    for i in range(i0 - k, i0 + k + 1):
+        for j in range(j0 - k, j0 + k + 1):
+            cx, cy = x0 + (i + 0.5) * cell_m, y0 + (j + 0.5) * cell_m
+            d = math.hypot(cx - x, cy - y)
+            if inner_m < d <= outer_m and 0 <= i < n0 and 0 <= j < n1 and occ[i, j] >= min_occupied:
+                out[m, 0], out[m, 1] = cx, cy
+                m += 1
+    return out[:m].copy()
 
 
 @njit(cache=True, nogil=True)
