@@ -244,8 +244,10 @@ def _foreground(r: Sequence[float], a: int, z: int, cfg: BodiesConfig) -> tuple[
     occluders: list[int] = []  # the beam of each nearer neighbour
     nb, n = cfg.neighbour_beams, len(r)
     sides = (range(a - 1, max(a - nb, 0) - 1, -1), range(z, min(z + nb, n)))
-    own = [v for v in r[a:z] if math.isfinite(v)]  # a segment starts and ends with a return
-    for idx, edge, end_m in zip(sides, (-1, n), (float(own[0]), float(own[-1])), strict=True):
+    # a segment starts and ends with a return
+    ends_m = (next(float(r[k]) for k in range(a, z) if math.isfinite(r[k])),
+              next(float(r[k]) for k in range(z - 1, a - 1, -1) if math.isfinite(r[k])))
+    for idx, edge, end_m in zip(sides, (-1, n), ends_m, strict=True):
         first = next((k for k in idx if math.isfinite(r[k])), None)
         if first is None:
             if len(idx) < nb:  # the scan's first or last beam is beside it: the field of view's edge
@@ -267,10 +269,14 @@ def _continues_a_surface(pts: np.ndarray, r: np.ndarray, b: np.ndarray, a: int, 
     if pts.shape[0] < 3:
         return False
     centre = pts.mean(axis=0)
-    _, sv, vt = np.linalg.svd(pts - centre, full_matrices=False)
-    if sv[1] > 0.3 * sv[0]:  # not a line (a round body's short arc)
+    d = pts - centre
+    sxx, sxy, syy = float(d[:, 0] @ d[:, 0]), float(d[:, 0] @ d[:, 1]), float(d[:, 1] @ d[:, 1])
+    # the scatter's eigenvalues (the squared singular values of the centred points), in closed form
+    spread = math.hypot(0.5 * (sxx - syy), sxy)
+    if 0.5 * (sxx + syy) - spread > 0.09 * (0.5 * (sxx + syy) + spread):  # not a line (a round body's short arc)
         return False
-    nx, ny = float(vt[-1][0]), float(vt[-1][1])
+    along = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # the line's direction; its normal is across it
+    nx, ny = -math.sin(along), math.cos(along)
     mx, my = float(centre[0]), float(centre[1])
     c, s = math.cos(laser.theta_rad), math.sin(laser.theta_rad)
     for j in (*range(a - 1, max(a - cfg.neighbour_beams, 0) - 1, -1), *range(z, min(z + cfg.neighbour_beams, r.size))):

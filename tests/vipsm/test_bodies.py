@@ -503,3 +503,29 @@ def test_the_segment_median_is_numpys_median(dtype) -> None:
             x = (rng.normal(size=n) * 10.0).astype(dtype)
             x[: n // 3] = np.round(x[: n // 3])  # ties
             assert _median(x) == float(np.median(x))
+
+
+@pytest.mark.parametrize("slope_deg", [30.0, 80.0, 95.0, 150.0])
+def test_a_piece_of_a_straight_surface_that_goes_on_beside_it_is_told_from_a_round_body(slope_deg: float) -> None:
+    """A wall piece seen at grazing incidence, with the wall's next return beside it, continues a surface at
+    any slope; the front arc of a round body, with the same return beside it, does not; nor does a straight
+    piece with the return beside it off its line."""
+    from vipsm.bodies import _continues_a_surface
+
+    cfg = BodiesConfig()
+    laser = Pose2D(0.0, 0.0, 0.0)
+    u = np.array([math.cos(math.radians(slope_deg)), math.sin(math.radians(slope_deg))])
+    start = np.array([3.0, 0.5])
+    wall = np.array([start + t * u for t in np.linspace(0.0, 0.3, 7)] + [start + 0.45 * u])
+    r, b = np.hypot(wall[:, 0], wall[:, 1]), np.arctan2(wall[:, 1], wall[:, 0])
+    order = np.argsort(b)
+    r, b = r[order], b[order]
+    beside = int(np.flatnonzero(order == 7)[0])  # the wall's return beside the piece
+    a, z = (0, 7) if beside == 7 else (1, 8)
+    pts = np.stack([r[a:z] * np.cos(b[a:z]), r[a:z] * np.sin(b[a:z])], axis=1)
+    assert _continues_a_surface(pts, r, b, a, z, laser, cfg)
+    off = r.copy()
+    off[beside] += 0.3  # the return beside lies well behind the piece's line
+    assert not _continues_a_surface(pts, off, b, a, z, laser, cfg)
+    arc = np.array([[3.0 - 0.2 * math.cos(t), 0.5 + 0.2 * math.sin(t)] for t in np.linspace(-1.0, 1.0, 7)])
+    assert not _continues_a_surface(arc, r, b, a, z, laser, cfg)
