@@ -448,14 +448,13 @@ def _pair_legs(legs: list[tuple[_Segment, float, float]], der: Derived, known: l
     ``leg_across_max_m`` (two people walking side by side in step have each leg 0.4 m across from the other's
     same leg, nearer than their own other leg a stride away); the rest alone."""
     owner = _leg_people(legs, known or [])
-    pairs = sorted(
-        (math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
-        for i in range(len(legs)) for j in range(i + 1, len(legs))
-    )
+    near = ((math.hypot(legs[i][1] - legs[j][1], legs[i][2] - legs[j][2]), i, j)
+            for i in range(len(legs)) for j in range(i + 1, len(legs)))
+    pairs = sorted(p for p in near if p[0] <= der.leg_pair_max_m)
     used: set[int] = set()
     out: list[tuple[int, int | None]] = []
-    for d, i, j in pairs:
-        if d > der.leg_pair_max_m or i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
+    for _, i, j in pairs:
+        if i in used or j in used or legs[i][0].fixture or legs[j][0].fixture:
             continue
         dx, dy = legs[j][1] - legs[i][1], legs[j][2] - legs[i][2]
         if not _may_pair(owner[i], owner[j], dx, dy, der.leg_across_max_m):
