@@ -30,11 +30,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
+from numba import njit
 
 from .bodies import BodiesConfig, Body, Derived, derive, extract_bodies
 from .flow import CameraMount, FlowConfig, FlowDetector, interval_to_laser, pose_at
@@ -573,11 +573,23 @@ def _nearest_within(r: np.ndarray, k: int) -> np.ndarray:
     return there is no surface to stand in front of)."""
     if k <= 0:
         return r
-    padded = np.concatenate((np.full(k, np.nan), r, np.full(k, np.nan)))
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window: NaN
-        near = np.nanmin(np.lib.stride_tricks.sliding_window_view(padded, 2 * k + 1), axis=1)
-    return np.where(np.isfinite(r), near, np.nan)
+    return _window_min(np.require(r, np.float64, ("C", "W")), k)
+
+
+@njit(cache=True, nogil=True)
+def _window_min(r, k):  # pragma: no cover - compiled
+    """Per beam with a finite return: the smallest non-NaN value within ``k`` beams either side; NaN
+    elsewhere."""
+    out = np.full(r.size, np.nan)
+    for i in range(r.size):
+        if not math.isfinite(r[i]):
+            continue
+        lo = r[i]
+        for j in range(max(i - k, 0), min(i + k + 1, r.size)):
+            if r[j] < lo:  # NaN compares false
+                lo = r[j]
+        out[i] = lo
+    return out
 
 
 def _checked(scan: Scan) -> tuple[Scan, bool]:
@@ -775,6 +787,7 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     grid.integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
     grid.violates(np.array([[1.0, 0.0]]))
     grid.occupied_cells_around(1.0, 0.0, 0.1, 0.5, 1.0)
+    _nearest_within(3.0 + 0.5 * np.sin(3.0 * b), 2)
     ramp_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)
     flow_warm_up(cfg.flow)
     legs_warm_up()
