@@ -73,7 +73,7 @@ LEG_MATCH_M = 0.12
 #: the laser's range noise (docs/simulation.md: measured on the recorded UTM-30LX frame), 1 sigma
 NOISE_NEAR_M = 0.0022
 NOISE_PER_RANGE = 0.0007
-#: beams of the moved scene the re-seen segment needs on each side: ``vipsm.legs.front_of`` looks 4 beams
+#: beams of the moved scene the re-seen segment needs on each side: ``vipsm.legs.FRONT_BEAMS``: 4 beams
 #: out, and the segmentation and pre-filter one or two beyond that
 SIDE_BEAMS = 8
 
@@ -273,7 +273,7 @@ MIXED_T = (0.1, 0.9)
 PULLED_NEAR_SHARE = 0.7
 PULLED_NEAR_M = (0.02, 0.10)
 PULLED_FAR_M = (0.03, 0.22)
-#: beams on each side of the segment the wall fills (``vipsm.legs.front_of`` looks 4 out, the pre-filter
+#: beams on each side of the segment the wall fills (``vipsm.legs.FRONT_BEAMS``: 4 out, the pre-filter
 #: and the segmentation 2-3 beyond)
 WALL_BEAMS = 8
 

@@ -774,7 +774,7 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     the mixed-pixel ramp test, the flow's global fit, the body's circle refinement, the leg features and
     the leg forest (``tests/app/test_warm_up.py`` checks that none is left)."""
     from .flow import warm_up as flow_warm_up
-    from .legs import features
+    from .legs import LegConfig, features, segment_features
     from .legs import warm_up as legs_warm_up
     from .psm import warm_up as psm_warm_up
     from .tracker import refine_fixed_radius
@@ -796,3 +796,4 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     memory.seen_through(np.array([[1.0, 0.0], [2.0, 0.5]]))
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)
     features(np.array([[1.0, 0.0], [1.05, 0.05], [1.0, 0.1]]), 0.5, 0.5)
+    segment_features(3.0 + 0.5 * np.sin(3.0 * b), b, [(10, 20)], LegConfig())

@@ -17,7 +17,6 @@ The estimator does no I/O: ``app.legmodel`` reads the file and :func:`model_from
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +30,8 @@ FEATURE_NAMES = (
 )
 #: a neighbour further than this behind the segment (or none) counts as this much: open space
 FRONT_CLIP_M = 1.0
+#: beams looked at on each side of a segment for the nearest return beside it (``front_*_m``)
+FRONT_BEAMS = 4
 
 
 @dataclass(frozen=True)
@@ -193,32 +194,54 @@ def _circle(x, y):  # pragma: no cover - compiled
     return min(r, 1.0), res
 
 
-def front_of(r: Sequence[float], a: int, z: int, beams: int = 4) -> tuple[float, float]:
-    """How far the nearest return within ``beams`` beams on each side of the segment [a, z) lies behind
-    the segment's nearest return (``FRONT_CLIP_M`` when there is none: open space or the scan's edge).
-    ``r``: the scan's ranges (NaN: no return), as an array or a list (faster to read one by one)."""
-    near = min(float(v) for v in r[a:z] if not math.isnan(v))
-    out = []
-    for idx in (range(a - 1, max(a - beams, 0) - 1, -1), range(z, min(z + beams, len(r)))):
-        first = next((float(r[k]) for k in idx if math.isfinite(r[k])), None)
-        out.append(FRONT_CLIP_M if first is None else min(max(first - near, -FRONT_CLIP_M), FRONT_CLIP_M))
-    return out[0], out[1]
-
-
 def segment_features(r: np.ndarray, b: np.ndarray, spans: list[tuple[int, int]], cfg: LegConfig
                      ) -> tuple[list[tuple[int, int, np.ndarray]], np.ndarray]:
     """The segments ``spans`` that may be legs (enough returns, not too wide) with their returns in the
-    laser frame, and their features (n x features)."""
-    kept, rows = [], []
-    finite, r_list = np.isfinite(r), r.tolist()
-    cos_b, sin_b = np.cos(b), np.sin(b)
-    for a, z in spans:
+    laser frame, and their features (n x features). Compiled over all spans at once (a cluttered room
+    holds dozens of leg-sized segments): :func:`features` of each, with ``front_*_m`` how far the nearest return
+    within ``FRONT_BEAMS`` beams on each side lies behind the segment's nearest return (``FRONT_CLIP_M`` when
+    there is none: open space or the scan's edge)."""
+    r = np.require(r, np.float64, ("C", "W"))
+    finite = np.isfinite(r)
+    x, y = r * np.cos(b), r * np.sin(b)
+    bounds = np.array(spans, dtype=np.int64).reshape(-1, 2)
+    rows, kept_mask = _span_features(x, y, r, finite, bounds, cfg.min_points, cfg.max_width_m)
+    kept = []
+    for a, z in bounds[kept_mask]:
         beams = a + np.flatnonzero(finite[a:z])
-        if beams.size < cfg.min_points:
+        kept.append((int(a), int(z), np.stack([x[beams], y[beams]], axis=1)))
+    return kept, rows[kept_mask]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _span_features(x, y, r, finite, bounds, min_points, max_width_m):  # pragma: no cover - compiled
+    """Per span [a, z) of ``bounds``: its features (:func:`_features` and the two sides) and whether
+    it may be a leg (at least ``min_points`` returns, first to last at most ``max_width_m`` apart)."""
+    rows = np.zeros((bounds.shape[0], len(FEATURE_NAMES)))
+    kept = np.zeros(bounds.shape[0], np.bool_)
+    for s in range(bounds.shape[0]):
+        a, z = bounds[s, 0], bounds[s, 1]
+        idx = np.flatnonzero(finite[a:z]) + a
+        if idx.size < min_points:
             continue
-        pts = np.stack([r[beams] * cos_b[beams], r[beams] * sin_b[beams]], axis=1)
-        if float(np.hypot(*(pts[-1] - pts[0]))) > cfg.max_width_m:
+        px, py = x[idx], y[idx]
+        if math.hypot(px[-1] - px[0], py[-1] - py[0]) > max_width_m:
             continue
-        kept.append((a, z, pts))
-        rows.append(features(pts, *front_of(r_list, a, z)))
-    return kept, np.array(rows).reshape(-1, len(FEATURE_NAMES))
+        near = np.inf
+        for k in range(a, z):
+            if r[k] < near:  # NaN compares false
+                near = r[k]
+        fronts = np.empty(2)
+        for side in range(2):
+            fronts[side] = FRONT_CLIP_M
+            if side == 0:
+                lo, hi, step = a - 1, max(a - FRONT_BEAMS, 0) - 1, -1
+            else:
+                lo, hi, step = z, min(z + FRONT_BEAMS, r.size), 1
+            for k in range(lo, hi, step):
+                if finite[k]:
+                    fronts[side] = min(max(r[k] - near, -FRONT_CLIP_M), FRONT_CLIP_M)
+                    break
+        rows[s] = _features(px, py, fronts[0], fronts[1])
+        kept[s] = True
+    return rows, kept

@@ -202,24 +202,6 @@ def test_a_damaged_model_file_is_a_typed_error(tmp_path) -> None:
             load_leg_model(tmp_path / name)
 
 
-def test_the_exported_forest_predicts_what_scikit_learn_predicts() -> None:
-    """The exported arrays walked by the compiled traversal give scikit-learn's own probabilities, on
-    float32-exact features (what training uses)."""
-    from sklearn.ensemble import RandomForestClassifier
-
-    from vipsm.legs import model_from_arrays
-
-    rng = np.random.default_rng(SEED)
-    x = rng.normal(size=(400, len(FEATURE_NAMES))).astype(np.float32).astype(np.float64)
-    y = (x[:, 0] + 0.5 * x[:, 3] - x[:, 7] ** 2 + 0.3 * rng.normal(size=400)) > 0.0
-    forest = RandomForestClassifier(n_estimators=7, max_depth=6, random_state=SEED).fit(x, y)
-    model = model_from_arrays(_train_legs().export_forest(forest, 0.5))
-    test = rng.normal(size=(300, len(FEATURE_NAMES))).astype(np.float32).astype(np.float64)
-    want = forest.predict_proba(test)[:, 1]
-    assert np.allclose(model.predict(test), want, atol=1e-12)
-    assert model.predict(np.zeros((0, len(FEATURE_NAMES)))).shape == (0,)
-
-
 def test_train_legs_refuses_a_bad_baseline_before_training(tmp_path, capsys) -> None:
     tl = _train_legs()
     (tmp_path / "bad.npz").write_bytes(b"not a model")

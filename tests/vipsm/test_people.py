@@ -104,6 +104,29 @@ def test_segment_features_keep_only_leg_sized_segments() -> None:
     assert x.shape == (1, len(FEATURE_NAMES))
 
 
+def test_segment_features_measure_the_returns_beside_a_segment() -> None:
+    """front_left / front_right: how far the nearest return within FRONT_BEAMS beams on each side lies behind
+    the segment's nearest return, clipped to FRONT_CLIP_M; none (no echo, the scan's edge): FRONT_CLIP_M."""
+    from vipsm.legs import FRONT_BEAMS, FRONT_CLIP_M
+
+    b = np.linspace(-1.0, 1.0, 401)
+    r = np.full(b.size, np.nan)
+    r[195:205] = 2.0
+    r[194] = 1.5  # nearer, just beside on the left
+    r[205 + FRONT_BEAMS - 1] = 2.3  # behind, the last beam looked at on the right
+    left, right = FEATURE_NAMES.index("front_left_m"), FEATURE_NAMES.index("front_right_m")
+    _, x = segment_features(r, b, [(195, 205)], LegConfig())
+    assert x[0, left] == pytest.approx(-0.5) and x[0, right] == pytest.approx(0.3)
+    r[205 + FRONT_BEAMS - 1] = np.nan
+    r[205 + FRONT_BEAMS] = 2.3  # beyond the beams looked at: open space
+    r[194] = 9.0  # far behind: clipped
+    _, x = segment_features(r, b, [(195, 205)], LegConfig())
+    assert x[0, left] == FRONT_CLIP_M and x[0, right] == FRONT_CLIP_M
+    r[:195] = np.nan
+    _, x = segment_features(r[: 205 + FRONT_BEAMS], b[: 205 + FRONT_BEAMS], [(195, 205)], LegConfig())
+    assert x[0, left] == FRONT_CLIP_M and x[0, right] == FRONT_CLIP_M  # nothing beside it, the scan's edge
+
+
 # ------------------------------------------------------------------------------------------ IMM
 def _run(filt: Imm, speeds: list[float], dt: float = 0.1, seed: int = RNG_SEED, noise_m: float = 0.05) -> list[float]:
     rng = np.random.default_rng(seed)
