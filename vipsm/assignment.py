@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 
 #: the cost a forbidden pair is given in :func:`assign_gated`: above every allowed one (the callers' costs
 #: are distances in metres)
@@ -29,27 +30,44 @@ def assign(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cols, rows = assign(cost.T)
         order = np.argsort(rows)
         return rows[order], cols[order]
+    p = _matching(np.ascontiguousarray(cost))
+    cols = np.flatnonzero(p[1:])
+    rows = p[1:][cols] - 1
+    order = np.argsort(rows)
+    return rows[order], cols[order]
+
+
+@njit(cache=True, nogil=True)
+def _matching(cost):  # pragma: no cover - compiled
+    """Per column (1-based; entry 0 unused) the row (1-based) matched to it, 0 for a free column, of a
+    minimum-cost assignment of ``cost`` (n x m, n <= m, finite)."""
     n, m = cost.shape
     u, v = np.zeros(n + 1), np.zeros(m + 1)
-    p = np.zeros(m + 1, np.intp)  # p[j]: the row (1-based) matched to column j; 0 free
+    p = np.zeros(m + 1, np.intp)
     way = np.zeros(m + 1, np.intp)
     for i in range(1, n + 1):
         p[0], j0 = i, 0
         minv = np.full(m + 1, np.inf)
-        used = np.zeros(m + 1, bool)
+        used = np.zeros(m + 1, np.bool_)
         while True:
             used[j0] = True
             i0 = p[j0]
-            free = ~used[1:]
-            cur = cost[i0 - 1] - u[i0] - v[1:]
-            better = free & (cur < minv[1:])
-            minv[1:][better] = cur[better]
-            way[1:][better] = j0
-            j1 = 1 + int(np.argmin(np.where(free, minv[1:], np.inf)))
+            j1, best = 1, np.inf  # the free column nearest the tree (the first of equals)
+            for j in range(1, m + 1):
+                if used[j]:
+                    continue
+                cur = cost[i0 - 1, j - 1] - u[i0] - v[j]
+                if cur < minv[j]:
+                    minv[j], way[j] = cur, j0
+                if minv[j] < best:
+                    j1, best = j, minv[j]
             delta = minv[j1]
-            u[p[used]] += delta
-            v[used] -= delta
-            minv[1:][free] -= delta
+            for j in range(m + 1):
+                if used[j]:
+                    u[p[j]] += delta
+                    v[j] -= delta
+                elif j > 0:
+                    minv[j] -= delta
             j0 = j1
             if p[j0] == 0:
                 break
@@ -57,10 +75,7 @@ def assign(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             j1 = way[j0]
             p[j0] = p[j1]
             j0 = j1
-    cols = np.flatnonzero(p[1:])
-    rows = p[1:][cols] - 1
-    order = np.argsort(rows)
-    return rows[order], cols[order]
+    return p
 
 
 def assign_gated(cost: np.ndarray) -> dict[int, int]:

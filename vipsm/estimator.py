@@ -771,8 +771,9 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
     machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
     it: the scan matcher's, the static map's ray march, update and violation test, the seen-through test,
-    the mixed-pixel ramp test, the flow's global fit, the body's circle refinement, the leg features and
-    the leg forest (``tests/app/test_warm_up.py`` checks that none is left)."""
+    the mixed-pixel ramp test, the flow's global fit, the assignment, the body's circle refinement, the leg
+    features and the leg forest (``tests/app/test_warm_up.py`` checks that none is left)."""
+    from .assignment import assign
     from .flow import warm_up as flow_warm_up
     from .legs import LegConfig, features, segment_features
     from .legs import warm_up as legs_warm_up
@@ -788,6 +789,7 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     grid.violates(np.array([[1.0, 0.0]]))
     grid.occupied_cells_around(1.0, 0.0, 0.1, 0.5, 1.0)
     _nearest_within(3.0 + 0.5 * np.sin(3.0 * b), 2)
+    assign(np.array([[1.0, 2.0, 0.5], [0.3, 1.0, 2.0]]))
     ramp_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)
     flow_warm_up(cfg.flow)
     legs_warm_up()

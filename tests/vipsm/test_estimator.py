@@ -331,13 +331,15 @@ def test_warm_up_loads_every_kernel_the_step_uses() -> None:
     import textwrap
 
     code = textwrap.dedent("""
+        import importlib, pkgutil
         import numpy as np, numba
-        import vipsm.flow, vipsm.legs, vipsm.prefilter, vipsm.psm_kernel, vipsm.static_map, vipsm.tracker
+        import vipsm
+        MODULES = [importlib.import_module("vipsm." + m.name) for m in pkgutil.iter_modules(vipsm.__path__)]
         from vipsm.estimator import Estimator, warm_up
         from tests.vipsm.test_estimator import CFG, _crossing_world, _sequence
         def signatures():
             out = {}
-            for mod in (vipsm.flow, vipsm.legs, vipsm.prefilter, vipsm.psm_kernel, vipsm.static_map, vipsm.tracker):
+            for mod in MODULES:
                 for name, obj in vars(mod).items():
                     if isinstance(obj, numba.core.registry.CPUDispatcher):
                         out[mod.__name__ + '.' + name] = len(obj.signatures)
