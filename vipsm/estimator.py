@@ -790,7 +790,7 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     grid.occupied_cells_around(1.0, 0.0, 0.1, 0.5, 1.0)
     _nearest_within(3.0 + 0.5 * np.sin(3.0 * b), 2)
     assign(np.array([[1.0, 2.0, 0.5], [0.3, 1.0, 2.0]]))
-    ramp_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)
+    veiling_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)  # the island and the ramp rules
     flow_warm_up(cfg.flow)
     legs_warm_up()
     memory = ScanMemory(cfg.seen_through)

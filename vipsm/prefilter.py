@@ -39,6 +39,7 @@ while standing; docs/estimator_evidence.md, stage 1).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,13 +79,6 @@ class PrefilterConfig:
                              f"got {self.jump_m}, {self.jump_range_factor}, {self.max_island_beams}")
         if not self.surface_tol_m > 0.0:
             raise ValueError(f"PrefilterConfig: surface_tol_m must be > 0, got {self.surface_tol_m}")
-
-
-def _islands(valid: np.ndarray, breaks: np.ndarray) -> np.ndarray:
-    """Segment id per beam (0 for invalid), a new segment at every break or gap."""
-    starts = valid & (breaks | np.concatenate([[True], ~valid[:-1]]))
-    ids = np.cumsum(starts)
-    return np.where(valid, ids, 0)
 
 
 def drop_veiling(ranges_m: np.ndarray, bearings_rad: np.ndarray, cfg: PrefilterConfig) -> np.ndarray:
@@ -133,31 +127,41 @@ def ramp_masks(ranges_m: np.ndarray, bearings_rad: np.ndarray, cfg: PrefilterCon
 def _island_masks(r: np.ndarray, thr: np.ndarray, max_island_beams: int) -> tuple[np.ndarray, np.ndarray]:
     """The first rule: islands separated by range jumps of at least ``thr`` (per beam) from both neighbours
     (mixed when strictly between, else lone when single)."""
+    own = ("C", "W")  # one compiled signature for every caller
+    return _islands_marked(np.require(r, np.float64, own), np.require(thr, np.float64, own), max_island_beams)
+
+
+@njit(cache=True, nogil=True)
+def _islands_marked(r, thr, max_island_beams):  # pragma: no cover - compiled
+    """:func:`_island_masks`: walks the runs of returns with no jump of ``thr`` between neighbours."""
     n = r.size
-    mixed = np.zeros(n, dtype=bool)
-    lone = np.zeros(n, dtype=bool)
-    valid = np.isfinite(r)
-    rr = np.where(valid, r, 0.0)
-    breaks = np.zeros(n, dtype=bool)
-    breaks[1:] = np.abs(rr[1:] - rr[:-1]) >= thr[1:]
-    seg = _islands(valid, breaks)
-    ids, first, counts = np.unique(seg, return_index=True, return_counts=True)
-    small = (ids > 0) & (counts <= max_island_beams)
-    for i0, cnt in zip(first[small], counts[small], strict=True):
-        i1 = i0 + cnt - 1
+    mixed = np.zeros(n, np.bool_)
+    lone = np.zeros(n, np.bool_)
+    i = 0
+    while i < n:
+        if not math.isfinite(r[i]):
+            i += 1
+            continue
+        i0 = i
+        i += 1
+        while i < n and math.isfinite(r[i]) and not abs(r[i] - r[i - 1]) >= thr[i]:
+            i += 1
+        i1 = i - 1
+        if i - i0 > max_island_beams:
+            continue
         left = r[i0 - 1] if i0 > 0 else np.nan
         right = r[i1 + 1] if i1 + 1 < n else np.nan
-        if not (np.isfinite(left) or np.isfinite(right)):
+        if not (math.isfinite(left) or math.isfinite(right)):
             continue  # alone in open space: nothing to compare with
-        island = r[i0 : i1 + 1]
-        if np.isfinite(left) and np.isfinite(right):
+        between = math.isfinite(left) and math.isfinite(right)
+        if between:
             lo, hi = min(left, right), max(left, right)
-            between = bool(np.all((island > lo + thr[i0]) & (island < hi - thr[i0])))
-        else:
-            between = False
+            for k in range(i0, i1 + 1):
+                if not (r[k] > lo + thr[i0] and r[k] < hi - thr[i0]):
+                    between = False
         if between:
             mixed[i0 : i1 + 1] = True
-        elif cnt == 1:
+        elif i0 == i1:
             lone[i0] = True
     return mixed, lone
 
