@@ -770,12 +770,13 @@ def _obstacle(t: Track, det: Detection | None, laser: Pose2D, xy: tuple[float, f
 def warm_up(config: EstimatorConfig | None = None) -> None:
     """Load every compiled kernel the estimator uses (compiling and caching them the first time on a
     machine) on made-up inputs of the types a live scan brings, so no cycle of a control loop pays for
-    it: the scan matcher's, the static map's ray march, update and violation test, the seen-through test,
-    the mixed-pixel ramp test, the flow's global fit, the assignment, the body's circle refinement, the leg
-    features and the leg forest (``tests/app/test_warm_up.py`` checks that none is left)."""
+    it: the scan matcher's, the static map's ray march, update, violation test and ring of occupied cells,
+    the keyframe's nearest-return window, the assignment, the mixed-pixel island and ramp rules, the flow's
+    global fit, the leg forest, the seen-through test, the body's circle refinement and the leg features
+    (``tests/app/test_warm_up.py`` and the estimator's own warm-up test check that none is left)."""
     from .assignment import assign
     from .flow import warm_up as flow_warm_up
-    from .legs import LegConfig, features, segment_features
+    from .legs import LegConfig, segment_features
     from .legs import warm_up as legs_warm_up
     from .psm import warm_up as psm_warm_up
     from .tracker import refine_fixed_radius
@@ -797,5 +798,4 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     memory.push(Pose2D(0.0, 0.0, 0.0), 3.0 + 0.5 * np.sin(3.0 * b), b)
     memory.seen_through(np.array([[1.0, 0.0], [2.0, 0.5]]))
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)
-    features(np.array([[1.0, 0.0], [1.05, 0.05], [1.0, 0.1]]), 0.5, 0.5)
     segment_features(3.0 + 0.5 * np.sin(3.0 * b), b, [(10, 20)], LegConfig())
