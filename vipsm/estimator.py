@@ -499,8 +499,9 @@ class Estimator:
         valid = np.isfinite(r)
         rr = np.where(valid, r, 0.0)
         c, s = math.cos(rel.theta_rad), math.sin(rel.theta_rad)
-        x = rel.x_m + c * rr * np.cos(b) - s * rr * np.sin(b)
-        y = rel.y_m + s * rr * np.cos(b) + c * rr * np.sin(b)
+        cos_b, sin_b = np.cos(b), np.sin(b)
+        x = rel.x_m + c * rr * cos_b - s * rr * sin_b
+        y = rel.y_m + s * rr * cos_b + c * rr * sin_b
         phi, rho = np.arctan2(y, x), np.hypot(x, y)
         kb = kf.prep.bearings_rad
         if kb.size < 3:
