@@ -189,12 +189,10 @@ def _violates(pts, x0, y0, cell_m, occ, free, min_free, max_occupied):  # pragma
     n0, n1 = occ.shape
     out = np.zeros(pts.shape[0], np.bool_)
     for p in range(pts.shape[0]):
-        if not (math.isfinite(pts[p, 0]) and math.isfinite(pts[p, 1])):
+        fi, fj = (pts[p, 0] - x0) / cell_m, (pts[p, 1] - y0) / cell_m
+        if not (0.0 <= fi < n0 and 0.0 <= fj < n1):  # outside the grid, or no point (NaN)
             continue
-        i = math.floor((pts[p, 0] - x0) / cell_m)
-        j = math.floor((pts[p, 1] - y0) / cell_m)
-        if not (0 <= i < n0 and 0 <= j < n1):
-            continue
+        i, j = int(fi), int(fj)  # the floor, as both are >= 0
         lo_free, hi_occ = np.float32(np.inf), np.float32(0.0)
         for a in range(max(i - 1, 0), min(i + 1, n0 - 1) + 1):
             for b in range(max(j - 1, 0), min(j + 1, n1 - 1) + 1):

@@ -28,8 +28,8 @@ def test_space_seen_free_is_violated_surfaces_and_unknown_space_are_not() -> Non
     assert grid.violates(pts).tolist() == [True, False, False, False]
     # no point (NaN) and far outside the grid: no violation; the grid's first cell: its neighbours clamp
     edge = grid.origin + 0.01
-    odd = np.array([[np.nan, 0.5], [2.0, np.inf], [1e9, 0.0], edge])
-    assert grid.violates(odd).tolist() == [False, False, False, False] and grid.violates(np.zeros((0, 2))).size == 0
+    odd = np.array([[np.nan, 0.5], [2.0, np.inf], [1e9, 0.0], [-1e300, 1e300], edge])
+    assert grid.violates(odd).tolist() == [False] * 5 and grid.violates(np.zeros((0, 2))).size == 0
 
 
 def test_a_static_post_is_never_a_violation_from_any_viewpoint() -> None:
