@@ -105,11 +105,7 @@ def _bench_run(ros2: bool, tmp: Path, domain_id: int, xml: Path) -> dict[str, An
         tune_allocator()
         summary = run_sim(_config(sim_args), sim_args)
     finally:
-        heard = None
-        if listener is not None:
-            listener.send_signal(signal.SIGTERM)
-            out, err = listener.communicate(timeout=30)
-            heard = json.loads(out) if listener.returncode == 0 and out.strip() else {"error": err[-500:]}
+        heard = None if listener is None else _stopped_listener(listener)
     # the command as run, the bench's loopback config written as LOOPBACK.xml (LOOPBACK_XML)
     command = shlex.join(["vipsm-robot", *(a.replace("{xml}", "LOOPBACK.xml") for a in argv)])
     out: dict[str, Any] = {"command": command, **{k: summary[k] for k in BENCH_KEYS}}
@@ -118,6 +114,29 @@ def _bench_run(ros2: bool, tmp: Path, domain_id: int, xml: Path) -> dict[str, An
         out["ros2"] = {k: r[k] for k in ("state", "dropped", "errors")} | {"published": sum(r["published"].values())}
         out["listener"] = heard
     return out
+
+
+#: how long the bench's listener may take to print its figures and exit after SIGTERM
+LISTENER_EXIT_S = 30.0
+
+
+def _stopped_listener(listener: subprocess.Popen) -> dict[str, Any]:
+    """SIGTERM to the listener, then its figures; ``{"error": ...}`` when it fails, prints nothing, or has not
+    exited within ``LISTENER_EXIT_S`` (then it is killed: the bench reports the rest rather than hang or
+    end in a traceback)."""
+    listener.send_signal(signal.SIGTERM)
+    try:
+        out, err = listener.communicate(timeout=LISTENER_EXIT_S)
+    except subprocess.TimeoutExpired:
+        listener.kill()
+        listener.communicate(timeout=10)
+        return {"error": f"the listener did not exit within {LISTENER_EXIT_S:g} s of SIGTERM (killed)"}
+    if listener.returncode != 0:
+        return {"error": f"the listener exited with {listener.returncode}: {err[-500:]}"}
+    try:
+        return json.loads(out)
+    except json.JSONDecodeError:
+        return {"error": f"the listener printed no JSON: {out[-200:]!r}"}
 
 
 def bench(args: argparse.Namespace) -> dict[str, Any]:
