@@ -786,17 +786,18 @@ def warm_up(config: EstimatorConfig | None = None) -> None:
     psm_warm_up(dataclasses.replace(cfg.psm, refine_iterations=max(cfg.psm.refine_iterations,
                                                                     cfg.no_odometry_refine_iterations)))
     b = np.linspace(-2.0, 2.0, 181)
+    r = 3.0 + 0.5 * np.sin(3.0 * b)  # a made-up scan of a wavy room
     grid = FreeSpaceGrid(cfg.static_map)
-    grid.integrate(0.0, (0.0, 0.0), 0.0, 3.0 + 0.5 * np.sin(3.0 * b), b)
+    grid.integrate(0.0, (0.0, 0.0), 0.0, r, b)
     grid.violates(np.array([[1.0, 0.0]]))
     grid.occupied_cells_around(1.0, 0.0, 0.1, 0.5, 1.0)
-    _nearest_within(3.0 + 0.5 * np.sin(3.0 * b), 2)
+    _nearest_within(r, 2)
     assign(np.array([[1.0, 2.0, 0.5], [0.3, 1.0, 2.0]]))
-    veiling_masks(3.0 + 0.5 * np.sin(3.0 * b), b, cfg.prefilter)  # the island and the ramp rules
+    veiling_masks(r, b, cfg.prefilter)  # the island and the ramp rules
     flow_warm_up(cfg.flow)
     legs_warm_up()
     memory = ScanMemory(cfg.seen_through)
-    memory.push(Pose2D(0.0, 0.0, 0.0), 3.0 + 0.5 * np.sin(3.0 * b), b)
+    memory.push(Pose2D(0.0, 0.0, 0.0), r, b)
     memory.seen_through(np.array([[1.0, 0.0], [2.0, 0.5]]))
     refine_fixed_radius(np.array([[1.0, 0.0], [1.1, 0.1], [1.0, 0.2]]), 1.2, 0.1, 0.2)
-    segment_features(3.0 + 0.5 * np.sin(3.0 * b), b, [(10, 20)], LegConfig())
+    segment_features(r, b, [(10, 20)], LegConfig())

@@ -131,7 +131,8 @@ def features(points: np.ndarray, front_left_m: float, front_right_m: float) -> n
     """The feature vector (``FEATURE_NAMES``) of a segment's returns ``points`` (k x 2, k >= 3, in scan
     order, in the laser frame: the range is the centroid's distance from the origin) and how far the
     nearest return beside it on each side lies behind its nearest point (``front_*_m``: negative when
-    in front, clipped to ``FRONT_CLIP_M``). Compiled: it runs for every leg-sized segment of every scan."""
+    in front, clipped to ``FRONT_CLIP_M``): one segment's row of :func:`segment_features`, which runs the same
+    compiled code over a whole scan's segments at once."""
     pts = np.ascontiguousarray(points, dtype=np.float64)
     return _features(pts[:, 0].copy(), pts[:, 1].copy(), float(front_left_m), float(front_right_m))
 
